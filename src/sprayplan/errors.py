@@ -1,0 +1,43 @@
+"""The few exception types a user of sprayplan can meet.
+
+Bad input (a broken file, a bad option, an empty region) raises an :class:`InputError`; the command line turns
+it into a one-line message and exit code 2. Failures that are expected inside a plan (an unreachable waypoint)
+are never exceptions: they are data in the stage's result.
+"""
+
+from __future__ import annotations
+
+import os
+
+
+class SprayplanError(Exception):
+    """Base class of every exception sprayplan raises on purpose."""
+
+
+class InputError(SprayplanError, ValueError):
+    """The user's input cannot be used: the message says what is wrong and where."""
+
+
+class PartFileError(InputError):
+    """A part file is missing, empty, of an unknown kind, or its content is broken.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file, named first in the message.
+    problem : str
+        What is wrong, in words a user can act on.
+    """
+
+    def __init__(self, path: str | os.PathLike, problem: str):
+        self.path = os.fspath(path)
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}")
+
+
+class ConfigError(InputError):
+    """An option or a configuration value is out of range or inconsistent."""
+
+
+class RegionError(InputError):
+    """A region expression cannot be parsed, or it selects nothing of the part."""

@@ -1,0 +1,45 @@
+"""Writers for result files. Every file is written to a temporary name and renamed when complete, so a failure
+never leaves a partial output file behind."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from pathlib import Path
+
+import numpy as np
+
+from sprayplan.types import Targets
+
+
+@contextlib.contextmanager
+def atomic_output(path: str | os.PathLike, mode: str = "w", **kwargs):
+    """Open ``path`` for writing through a temporary file that replaces it only on success.
+
+    Parents are created as needed. On any exception the temporary file is removed and ``path`` is untouched.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.part")
+    try:
+        with open(tmp, mode, **kwargs) as handle:
+            yield handle
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+        raise
+
+
+def write_targets_csv(path: str | os.PathLike, targets: Targets) -> None:
+    """Write targets as CSV with the header ``x,y,z,nx,ny,nz`` (mm, unit outward normals), one row a point."""
+    table = np.hstack([targets.points, targets.normals])
+    with atomic_output(path, "w", newline="") as handle:
+        handle.write("x,y,z,nx,ny,nz\n")
+        np.savetxt(handle, table, fmt=["%.6f"] * 3 + ["%.9f"] * 3, delimiter=",")
+
+
+def read_targets_csv(path: str | os.PathLike) -> Targets:
+    """Read a CSV written by :func:`write_targets_csv`."""
+    table = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    return Targets(table[:, :3], table[:, 3:6])

@@ -1,0 +1,235 @@
+"""The ``region`` stage: keep the part of a part that lies inside a convex region of half-spaces.
+
+A region is written as conditions on x, y, z (mm, part frame) joined by ``and``::
+
+    z > 1000
+    x >= -500 and x <= 500 and z > 1000
+    -500 < x < 500 and z > 1000          (chained comparison)
+    box(-500, -400, 1000, 500, 400, 1500)  (xmin, ymin, zmin, xmax, ymax, zmax)
+
+Seed 000 (section 6.1) paints "the part of the car roof where z > 1000 mm". Triangles that straddle a
+boundary are clipped to it, so nothing sampled from the result lies outside the region; the cut vertices are
+placed exactly on the boundary plane.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from sprayplan.errors import RegionError
+from sprayplan.types import Part
+
+_AXES = {"x": 0, "y": 1, "z": 2}
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_TOKEN = re.compile(rf"\s*(?:(?P<num>{_NUMBER})|(?P<axis>[xyzXYZ])\b|(?P<op><=|>=|<|>))\s*")
+_BOX = re.compile(rf"^\s*box\s*\(\s*((?:{_NUMBER}\s*,\s*){{5}}{_NUMBER})\s*\)\s*$", re.IGNORECASE)
+
+
+@dataclass(frozen=True)
+class Region:
+    """An intersection of axis-aligned half-spaces ``sign * p[axis] <= sign * value``.
+
+    Attributes
+    ----------
+    axis : (k,) int
+        0, 1, 2 for x, y, z.
+    sign : (k,) float
+        +1 for an upper bound (``p[axis] <= value``), -1 for a lower bound (``p[axis] >= value``).
+    value : (k,) float, mm
+    text : str
+        The expression it was parsed from.
+    """
+
+    axis: np.ndarray
+    sign: np.ndarray
+    value: np.ndarray
+    text: str = ""
+
+    def contains(self, points: np.ndarray, tol_mm: float = 0.0) -> np.ndarray:
+        """(n,) bool: which points lie in the region (within ``tol_mm``)."""
+        points = np.asarray(points, dtype=float)
+        inside = np.ones(len(points), dtype=bool)
+        for axis, sign, value in zip(self.axis, self.sign, self.value):
+            inside &= sign * (points[:, axis] - value) <= tol_mm
+        return inside
+
+
+def parse_region(text: str) -> Region:
+    """Parse a region expression (see the module docstring).
+
+    Raises
+    ------
+    RegionError
+        With the clause that could not be read.
+    """
+    axes, signs, values = [], [], []
+    if not text or not text.strip():
+        raise RegionError("empty region expression")
+    for clause in re.split(r"\band\b|&&|&|,(?![^()]*\))", text, flags=re.IGNORECASE):
+        if not clause.strip():
+            raise RegionError(f"region {text!r}: empty condition around 'and'")
+        box = _BOX.match(clause)
+        if box:
+            lo_hi = [float(v) for v in box.group(1).split(",")]
+            lo, hi = np.array(lo_hi[:3]), np.array(lo_hi[3:])
+            if np.any(lo > hi):
+                raise RegionError(f"region {text!r}: box minimum exceeds maximum")
+            for axis in range(3):
+                axes += [axis, axis]
+                signs += [-1.0, 1.0]
+                values += [lo[axis], hi[axis]]
+            continue
+        for axis, sign, value in _parse_comparison(clause, text):
+            axes.append(axis)
+            signs.append(sign)
+            values.append(value)
+    values_arr = np.array(values, dtype=float)
+    if not np.isfinite(values_arr).all():
+        raise RegionError(f"region {text!r}: bounds must be finite numbers")
+    return Region(np.array(axes, dtype=int), np.array(signs, dtype=float), values_arr, text.strip())
+
+
+def _parse_comparison(clause: str, text: str):
+    tokens, pos = [], 0
+    while pos < len(clause):
+        match = _TOKEN.match(clause, pos)
+        if not match or match.end() == pos:
+            raise RegionError(
+                f"region {text!r}: cannot read {clause[pos:].strip()!r} "
+                "(write conditions like 'z > 1000' joined by 'and', or box(x0,y0,z0,x1,y1,z1))"
+            )
+        kind = match.lastgroup
+        tokens.append((kind, match.group(kind)))
+        pos = match.end()
+    kinds = [k for k, _ in tokens]
+    if len(tokens) < 3 or len(tokens) % 2 == 0 or any(k != "op" for k in kinds[1::2]) or "op" in kinds[0::2]:
+        raise RegionError(f"region {text!r}: {clause.strip()!r} is not a comparison like 'z > 1000'")
+    out = []
+    for i in range(1, len(tokens), 2):
+        (lk, lv), (_, op), (rk, rv) = tokens[i - 1], tokens[i], tokens[i + 1]
+        if lk == "axis" and rk == "num":
+            axis, value, upper = _AXES[lv.lower()], float(rv), op.startswith("<")
+        elif lk == "num" and rk == "axis":
+            axis, value, upper = _AXES[rv.lower()], float(lv), op.startswith(">")
+        else:
+            raise RegionError(f"region {text!r}: {clause.strip()!r} must compare one axis with one number")
+        out.append((axis, 1.0 if upper else -1.0, value))
+    return out
+
+
+def select_region(part: Part, region: Region | str | None) -> Part:
+    """The part of ``part`` inside ``region``; straddling triangles are clipped.
+
+    Parameters
+    ----------
+    part : Part
+    region : Region, str or None
+        None returns the part unchanged.
+
+    Returns
+    -------
+    Part
+        A mesh keeps its winding; a point cloud keeps the points (and normals) inside.
+
+    Raises
+    ------
+    RegionError
+        When nothing of the part lies inside the region.
+    """
+    if region is None:
+        return part
+    if isinstance(region, str):
+        region = parse_region(region)
+    if not part.is_mesh:
+        keep = region.contains(part.vertices)
+        if not keep.any():
+            _raise_empty(part, region)
+        normals = None if part.vertex_normals is None else part.vertex_normals[keep]
+        return Part(part.vertices[keep], part.faces, normals, part.name)
+    vertices, faces = part.vertices, part.faces
+    for axis, sign, value in zip(region.axis, region.sign, region.value):
+        vertices, faces = clip_halfspace(vertices, faces, int(axis), float(sign), float(value))
+        if len(faces) == 0:
+            _raise_empty(part, region)
+    # a region that only touches the part along a line or at a point leaves zero-area slivers
+    tri = vertices[faces]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    faces = faces[area > 0]
+    if len(faces) == 0:
+        _raise_empty(part, region)
+    used = np.zeros(len(vertices), dtype=bool)
+    used[faces.reshape(-1)] = True
+    remap = np.cumsum(used) - 1
+    return Part(vertices[used], remap[faces], None, part.name)
+
+
+def _raise_empty(part: Part, region: Region):
+    lo, hi = part.bounds
+    span = ", ".join(f"{a} {lo[i]:.6g}..{hi[i]:.6g}" for a, i in _AXES.items())
+    raise RegionError(f"{part.name}: region {region.text!r} contains no part of it (the part spans {span} mm)")
+
+
+def clip_halfspace(
+    vertices: np.ndarray, faces: np.ndarray, axis: int, sign: float, value: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Clip a triangle mesh to the half-space ``sign * (p[axis] - value) <= 0``.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+    faces : (m, 3) int
+    axis : int
+    sign : float
+        +1 keeps ``p[axis] <= value``, -1 keeps ``p[axis] >= value``.
+    value : float
+
+    Returns
+    -------
+    vertices : (n + k, 3) float
+        The input vertices followed by one new vertex per cut edge, lying exactly on the plane. A cut edge
+        shared by two triangles gets one vertex, so the clipped mesh stays connected.
+    faces : (j, 3) int
+        Faces inside (or clipped to) the half-space, wound as the originals.
+    """
+    s = sign * (vertices[:, axis] - value)
+    inside = s <= 0.0
+    count = inside[faces].sum(axis=1)
+    keep = faces[count == 3]
+    one = faces[count == 1]
+    two = faces[count == 2]
+    # roll each clipped face so that its odd vertex comes first (a cyclic roll keeps the winding)
+    one = _roll_first(one, inside[one])
+    two = _roll_first(two, ~inside[two])
+    # cut edges as (inside vertex, outside vertex); both faces of a shared edge name it the same way
+    edges = np.concatenate(
+        [one[:, [0, 1]], one[:, [0, 2]], two[:, [1, 0]], two[:, [2, 0]]]
+    ).reshape(-1, 2)
+    if len(edges) == 0:
+        return vertices, keep
+    unique, inverse = np.unique(edges, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    v_in, v_out = vertices[unique[:, 0]], vertices[unique[:, 1]]
+    s_in, s_out = s[unique[:, 0]], s[unique[:, 1]]
+    t = s_in / (s_in - s_out)
+    cut = v_in + t[:, None] * (v_out - v_in)
+    cut[:, axis] = value
+    new_id = len(vertices) + inverse
+    n1, n2 = len(one), len(two)
+    p01_one, p02_one = new_id[:n1], new_id[n1 : 2 * n1]
+    p01_two, p02_two = new_id[2 * n1 : 2 * n1 + n2], new_id[2 * n1 + n2 :]
+    new_faces = [
+        keep,
+        np.stack([one[:, 0], p01_one, p02_one], axis=1),
+        np.stack([p01_two, two[:, 1], two[:, 2]], axis=1),
+        np.stack([p01_two, two[:, 2], p02_two], axis=1),
+    ]
+    return np.vstack([vertices, cut]), np.vstack(new_faces).astype(np.int64)
+
+
+def _roll_first(faces: np.ndarray, odd: np.ndarray) -> np.ndarray:
+    first = np.argmax(odd, axis=1)
+    idx = (first[:, None] + np.arange(3)[None, :]) % 3
+    return np.take_along_axis(faces, idx, axis=1)

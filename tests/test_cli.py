@@ -1,0 +1,136 @@
+"""The command line, run in-process: outputs, summaries, and one-line errors with exit code 2."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sprayplan import __version__
+from sprayplan.cli import main
+from sprayplan.io.stl import write_stl_binary
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_help_and_version(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["--help"])
+    assert info.value.code == 0
+    assert "targets" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0
+    assert __version__ in capsys.readouterr().out
+
+
+def test_targets_writes_the_csv(testdata, tmp_path, capsys):
+    out = tmp_path / "deep" / "t.csv"
+    code, stdout, _ = run(
+        capsys, "targets", str(testdata / "meshes" / "tray_bottom_mm_ascii.stl"), "-o", str(out), "--up", "y",
+        "--spacing-mm", "10",
+    )
+    assert code == 0
+    lines = out.read_text().splitlines()
+    assert lines[0] == "x,y,z,nx,ny,nz"
+    table = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert f"{len(table)} targets" in stdout and str(out) in stdout
+    np.testing.assert_allclose(np.linalg.norm(table[:, 3:], axis=1), 1.0, atol=1e-8)
+    # the tray turned z-up is a 3.175 mm plate: every target is on its top, bottom or rim
+    assert table[:, 2].min() >= -1e-6 and table[:, 2].max() <= 3.175 + 1e-6
+
+
+def test_spray_radius_and_overlap_set_the_spacing(testdata, tmp_path, capsys):
+    code, stdout, _ = run(
+        capsys, "targets", str(testdata / "meshes" / "reach_curved_part.ply"), "--units", "m", "-o",
+        str(tmp_path / "t.csv"), "--spray-radius-mm", "50", "--overlap", "0.4",
+    )
+    assert code == 0 and "spacing 49.19 mm" in stdout
+
+
+def test_region_keeps_every_target_inside(testdata, tmp_path, capsys):
+    out = tmp_path / "r.csv"
+    code, _, _ = run(
+        capsys, "targets", str(testdata / "meshes" / "reach_curved_part.ply"), "--units", "m", "-o", str(out),
+        "--region", "z > 100 and x < -400", "--fill", "line", "--spacing-mm", "20",
+    )
+    assert code == 0
+    table = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert table[:, 2].min() >= 100 - 1e-9 and table[:, 0].max() <= -400 + 1e-9
+
+
+def test_demo_runs_on_the_bundled_roof(tmp_path, capsys):
+    code, stdout, _ = run(capsys, "demo", "-o", str(tmp_path))
+    assert code == 0
+    assert (tmp_path / "roof.stl").stat().st_size > 84
+    table = np.loadtxt(tmp_path / "targets.csv", delimiter=",", skiprows=1)
+    assert table[:, 2].min() >= 1000 - 1e-9  # seed 000's region z > 1000
+    span = np.ptp(table[:, :2], axis=0)
+    assert 2500 < span[0] <= 2635 and 1800 < span[1] <= 1959
+    assert "targets" in stdout
+
+
+def _bad_inputs(tmp_path, testdata):
+    tray = (testdata / "meshes" / "tray_bottom_mm_ascii.stl").read_bytes()
+    cases = {
+        "missing.stl": None,
+        "empty.stl": b"",
+        "part.step": b"ISO-10303-21;",
+        "truncated.stl": write_stl_binary(np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]]] * 3, float))[:-20],
+        "words.xyz": b"1 2 3\n4 five 6\n",
+        "nan.xyz": b"1 2 3\nnan 5 6\n",
+        "inf.stl": write_stl_binary(np.array([[[0, 0, 0], [1, 0, 0], [np.inf, 1, 0]]], float)),
+        "flat.stl": write_stl_binary(np.array([[[0, 0, 0], [1, 1, 1], [2, 2, 2]]], float)),
+        "cut.stl": tray[: len(tray) // 2],
+    }
+    for name, data in cases.items():
+        if data is not None:
+            (tmp_path / name).write_bytes(data)
+    return list(cases)
+
+
+@pytest.mark.parametrize(
+    "name, words",
+    [
+        ("missing.stl", "no such file"),
+        ("empty.stl", "empty"),
+        ("part.step", "unknown file type"),
+        ("truncated.stl", "truncated"),
+        ("words.xyz", "line 2"),
+        ("nan.xyz", "NaN"),
+        ("inf.stl", "infinite"),
+        ("flat.stl", "positive area"),
+        ("cut.stl", "truncated"),
+    ],
+)
+def test_bad_files_give_one_line_and_exit_2(testdata, tmp_path, capsys, name, words):
+    _bad_inputs(tmp_path, testdata)
+    out = tmp_path / "out.csv"
+    code, stdout, err = run(capsys, "targets", str(tmp_path / name), "-o", str(out))
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("sprayplan: error: ") and name in lines[0] and words in lines[0]
+    assert "Traceback" not in err and not out.exists()
+    assert not list(tmp_path.glob(".out.csv*"))
+
+
+@pytest.mark.parametrize(
+    "extra, words",
+    [
+        (["--region", "z > 99999"], "contains no part"),
+        (["--region", "q > 1"], "cannot read"),
+        (["--spacing-mm", "10", "--overlap", "0.4"], "not both"),
+        (["--overlap", "1.5"], "overlap"),
+        (["--spacing-mm", "-3"], "spacing_mm"),
+    ],
+)
+def test_bad_options_give_one_line_and_exit_2(testdata, tmp_path, capsys, extra, words):
+    out = tmp_path / "out.csv"
+    part = str(testdata / "meshes" / "tray_bottom_mm_ascii.stl")
+    code, _, err = run(capsys, "targets", part, "-o", str(out), *extra)
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1 and words in err and not out.exists()

@@ -1,0 +1,346 @@
+"""Target points (seed 000, section 2): filling, even sampling, normals, orientation, poses, overlap, compression."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+from scipy.integrate import quad
+from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
+
+from sprayplan.config import TargetsConfig
+from sprayplan.demo import car_roof
+from sprayplan.errors import ConfigError
+from sprayplan.io.load import load_part
+from sprayplan.surface import compress, coverage, filling, normals as nm, poses
+from sprayplan.surface.region import select_region
+from sprayplan.surface.targets import make_targets
+from sprayplan.types import Part
+
+SEED_TRIANGLE = np.array([[[10.0, 10.0, 0.0], [520.0, 100.0, 0.0], [260.0, 410.0, 0.0]]])  # seed 000, fig. 4
+
+
+# ---------------------------------------------------------------- independent references used by the tests
+
+
+def reference_dfs(tri, h_min, mode):
+    """The seed's recursion written plainly: Heron's formula as printed, depth first."""
+    out = []
+
+    def visit(a, b, c):
+        l1, l2, l3 = np.linalg.norm(b - a), np.linalg.norm(c - b), np.linalg.norm(a - c)
+        e = (l1 + l2 + l3) / 2
+        s = np.sqrt(max(e * (e - l1) * (e - l2) * (e - l3), 0.0))
+        if s < max(l1, l2, l3) * h_min / 2:
+            return
+        o = (a + b + c) / 3
+        out.append(o)
+        if mode == "line":
+            for v in (a, b, c):
+                length = np.linalg.norm(v - o)
+                k = 1
+                while k * h_min < length - 1e-9:
+                    out.append(o + k * h_min / length * (v - o))
+                    k += 1
+        visit(o, a, b)
+        visit(o, b, c)
+        visit(o, c, a)
+
+    visit(*tri)
+    return np.array(out)
+
+
+def barycentric_inside(points, triangles, tol=1e-9):
+    """True where each point lies in its triangle's plane and inside it."""
+    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
+    n = np.cross(b - a, c - a)
+    area2 = np.linalg.norm(n, axis=1)
+    off_plane = np.abs(np.einsum("ij,ij->i", points - a, n)) / area2
+    w_a = np.einsum("ij,ij->i", np.cross(c - b, points - b), n) / area2**2
+    w_b = np.einsum("ij,ij->i", np.cross(a - c, points - c), n) / area2**2
+    w_c = 1 - w_a - w_b
+    scale = np.ptp(triangles.reshape(-1, 3), axis=0).max()
+    return (off_plane <= tol * scale) & (w_a >= -tol) & (w_b >= -tol) & (w_c >= -tol)
+
+
+def winding_number(points, triangles, chunk=8):
+    """Generalised winding number (solid angles, Van Oosterom & Strackee): 1 inside a closed mesh, 0 outside."""
+    out = []
+    for start in range(0, len(points), chunk):
+        p = points[start : start + chunk, None, None, :]
+        v = triangles[None] - p
+        a, b, c = v[:, :, 0], v[:, :, 1], v[:, :, 2]
+        la, lb, lc = (np.linalg.norm(x, axis=-1) for x in (a, b, c))
+        det = np.einsum("pij,pij->pi", a, np.cross(b, c))
+        dot = lambda x, y: np.einsum("pij,pij->pi", x, y)  # noqa: E731
+        den = la * lb * lc + dot(a, b) * lc + dot(a, c) * lb + dot(b, c) * la
+        out.append(2 * np.arctan2(det, den).sum(axis=1) / (4 * np.pi))
+    return np.concatenate(out)
+
+
+# ---------------------------------------------------------------- DFS filling (section 2.2)
+
+
+@pytest.mark.parametrize("mode", ["point", "line"])
+@pytest.mark.parametrize("h_min", [20.0, 7.5])
+def test_dfs_matches_the_plain_recursion(mode, h_min):
+    points, face = filling.fill_dfs(SEED_TRIANGLE, h_min, mode)
+    expected = reference_dfs(SEED_TRIANGLE[0], h_min, mode)
+    assert len(points) == len(expected)
+    order = np.lexsort(points.T)
+    np.testing.assert_allclose(points[order], expected[np.lexsort(expected.T)], atol=1e-9)
+    assert (face == 0).all()
+
+
+def test_dfs_points_lie_in_their_triangles(testdata):
+    part = load_part(testdata / "meshes" / "reach_curved_part.ply", units="m")
+    for mode in ("point", "line"):
+        points, face = filling.fill_dfs(part.triangles, 5.0, mode)
+        assert len(points) > len(part.faces)
+        assert barycentric_inside(points, part.triangles[face]).all()
+
+
+def test_line_filling_fills_more_than_point_filling():
+    point, _ = filling.fill_dfs(SEED_TRIANGLE, 2.0, "point")
+    line, _ = filling.fill_dfs(SEED_TRIANGLE, 2.0, "line")
+    assert len(line) > 3 * len(point)
+
+
+def test_dfs_refuses_a_spacing_that_would_explode():
+    with pytest.raises(ConfigError, match="more than"):
+        filling.fill_dfs(SEED_TRIANGLE * 1e4, 1e-3, "line")
+
+
+# ---------------------------------------------------------------- even sampling
+
+
+def test_poisson_disk_select_is_the_sequential_greedy_and_maximal():
+    rng = np.random.default_rng(3)
+    points = rng.random((4000, 3)) * np.array([100, 100, 5])
+    keep = filling.poisson_disk_select(points, 4.0)
+    greedy, blocked = [], np.zeros(len(points), bool)
+    tree = cKDTree(points)
+    for i in range(len(points)):
+        if not blocked[i]:
+            greedy.append(i)
+            blocked[tree.query_ball_point(points[i], 4.0)] = True
+    np.testing.assert_array_equal(keep, greedy)
+    kept_tree = cKDTree(points[keep])
+    assert kept_tree.query(points[keep], k=2)[0][:, 1].min() > 4.0
+    assert kept_tree.query(points)[0].max() <= 4.0  # maximal: every candidate is covered
+
+
+def test_even_sampling_on_a_real_part(testdata):
+    part = load_part(testdata / "meshes" / "reach_curved_part.ply", units="m")
+    points, face = filling.sample_even(part.triangles, 10.0, seed=5)
+    assert barycentric_inside(points, part.triangles[face]).all()
+    nn = cKDTree(points).query(points, k=2)[0][:, 1]
+    assert nn.min() > 10.0
+    # density of a random close packing of disks: between 0.4 and 0.7 points per spacing^2
+    assert 0.4 < len(points) * 100.0 / part.area < 0.7
+    again, _ = filling.sample_even(part.triangles, 10.0, seed=5)
+    np.testing.assert_array_equal(points, again)
+    other, _ = filling.sample_even(part.triangles, 10.0, seed=6)
+    assert not np.array_equal(points[: len(other)], other[: len(points)])
+
+
+# ---------------------------------------------------------------- normals and orientation (section 2.3)
+
+
+def test_scrambled_winding_is_restored_on_the_hull(testdata):
+    hull = load_part(testdata / "meshes" / "dtc_ship_hull_ascii.stl.gz", units="m")
+    rng = np.random.default_rng(0)
+    flip = rng.random(len(hull.faces)) < 0.3
+    scrambled = np.where(flip[:, None], hull.faces[:, ::-1], hull.faces)
+    faces, normals = nm.outward_face_normals(hull.vertices, scrambled)
+    np.testing.assert_array_equal(normals, nm.face_normals(hull.vertices, hull.faces))
+    assert trimesh.Trimesh(hull.vertices, faces, process=False).volume > 0
+
+
+def test_scrambled_open_sheet_faces_up():
+    roof = select_region(car_roof(resolution_mm=100.0), "z > 1000")
+    flip = np.random.default_rng(1).random(len(roof.faces)) < 0.5
+    faces, normals = nm.outward_face_normals(roof.vertices, np.where(flip[:, None], roof.faces[:, ::-1], roof.faces))
+    assert (normals[:, 2] > 0).all()
+
+
+def test_hull_targets_point_out_of_the_solid(testdata):
+    hull = load_part(testdata / "meshes" / "dtc_ship_hull_ascii.stl.gz", units="m")
+    targets = make_targets(hull, TargetsConfig(spacing_mm=40.0))
+    pick = np.random.default_rng(2).choice(len(targets), 160, replace=False)
+    p, n = targets.points[pick], targets.normals[pick]
+    eps = 0.5  # mm; the hull is 6 m long, its thinnest parts are tens of mm thick
+    outside = winding_number(p + eps * n, hull.triangles)
+    inside = winding_number(p - eps * n, hull.triangles)
+    np.testing.assert_allclose(outside, 0.0, atol=1e-6)
+    np.testing.assert_allclose(inside, 1.0, atol=1e-6)
+
+
+def test_normals_are_unit_and_match_faces_on_smooth_regions(testdata):
+    part = load_part(testdata / "meshes" / "reach_curved_part.ply", units="m")
+    even = make_targets(part, TargetsConfig(spacing_mm=5.0, compress="none"))
+    np.testing.assert_allclose(np.linalg.norm(even.normals, axis=1), 1.0, atol=1e-12)
+    faces, face_n = nm.outward_face_normals(part.vertices, part.faces)
+    np.testing.assert_allclose(even.normals, face_n[even.face_index])
+    # PCA normals: where every neighbour within r lies on faces within 3 deg of each other, the fitted plane
+    # is a weighted mean of nearly parallel planes, so its normal must lie within 3 deg of the face normal
+    radius = 15.0
+    pca = make_targets(part, TargetsConfig(spacing_mm=5.0, compress="none", normals="pca", normal_radius_mm=radius))
+    np.testing.assert_array_equal(pca.points, even.points)
+    tree = cKDTree(even.points)
+    own = face_n[even.face_index]
+    smooth = np.array(
+        [np.min(own[nb] @ own[i]) > np.cos(np.radians(3.0)) for i, nb in enumerate(tree.query_ball_point(even.points, radius))]
+    )
+    assert smooth.mean() > 0.5
+    angle = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", pca.normals, own), -1, 1)))
+    assert angle[smooth].max() < 3.0
+
+
+def test_dfs_vertex_normals_follow_the_mesh(testdata):
+    part = load_part(testdata / "meshes" / "reach_curved_part.ply", units="m")
+    targets = make_targets(part, TargetsConfig(fill="point", spacing_mm=10.0, compress="none"))
+    is_vertex = targets.face_index == -1
+    assert is_vertex.sum() == len(part.vertices)
+    faces, face_n = nm.outward_face_normals(part.vertices, part.faces)
+    reference = nm.vertex_normals(part.vertices, faces, face_n)
+    assert (np.einsum("ij,ij->i", targets.normals[is_vertex], reference) > 0).all()
+    np.testing.assert_allclose(np.linalg.norm(targets.normals, axis=1), 1.0, atol=1e-9)
+
+
+def torus_points(n, major=300.0, minor=100.0, seed=0):
+    rng = np.random.default_rng(seed)
+    u, v = rng.random(n) * 2 * np.pi, rng.random(n) * 2 * np.pi
+    centre = np.stack([major * np.cos(u), major * np.sin(u), np.zeros(n)], 1)
+    normal = np.stack([np.cos(v) * np.cos(u), np.cos(v) * np.sin(u), np.sin(v)], 1)
+    return centre + minor * normal, normal
+
+
+def test_centroid_rule_fails_on_a_torus_where_the_robust_methods_do_not():
+    points, true_normal = torus_points(6000)
+    pca = nm.pca_normals(points, 40.0, center="mean")
+    by_centroid = nm.orient_centroid(points, pca)
+    by_propagation = nm.orient_propagate(points, pca)
+    inner = np.einsum("ij,ij->i", points, true_normal) < 0  # the inner ring faces the centroid
+    assert (np.einsum("ij,ij->i", by_centroid[inner], true_normal[inner]) < 0).mean() > 0.9
+    assert (np.einsum("ij,ij->i", by_propagation, true_normal) > 0).all()
+    # and on a torus mesh, the mesh method keeps every face outward
+    mesh = trimesh.creation.torus(major_radius=300.0, minor_radius=100.0)
+    targets = make_targets(Part(mesh.vertices, mesh.faces, None, "torus"), TargetsConfig(spacing_mm=20.0))
+    ring = np.hypot(targets.points[:, 0], targets.points[:, 1])
+    radial = np.stack([targets.points[:, 0] / ring, targets.points[:, 1] / ring, np.zeros(len(ring))], 1)
+    tube_centre = 300.0 * radial
+    assert (np.einsum("ij,ij->i", targets.normals, targets.points - tube_centre) > 0).all()
+
+
+def test_point_cloud_normals_agree_with_the_files_normals(testdata):
+    cloud = load_part(testdata / "pointclouds" / "reach_part_normals_ascii.pcd", units="m")
+    ours = make_targets(cloud, TargetsConfig(spacing_mm=50.0, compress="none", orient="propagate"))
+    dots = np.einsum("ij,ij->i", ours.normals, cloud.vertex_normals)
+    well_defined = np.abs(dots) > 0.5  # 262 sparse points: a few lie on the rim where no plane fits
+    assert well_defined.mean() > 0.9
+    assert (dots[well_defined] > 0).all()
+
+
+@pytest.mark.parametrize("name", ["pcl_car6.pcd", "pcl_milk.pcd", "pcl_car6.derived.xyz"])
+def test_targets_from_real_clouds(testdata, name):
+    cloud = load_part(testdata / "pointclouds" / name, units="m")
+    targets = make_targets(cloud, TargetsConfig(spacing_mm=20.0))
+    np.testing.assert_allclose(np.linalg.norm(targets.normals, axis=1), 1.0, atol=1e-9)
+    # compressed targets are real cloud points, at most one per eq. 7 cell
+    assert cKDTree(cloud.vertices).query(targets.points)[0].max() == 0.0
+    cells = np.round(targets.points / compress.grid_step(20.0))
+    assert len(np.unique(cells, axis=0)) == len(targets)
+
+
+# ---------------------------------------------------------------- poses (section 2.4)
+
+
+def test_rodrigues_turns_z_onto_the_axis():
+    rng = np.random.default_rng(4)
+    axes = nm.unit(rng.normal(size=(500, 3)))
+    axes = np.vstack([axes, [[0, 0, 1], [0, 0, -1], [1e-14, 0, -1]]])
+    rot = poses.rotation_from_z(axes)
+    np.testing.assert_allclose(rot @ np.array([0, 0, 1.0]), nm.unit(axes), atol=1e-12)
+    np.testing.assert_allclose(rot @ rot.transpose(0, 2, 1), np.broadcast_to(np.eye(3), rot.shape), atol=1e-12)
+    np.testing.assert_allclose(np.linalg.det(rot), 1.0, atol=1e-12)
+    # the same rotation as scipy's, built from the axis-angle of z x a
+    angle = np.arccos(np.clip(axes[:500, 2], -1, 1))
+    axis = nm.unit(np.cross([0, 0, 1.0], axes[:500]))
+    np.testing.assert_allclose(rot[:500], Rotation.from_rotvec(axis * angle[:, None]).as_matrix(), atol=1e-12)
+
+
+def test_tool_pose_puts_the_gun_at_the_standoff_looking_at_the_point():
+    points = np.array([[0.0, 0, 0], [100, 50, 20]])
+    normals = nm.unit(np.array([[0.0, 0, 1], [1, 1, 0]]))
+    tool2part = poses.tool_poses(points, normals, 113.0)
+    np.testing.assert_allclose(tool2part[:, :3, 3], points + 113.0 * normals)
+    np.testing.assert_allclose(tool2part[:, :3, 2], -normals, atol=1e-12)
+    # the gun's z axis reaches the surface point after the standoff
+    np.testing.assert_allclose(tool2part[:, :3, 3] + 113.0 * tool2part[:, :3, 2], points, atol=1e-9)
+
+
+# ---------------------------------------------------------------- overlap (section 2.5, eq. 6)
+
+
+def lens_by_quadrature(d, r):
+    def chord(x):
+        return 2 * max(0.0, min(np.sqrt(max(r * r - x * x, 0)), np.sqrt(max(r * r - (x - d) ** 2, 0))))
+
+    return quad(chord, d - r, r, limit=200)[0] if d < 2 * r else 0.0
+
+
+@pytest.mark.parametrize("d", [0.0, 5.0, 30.0, 49.186, 70.0, 99.0, 100.0, 150.0])
+def test_overlap_ratio_is_lens_area_over_one_circle(d):
+    r = 50.0
+    expected = lens_by_quadrature(d, r) / (np.pi * r * r)
+    assert coverage.overlap_ratio(d, r) == pytest.approx(expected, abs=1e-7)
+
+
+def test_spacing_for_overlap_inverts_eq6():
+    for p in (0.0, 0.1, 0.4, 0.75, 0.99):
+        d = coverage.spacing_for_overlap(p, 50.0)
+        assert coverage.overlap_ratio(d, 50.0) == pytest.approx(p, abs=1e-12)
+    # the seed's setting: r = 50 mm, overlap 0.4
+    assert coverage.spacing_for_overlap(0.4, 50.0) == pytest.approx(49.186, abs=1e-3)
+    with pytest.raises(ConfigError):
+        coverage.spacing_for_overlap(1.0, 50.0)
+
+
+# ---------------------------------------------------------------- compression (eq. 7)
+
+
+def test_grid_compression_is_eq7():
+    rng = np.random.default_rng(7)
+    points = rng.random((5000, 3)) * 300
+    normals = nm.unit(rng.normal(size=(5000, 3)))
+    out, out_n = compress.compress_grid(points, normals, 49.19)
+    k = np.floor(49.19 / np.sqrt(3))
+    assert k == 28
+    np.testing.assert_array_equal(out, np.unique(np.round(points / k) * k, axis=0))
+    np.testing.assert_allclose(np.linalg.norm(out_n, axis=1), 1.0)
+    # every original point is within half a cell diagonal of its node
+    assert cKDTree(out).query(points)[0].max() <= k * np.sqrt(3) / 2 + 1e-9
+
+
+def test_surface_compression_keeps_one_real_point_per_cell(testdata):
+    part = load_part(testdata / "meshes" / "reach_curved_part.ply", units="m")
+    dense = make_targets(part, TargetsConfig(fill="line", spacing_mm=30.0, compress="none"))
+    kept = make_targets(part, TargetsConfig(fill="line", spacing_mm=30.0, compress="surface"))
+    grid = make_targets(part, TargetsConfig(fill="line", spacing_mm=30.0, compress="grid"))
+    assert len(kept) == len(grid) < len(dense)
+    # kept points are real targets: on the surface with their own normals
+    dist, idx = cKDTree(dense.points).query(kept.points)
+    assert dist.max() == 0.0
+    np.testing.assert_array_equal(kept.normals, dense.normals[idx])
+    # grid nodes are off the surface; the surface variant is not
+    assert cKDTree(dense.points).query(grid.points)[0].max() > 1.0
+
+
+def test_seeded_targets_repeat(testdata):
+    part = load_part(testdata / "meshes" / "noether_raw_scan_mesh.ply", units="m")
+    a = make_targets(part, TargetsConfig(spacing_mm=10.0, seed=11))
+    b = make_targets(part, TargetsConfig(spacing_mm=10.0, seed=11))
+    np.testing.assert_array_equal(a.points, b.points)
+    np.testing.assert_array_equal(a.normals, b.normals)
