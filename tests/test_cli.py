@@ -30,8 +30,15 @@ def test_help_and_version(capsys):
 def test_targets_writes_the_csv(testdata, tmp_path, capsys):
     out = tmp_path / "deep" / "t.csv"
     code, stdout, _ = run(
-        capsys, "targets", str(testdata / "meshes" / "tray_bottom_mm_ascii.stl"), "-o", str(out), "--up", "y",
-        "--spacing-mm", "10",
+        capsys,
+        "targets",
+        str(testdata / "meshes" / "tray_bottom_mm_ascii.stl"),
+        "-o",
+        str(out),
+        "--up",
+        "y",
+        "--spacing-mm",
+        "10",
     )
     assert code == 0
     lines = out.read_text().splitlines()
@@ -45,8 +52,17 @@ def test_targets_writes_the_csv(testdata, tmp_path, capsys):
 
 def test_spray_radius_and_overlap_set_the_spacing(testdata, tmp_path, capsys):
     code, stdout, _ = run(
-        capsys, "targets", str(testdata / "meshes" / "reach_curved_part.ply"), "--units", "m", "-o",
-        str(tmp_path / "t.csv"), "--spray-radius-mm", "50", "--overlap", "0.4",
+        capsys,
+        "targets",
+        str(testdata / "meshes" / "reach_curved_part.ply"),
+        "--units",
+        "m",
+        "-o",
+        str(tmp_path / "t.csv"),
+        "--spray-radius-mm",
+        "50",
+        "--overlap",
+        "0.4",
     )
     assert code == 0 and "spacing 49.19 mm" in stdout
 
@@ -54,8 +70,19 @@ def test_spray_radius_and_overlap_set_the_spacing(testdata, tmp_path, capsys):
 def test_region_keeps_every_target_inside(testdata, tmp_path, capsys):
     out = tmp_path / "r.csv"
     code, _, _ = run(
-        capsys, "targets", str(testdata / "meshes" / "reach_curved_part.ply"), "--units", "m", "-o", str(out),
-        "--region", "z > 100 and x < -400", "--fill", "line", "--spacing-mm", "20",
+        capsys,
+        "targets",
+        str(testdata / "meshes" / "reach_curved_part.ply"),
+        "--units",
+        "m",
+        "-o",
+        str(out),
+        "--region",
+        "z > 100 and x < -400",
+        "--fill",
+        "line",
+        "--spacing-mm",
+        "20",
     )
     assert code == 0
     table = np.loadtxt(out, delimiter=",", skiprows=1)
@@ -109,7 +136,7 @@ def _bad_inputs(tmp_path, testdata):
 def test_bad_files_give_one_line_and_exit_2(testdata, tmp_path, capsys, name, words):
     _bad_inputs(tmp_path, testdata)
     out = tmp_path / "out.csv"
-    code, stdout, err = run(capsys, "targets", str(tmp_path / name), "-o", str(out))
+    code, _stdout, err = run(capsys, "targets", str(tmp_path / name), "-o", str(out))
     assert code == 2
     lines = err.strip().splitlines()
     assert len(lines) == 1, err

@@ -110,22 +110,26 @@ def test_up_axis_turns_the_model_to_z_up(testdata, up):
     assert turned.area == pytest.approx(tray.area, rel=1e-12)
 
 
-def test_obj_with_missing_material_loads_as_geometry(tmp_path):
+def test_obj_with_missing_material_loads_as_geometry(tmp_path, caplog):
     obj = tmp_path / "panel.obj"
     obj.write_text(
         "mtllib missing.mtl\nusemtl paint\n"
         "v 0 0 0\nv 100 0 0\nv 100 100 0\nv 0 100 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
         "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n"
     )
-    part = load_part(obj)
+    with caplog.at_level(logging.INFO, logger="sprayplan"):
+        part = load_part(obj)
     assert len(part.faces) == 2
     assert part.area == pytest.approx(10000.0)
+    assert any("ignoring material" in r.getMessage() for r in caplog.records)
 
 
 def test_ply_without_faces_is_a_point_cloud(tmp_path):
     ply = tmp_path / "cloud.ply"
     points = np.random.default_rng(0).random((50, 3)) * 100
-    header = "ply\nformat ascii 1.0\nelement vertex 50\nproperty float x\nproperty float y\nproperty float z\nend_header\n"
+    header = (
+        "ply\nformat ascii 1.0\nelement vertex 50\nproperty float x\nproperty float y\nproperty float z\nend_header\n"
+    )
     ply.write_text(header + "\n".join(" ".join(f"{v:.4f}" for v in p) for p in points) + "\n")
     part = load_part(ply)
     assert not part.is_mesh
@@ -155,9 +159,18 @@ def test_degenerate_triangles_are_dropped_and_counted(tmp_path, caplog):
     [
         (b"", "empty"),
         (b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\n", "truncated"),
-        (b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 zero 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid\n", "line 5"),
-        (b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 nan 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid\n", "NaN"),
-        (b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nendloop\nendfacet\nendsolid\n", "exactly 3"),
+        (
+            b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 zero 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid\n",
+            "line 5",
+        ),
+        (
+            b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 nan 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid\n",
+            "NaN",
+        ),
+        (
+            b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nendloop\nendfacet\nendsolid\n",
+            "exactly 3",
+        ),
         (b"solid x\nendsolid x\n", "no facets"),
         (b"\x00" * 50, "too short"),
     ],

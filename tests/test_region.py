@@ -39,7 +39,9 @@ def test_parse_region(text, axes, signs, values):
     np.testing.assert_array_equal(region.value, values)
 
 
-@pytest.mark.parametrize("text", ["", "z >", "w > 3", "z > 1 and", "1 < 2", "x < y", "box(1,2,3)", "box(5,0,0,1,1,1)", "z > inf"])
+@pytest.mark.parametrize(
+    "text", ["", "z >", "w > 3", "z > 1 and", "1 < 2", "x < y", "box(1,2,3)", "box(5,0,0,1,1,1)", "z > inf"]
+)
 def test_bad_region_expressions_raise(text):
     with pytest.raises(RegionError):
         parse_region(text)

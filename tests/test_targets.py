@@ -13,10 +13,12 @@ from sprayplan.config import TargetsConfig
 from sprayplan.demo import car_roof
 from sprayplan.errors import ConfigError
 from sprayplan.io.load import load_part
-from sprayplan.surface import compress, coverage, filling, normals as nm, poses
+from sprayplan.surface import compress, coverage, filling, poses
+from sprayplan.surface import normals as nm
 from sprayplan.surface.region import select_region
 from sprayplan.surface.targets import make_targets
 from sprayplan.types import Part
+from tests.helpers import barycentric_inside
 
 SEED_TRIANGLE = np.array([[[10.0, 10.0, 0.0], [520.0, 100.0, 0.0], [260.0, 410.0, 0.0]]])  # seed 000, fig. 4
 
@@ -51,19 +53,6 @@ def reference_dfs(tri, h_min, mode):
     return np.array(out)
 
 
-def barycentric_inside(points, triangles, tol=1e-9):
-    """True where each point lies in its triangle's plane and inside it."""
-    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
-    n = np.cross(b - a, c - a)
-    area2 = np.linalg.norm(n, axis=1)
-    off_plane = np.abs(np.einsum("ij,ij->i", points - a, n)) / area2
-    w_a = np.einsum("ij,ij->i", np.cross(c - b, points - b), n) / area2**2
-    w_b = np.einsum("ij,ij->i", np.cross(a - c, points - c), n) / area2**2
-    w_c = 1 - w_a - w_b
-    scale = np.ptp(triangles.reshape(-1, 3), axis=0).max()
-    return (off_plane <= tol * scale) & (w_a >= -tol) & (w_b >= -tol) & (w_c >= -tol)
-
-
 def winding_number(points, triangles, chunk=8):
     """Generalised winding number (solid angles, Van Oosterom & Strackee): 1 inside a closed mesh, 0 outside."""
     out = []
@@ -73,7 +62,7 @@ def winding_number(points, triangles, chunk=8):
         a, b, c = v[:, :, 0], v[:, :, 1], v[:, :, 2]
         la, lb, lc = (np.linalg.norm(x, axis=-1) for x in (a, b, c))
         det = np.einsum("pij,pij->pi", a, np.cross(b, c))
-        dot = lambda x, y: np.einsum("pij,pij->pi", x, y)  # noqa: E731
+        dot = lambda x, y: np.einsum("pij,pij->pi", x, y)
         den = la * lb * lc + dot(a, b) * lc + dot(a, c) * lb + dot(b, c) * la
         out.append(2 * np.arctan2(det, den).sum(axis=1) / (4 * np.pi))
     return np.concatenate(out)
@@ -161,8 +150,23 @@ def test_scrambled_winding_is_restored_on_the_hull(testdata):
 def test_scrambled_open_sheet_faces_up():
     roof = select_region(car_roof(resolution_mm=100.0), "z > 1000")
     flip = np.random.default_rng(1).random(len(roof.faces)) < 0.5
-    faces, normals = nm.outward_face_normals(roof.vertices, np.where(flip[:, None], roof.faces[:, ::-1], roof.faces))
+    _faces, normals = nm.outward_face_normals(roof.vertices, np.where(flip[:, None], roof.faces[:, ::-1], roof.faces))
     assert (normals[:, 2] > 0).all()
+
+
+def test_every_hull_target_normal_is_its_outward_face_normal(testdata):
+    # a closed manifold whose faces are consistently wound (every edge traversed once each way) and whose
+    # signed volume is positive has every face normal pointing out: check both for all faces, then that
+    # every target takes its face's normal
+    hull = load_part(testdata / "meshes" / "dtc_ship_hull_ascii.stl.gz", units="m")
+    faces, face_n = nm.outward_face_normals(hull.vertices, hull.faces)
+    directed = np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2)
+    forward = {tuple(e) for e in directed.tolist()}
+    assert len(forward) == len(directed)
+    assert all((b, a) in forward for a, b in forward)
+    assert trimesh.Trimesh(hull.vertices, faces, process=False).volume > 0
+    targets = make_targets(hull, TargetsConfig(spacing_mm=20.0))
+    np.testing.assert_array_equal(targets.normals, face_n[targets.face_index])
 
 
 def test_hull_targets_point_out_of_the_solid(testdata):
@@ -181,7 +185,7 @@ def test_normals_are_unit_and_match_faces_on_smooth_regions(testdata):
     part = load_part(testdata / "meshes" / "reach_curved_part.ply", units="m")
     even = make_targets(part, TargetsConfig(spacing_mm=5.0, compress="none"))
     np.testing.assert_allclose(np.linalg.norm(even.normals, axis=1), 1.0, atol=1e-12)
-    faces, face_n = nm.outward_face_normals(part.vertices, part.faces)
+    _faces, face_n = nm.outward_face_normals(part.vertices, part.faces)
     np.testing.assert_allclose(even.normals, face_n[even.face_index])
     # PCA normals: where every neighbour within r lies on faces within 3 deg of each other, the fitted plane
     # is a weighted mean of nearly parallel planes, so its normal must lie within 3 deg of the face normal
@@ -191,7 +195,10 @@ def test_normals_are_unit_and_match_faces_on_smooth_regions(testdata):
     tree = cKDTree(even.points)
     own = face_n[even.face_index]
     smooth = np.array(
-        [np.min(own[nb] @ own[i]) > np.cos(np.radians(3.0)) for i, nb in enumerate(tree.query_ball_point(even.points, radius))]
+        [
+            np.min(own[nb] @ own[i]) > np.cos(np.radians(3.0))
+            for i, nb in enumerate(tree.query_ball_point(even.points, radius))
+        ]
     )
     assert smooth.mean() > 0.5
     angle = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", pca.normals, own), -1, 1)))

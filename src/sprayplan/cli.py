@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import logging
 import sys
 import time
@@ -20,8 +21,12 @@ log = logging.getLogger("sprayplan.cli")
 
 def _add_load_options(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("part")
-    group.add_argument("--units", choices=["mm", "cm", "m", "in"], default="mm", help="length unit of the file (default mm)")
-    group.add_argument("--up", choices=["z", "y", "x"], default="z", help="the file's up axis, turned to +z (default z)")
+    group.add_argument(
+        "--units", choices=["mm", "cm", "m", "in"], default="mm", help="length unit of the file (default mm)"
+    )
+    group.add_argument(
+        "--up", choices=["z", "y", "x"], default="z", help="the file's up axis, turned to +z (default z)"
+    )
     group.add_argument(
         "--region",
         help="keep only this region, in mm in the part frame: 'z > 1000', 'x < 500 and z > 1000', "
@@ -31,15 +36,38 @@ def _add_load_options(parser: argparse.ArgumentParser) -> None:
 
 def _add_target_options(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("targets")
-    group.add_argument("--fill", choices=["even", "point", "line"], default="even", help="even (default), or the seed's DFS point or line filling")
-    group.add_argument("--spacing-mm", type=float, help="target spacing d in mm (instead of --spray-radius-mm and --overlap)")
+    group.add_argument(
+        "--fill",
+        choices=["even", "point", "line"],
+        default="even",
+        help="even (default), or the seed's DFS point or line filling",
+    )
+    group.add_argument(
+        "--spacing-mm", type=float, help="target spacing d in mm (instead of --spray-radius-mm and --overlap)"
+    )
     group.add_argument("--spray-radius-mm", type=float, help="spray circle radius r in mm (default 50)")
     group.add_argument("--overlap", type=float, help="overlap ratio p of neighbouring spray circles (default 0.4)")
-    group.add_argument("--compress", choices=["surface", "grid", "none"], default="surface", help="surface (default): one real point per eq. 7 cell; grid: eq. 7 as printed")
-    group.add_argument("--h-min-mm", type=float, help="DFS filling: minimum triangle height (default: half the spacing)")
-    group.add_argument("--normals", choices=["face", "pca"], default="face", help="even fill: face normals (default) or PCA over neighbours")
+    group.add_argument(
+        "--compress",
+        choices=["surface", "grid", "none"],
+        default="surface",
+        help="surface (default): one real point per eq. 7 cell; grid: eq. 7 as printed",
+    )
+    group.add_argument(
+        "--h-min-mm", type=float, help="DFS filling: minimum triangle height (default: half the spacing)"
+    )
+    group.add_argument(
+        "--normals",
+        choices=["face", "pca"],
+        default="face",
+        help="even fill: face normals (default) or PCA over neighbours",
+    )
     group.add_argument("--normal-radius-mm", type=float, help="PCA neighbourhood radius (default: twice the spacing)")
-    group.add_argument("--orient", choices=["mesh", "centroid", "propagate"], help="how normals are turned outward (default: mesh for meshes, propagate for clouds)")
+    group.add_argument(
+        "--orient",
+        choices=["mesh", "centroid", "propagate"],
+        help="how normals are turned outward (default: mesh for meshes, propagate for clouds)",
+    )
     group.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
 
@@ -119,6 +147,94 @@ def cmd_demo(args) -> int:
     return 0
 
 
+def _direction(text: str):
+    if text in ("auto", "x", "y", "z"):
+        return text
+    try:
+        values = tuple(float(v) for v in text.replace(" ", "").split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 3:
+        raise ConfigError(f"--direction must be auto, x, y, z or 'dx,dy,dz', got {text!r}")
+    return values
+
+
+def _path_config(args):
+    from sprayplan.config import PathConfig
+
+    if args.spacing_mm is not None and args.overlap is not None:
+        raise ConfigError("give either --spacing-mm or --overlap, not both")
+    options = dict(
+        direction=_direction(args.direction),
+        spacing_mm=args.spacing_mm,
+        layers=args.layers,
+        spacing_mode=args.spacing_mode,
+        edge_margin_mm=args.edge_margin_mm,
+        split_gap_mm=args.split_gap_mm,
+        split_angle_deg=None
+        if args.split_angle_deg is not None and args.split_angle_deg <= 0
+        else args.split_angle_deg,
+        interpolate=args.interpolate,
+        points_per_section=args.points_per_section,
+        slab_mm=args.slab_mm,
+    )
+    for name in ("spray_radius_mm", "overlap", "standoff_mm", "step_mm"):
+        if getattr(args, name) is not None:
+            options[name] = getattr(args, name)
+    if args.streamline_deg is not None:
+        options["streamline_deg"] = tuple(args.streamline_deg)
+    return PathConfig(**options)
+
+
+def cmd_paths(args) -> int:
+    from sprayplan.io.paths_json import summary, write_paths_json
+
+    start = time.perf_counter()
+    output = Path(args.output)
+    if args.ruled:
+        from sprayplan.paths.ruled import load_ruled, ruled_paths, write_table_csv
+
+        if args.part:
+            raise ConfigError("give either a PART or --ruled SURFACE.toml, not both")
+        with _stage("ruled surface"):
+            job = load_ruled(args.ruled)
+            paths = ruled_paths(job)
+        settings = {"ruled": str(args.ruled)}
+        if args.table:
+            write_table_csv(args.table, paths)
+    else:
+        from sprayplan.io.load import load_part
+        from sprayplan.paths.planner import plan_paths
+        from sprayplan.surface.region import select_region
+
+        if not args.part:
+            raise ConfigError("give a PART file (or --ruled SURFACE.toml)")
+        config = _path_config(args)
+        with _stage("load"):
+            part = load_part(args.part, units=args.units, up=args.up)
+        with _stage("region"):
+            part = select_region(part, args.region)
+        with _stage("paths"):
+            paths = plan_paths(part, config)
+        settings = {
+            **dataclasses.asdict(config),
+            "spacing_mm": config.spacing,
+            "edge_margin_mm": config.margin,
+            "split_gap_mm": config.gap,
+            "units": args.units,
+            "up": args.up,
+            "region": args.region,
+        }
+    write_paths_json(output, paths, settings)
+    info = summary(paths)
+    print(
+        f"{info['strokes']} strokes, spray {info['spray_length_mm'] / 1000:.3f} m, transfer "
+        f"{info['transfer_length_mm'] / 1000:.3f} m, {info['waypoints']} waypoints in "
+        f"{time.perf_counter() - start:.2f} s -> {output}"
+    )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="sprayplan",
@@ -126,7 +242,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"sprayplan {__version__}")
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS, help="log each stage and its time")
+    common.add_argument(
+        "-v", "--verbose", action="store_true", default=argparse.SUPPRESS, help="log each stage and its time"
+    )
     common.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS, help="show errors only")
     parser.add_argument("-v", "--verbose", action="store_true", default=False, help="log each stage and its time")
     parser.add_argument("-q", "--quiet", action="store_true", default=False, help="show errors only")
@@ -142,11 +260,72 @@ def build_parser() -> argparse.ArgumentParser:
         help="target points with outward normals (CSV x,y,z,nx,ny,nz)",
         description="Target points on a part's surface with unit outward normals (seed 000, section 2).",
     )
-    targets.add_argument("part", help="mesh (.stl .obj .ply .off, optionally .gz) or point cloud (.xyz .txt .csv .pcd .ply)")
+    targets.add_argument(
+        "part", help="mesh (.stl .obj .ply .off, optionally .gz) or point cloud (.xyz .txt .csv .pcd .ply)"
+    )
     targets.add_argument("-o", "--output", required=True, help="output CSV file")
     _add_load_options(targets)
     _add_target_options(targets)
     targets.set_defaults(func=cmd_targets)
+
+    paths = sub.add_parser(
+        "paths",
+        parents=[common],
+        help="spray strokes by slicing (paths.json)",
+        description="Spray strokes over a part by slicing it with parallel planes (seed 003), or over a ruled "
+        "surface given in a TOML file (seed 001).",
+    )
+    paths.add_argument("part", nargs="?", help="mesh or point cloud file (as for 'targets')")
+    paths.add_argument("-o", "--output", required=True, help="output paths.json")
+    paths.add_argument("--ruled", help="a ruled surface TOML file instead of a part (see examples/ruled)")
+    paths.add_argument("--table", help="with --ruled: also write the Cartesian table (CSV n,x,y,z)")
+    _add_load_options(paths)
+    group = paths.add_argument_group("paths")
+    group.add_argument(
+        "--direction", default="auto", help="slicing planes' normal: auto (default), x, y, z or 'dx,dy,dz'"
+    )
+    group.add_argument(
+        "--spacing-mm", type=float, help="distance between strokes (default: from spray radius and overlap)"
+    )
+    group.add_argument("--layers", type=int, help="instead of a spacing: this many equally spaced planes")
+    group.add_argument("--spray-radius-mm", type=float, help="spray circle radius (default 50)")
+    group.add_argument("--overlap", type=float, help="overlap of neighbouring strokes (default 0.4)")
+    group.add_argument(
+        "--spacing-mode",
+        choices=["surface", "uniform"],
+        default="surface",
+        help="surface (default): spacing measured on the part; uniform: equally spaced planes",
+    )
+    group.add_argument("--standoff-mm", type=float, help="gun tip to surface (default 113)")
+    group.add_argument(
+        "--edge-margin-mm", type=float, help="lead-in/lead-out past the edge (default: the spray radius)"
+    )
+    group.add_argument("--step-mm", type=float, help="waypoint spacing along a stroke (default 10)")
+    group.add_argument(
+        "--split-gap-mm", type=float, help="split strokes across gaps wider than this (default: spray diameter)"
+    )
+    group.add_argument(
+        "--split-angle-deg",
+        type=float,
+        default=60.0,
+        help="split strokes at corners sharper than this (default 60; 0: never)",
+    )
+    group.add_argument(
+        "--streamline-deg", type=float, nargs=2, metavar=("MIN", "MAX"), help="angle-method streamlining thresholds"
+    )
+    group.add_argument(
+        "--points-per-section",
+        type=int,
+        help="sample each section at this many points (003 eq. 13) instead of every --step-mm",
+    )
+    group.add_argument(
+        "--interpolate",
+        choices=["none", "line", "arc"],
+        default="none",
+        help="with --points-per-section: line or arc interpolation between them",
+    )
+    group.add_argument("--slab-mm", type=float, help="point clouds: half-thickness of each slice")
+    paths.set_defaults(func=cmd_paths)
     return parser
 
 

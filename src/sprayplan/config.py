@@ -112,3 +112,121 @@ def config_from_dict(cls, table: dict):
     if unknown:
         raise ConfigError(f"unknown {cls.__name__} key(s): {', '.join(unknown)}; known: {', '.join(sorted(names))}")
     return cls(**table)
+
+
+@dataclass(frozen=True)
+class PathConfig:
+    """Spray paths by slicing (seed 003 sections 2-3; spacing from seed 000's eq. 6).
+
+    Attributes
+    ----------
+    direction : str or tuple
+        The slicing planes' normal: ``"auto"`` (across the part's longest principal axis, so strokes run
+        along it), ``"x"``, ``"y"``, ``"z"``, or a vector ``(dx, dy, dz)``.
+    spacing_mm : float or None
+        Distance between adjacent strokes; None: from the spray radius and overlap (inverse of eq. 6).
+    layers : int or None
+        Instead of a spacing: this many equally spaced planes across the part (seed 003 uses 20).
+    spray_radius_mm, overlap : float
+        The spray circle and the overlap of neighbouring strokes (seed 000: 50 mm, 0.4).
+    spacing_mode : {"surface", "uniform"}
+        ``surface``: each plane is placed so that its section runs ``spacing_mm`` from the previous one
+        measured on the part (median point-to-polyline distance), so layers are tighter where the surface
+        turns away from the slicing direction; ``uniform``: planes equally spaced (the seed's slicing).
+    standoff_mm : float
+        Gun tip to surface along the normal, H in 003's eq. ``O_i = Q_i + H n_i`` (default 113 mm: seed 000's
+        T_dis, where its spray circle has a 50 mm radius).
+    edge_margin_mm : float or None
+        Lead-in / lead-out past the part's edge at both ends of every stroke; None: the spray radius.
+    step_mm : float
+        Distance between waypoints along a stroke.
+    split_gap_mm : float or None
+        A stroke is split (spray off across) where the surface has a gap wider than this; None: the spray
+        diameter. Narrower gaps are sprayed across.
+    split_angle_deg : float or None
+        Strokes are split at sharp feature points (003 section 2.1.3) whose tangent turns by more than this;
+        None: never.
+    streamline_deg : tuple of float or None
+        Angle-method streamlining thresholds [alpha_min, alpha_max] (003 section 2.1.1), in degrees; None: off
+        (the default for meshes, whose sections are exact; on for clouds).
+    points_per_section : int or None
+        Sample each section piece at this many points (003 eq. 13, d_m = length / num) instead of every
+        ``step_mm``.
+    interpolate : {"none", "line", "arc"}
+        With ``points_per_section``: line or circular-arc interpolation of the gun path between the sampled
+        points, every ``step_mm`` (003 section 3.2.3).
+    slab_mm : float or None
+        Point clouds: half-thickness of the slab around each plane; None: twice the cloud's median spacing.
+    """
+
+    direction: str | tuple = "auto"
+    spacing_mm: float | None = None
+    layers: int | None = None
+    spray_radius_mm: float = 50.0
+    overlap: float = 0.4
+    spacing_mode: str = "surface"
+    standoff_mm: float = 113.0
+    edge_margin_mm: float | None = None
+    step_mm: float = 10.0
+    split_gap_mm: float | None = None
+    split_angle_deg: float | None = 60.0
+    streamline_deg: tuple | None = None
+    points_per_section: int | None = None
+    interpolate: str = "none"
+    slab_mm: float | None = None
+
+    def __post_init__(self):
+        if isinstance(self.direction, str):
+            if self.direction not in ("auto", "x", "y", "z"):
+                raise ConfigError(f"direction must be auto, x, y, z or a vector, got {self.direction!r}")
+        else:
+            vector = tuple(float(v) for v in self.direction)
+            if len(vector) != 3 or not all(math.isfinite(v) for v in vector) or not any(vector):
+                raise ConfigError(f"direction vector must be three finite numbers, not all 0, got {self.direction!r}")
+            object.__setattr__(self, "direction", vector)
+        if self.spacing_mode not in ("surface", "uniform"):
+            raise ConfigError(f"spacing_mode must be surface or uniform, got {self.spacing_mode!r}")
+        if self.interpolate not in ("none", "line", "arc"):
+            raise ConfigError(f"interpolate must be none, line or arc, got {self.interpolate!r}")
+        if self.layers is not None and (int(self.layers) != self.layers or self.layers < 1):
+            raise ConfigError(f"layers must be a positive whole number, got {self.layers}")
+        if self.points_per_section is not None and (
+            int(self.points_per_section) != self.points_per_section or self.points_per_section < 2
+        ):
+            raise ConfigError(f"points_per_section must be a whole number >= 2, got {self.points_per_section}")
+        if self.layers is not None and self.spacing_mm is not None:
+            raise ConfigError("give either layers or spacing_mm, not both")
+        for name in ("spacing_mm", "spray_radius_mm", "step_mm", "split_gap_mm", "slab_mm"):
+            value = getattr(self, name)
+            if value is not None and not (math.isfinite(value) and value > 0):
+                raise ConfigError(f"{name} must be a positive number, got {value}")
+        if self.edge_margin_mm is not None and not (math.isfinite(self.edge_margin_mm) and self.edge_margin_mm >= 0):
+            raise ConfigError(f"edge_margin_mm must be a number >= 0, got {self.edge_margin_mm}")
+        if not (math.isfinite(self.standoff_mm) and self.standoff_mm >= 0):
+            raise ConfigError(f"standoff_mm must be a number >= 0, got {self.standoff_mm}")
+        if not 0.0 <= self.overlap < 1.0:
+            raise ConfigError(f"overlap must be in [0, 1), got {self.overlap}")
+        if self.streamline_deg is not None:
+            lo, hi = (float(v) for v in self.streamline_deg)
+            if not 90.0 <= lo <= hi <= 180.0:
+                raise ConfigError("streamline_deg must be [alpha_min, alpha_max] with 90 <= min <= max <= 180")
+            object.__setattr__(self, "streamline_deg", (lo, hi))
+
+    @property
+    def spacing(self) -> float:
+        """Stroke spacing in mm: as set, or from the spray radius and overlap (inverse of seed 000's eq. 6)."""
+        if self.spacing_mm is not None:
+            return float(self.spacing_mm)
+        from sprayplan.surface.coverage import spacing_for_overlap
+
+        return spacing_for_overlap(self.overlap, self.spray_radius_mm)
+
+    @property
+    def margin(self) -> float:
+        """Lead-in / lead-out length, mm."""
+        return self.spray_radius_mm if self.edge_margin_mm is None else float(self.edge_margin_mm)
+
+    @property
+    def gap(self) -> float:
+        """Widest gap sprayed across, mm."""
+        return 2.0 * self.spray_radius_mm if self.split_gap_mm is None else float(self.split_gap_mm)

@@ -117,3 +117,103 @@ class Targets:
     def subset(self, index) -> Targets:
         """The targets selected by an index array or boolean mask, in that order."""
         return Targets(self.points[index], self.normals[index], self.face_index[index])
+
+
+@dataclass(frozen=True)
+class Stroke:
+    """One continuous move of the gun: a spray pass, or a spray-off transfer between passes.
+
+    Attributes
+    ----------
+    points : (n, 3) float, mm
+        Surface contact points: where the gun's axis meets the part (for transfers and lead-in/out, points
+        on the extension of the surface).
+    normals : (n, 3) float
+        Unit outward normals at the points; the gun's z axis is ``-normals``.
+    tcp : (n, 3) float, mm
+        Gun tip positions, ``points + standoff * normals``.
+    spray_on : bool
+        True for a spray pass, False for a transfer move.
+    on_part : (n,) bool
+        True where the point lies on the part's surface (False on lead-in/lead-out extensions, on straight
+        bridges across small gaps, and on transfers).
+    layer : int
+        The slicing layer (section plane) the stroke comes from; -1 for transfers.
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    tcp: np.ndarray
+    spray_on: bool = True
+    on_part: np.ndarray = field(default=None)  # type: ignore[assignment]
+    layer: int = -1
+
+    def __post_init__(self):
+        points = _frozen(self.points, np.float64, (3,), "points")
+        normals = _frozen(self.normals, np.float64, (3,), "normals")
+        tcp = _frozen(self.tcp, np.float64, (3,), "tcp")
+        if not (len(points) == len(normals) == len(tcp)):
+            raise ValueError("points, normals and tcp must have the same length")
+        flags = np.ones(len(points), dtype=bool) if self.on_part is None else self.on_part
+        flags = _frozen(np.asarray(flags).reshape(-1), bool, (), "on_part")
+        if len(flags) != len(points):
+            raise ValueError("on_part must have one entry per point")
+        object.__setattr__(self, "points", points)
+        object.__setattr__(self, "normals", normals)
+        object.__setattr__(self, "tcp", tcp)
+        object.__setattr__(self, "on_part", flags)
+        object.__setattr__(self, "spray_on", bool(self.spray_on))
+        object.__setattr__(self, "layer", int(self.layer))
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    @property
+    def length_mm(self) -> float:
+        """Length of the gun tip's path, mm."""
+        return float(np.linalg.norm(np.diff(self.tcp, axis=0), axis=1).sum()) if len(self.tcp) > 1 else 0.0
+
+    def reversed(self) -> Stroke:
+        """The same stroke run the other way."""
+        return Stroke(
+            self.points[::-1], self.normals[::-1], self.tcp[::-1], self.spray_on, self.on_part[::-1], self.layer
+        )
+
+
+@dataclass(frozen=True)
+class Paths:
+    """Strokes in execution order, spray passes and the transfers between them.
+
+    Attributes
+    ----------
+    strokes : tuple of Stroke
+    standoff_mm : float
+        Gun tip to surface distance along the normal.
+    spacing_mm : float
+        Distance between adjacent spray passes.
+    name : str
+        The part the paths were planned on.
+    """
+
+    strokes: tuple
+    standoff_mm: float
+    spacing_mm: float
+    name: str = ""
+
+    def __post_init__(self):
+        object.__setattr__(self, "strokes", tuple(self.strokes))
+
+    @property
+    def spray_strokes(self) -> tuple:
+        """The spray passes only, in order."""
+        return tuple(s for s in self.strokes if s.spray_on)
+
+    @property
+    def spray_length_mm(self) -> float:
+        """Total gun tip path length with the spray on, mm."""
+        return float(sum(s.length_mm for s in self.strokes if s.spray_on))
+
+    @property
+    def transfer_length_mm(self) -> float:
+        """Total gun tip path length with the spray off, mm."""
+        return float(sum(s.length_mm for s in self.strokes if not s.spray_on))

@@ -275,9 +275,7 @@ def parse_xyz(data: bytes, path: str | os.PathLike = "<bytes>") -> tuple[np.ndar
         raise PartFileError(path, "no points: the file has only comments and blank lines")
     columns = values.shape[1]
     if columns < 3:
-        raise PartFileError(
-            path, f"line {lines[0]}: {columns} value(s) a row, need at least 3 (x y z)"
-        )
+        raise PartFileError(path, f"line {lines[0]}: {columns} value(s) a row, need at least 3 (x y z)")
 
     coords = [0, 1, 2]
     normal_cols: list[int] | None = None
@@ -288,8 +286,7 @@ def parse_xyz(data: bytes, path: str | os.PathLike = "<bytes>") -> tuple[np.ndar
             if len(names) != columns:
                 raise PartFileError(
                     path,
-                    f"header (line {header_line}) names {len(names)} columns but line {lines[0]} "
-                    f"has {columns} values",
+                    f"header (line {header_line}) names {len(names)} columns but line {lines[0]} has {columns} values",
                 )
             if named_xyz:
                 coords = [names.index(name) for name in _XYZ_NAMES]
@@ -420,18 +417,12 @@ def _header_ints(path: str | os.PathLike, key: str, values: list[str], line: int
     return numbers
 
 
-def _check_one_per_field(
-    path: str | os.PathLike, key: str, values: list, line: int, names: list[str]
-) -> None:
+def _check_one_per_field(path: str | os.PathLike, key: str, values: list, line: int, names: list[str]) -> None:
     if len(values) != len(names):
-        raise PartFileError(
-            path, f"header line {line}: {key} has {len(values)} values for {len(names)} fields"
-        )
+        raise PartFileError(path, f"header line {line}: {key} has {len(values)} values for {len(names)} fields")
 
 
-def _parse_pcd_header(
-    path: str | os.PathLike, data: bytes
-) -> tuple[dict[str, tuple[list[str], int]], str, int, int]:
+def _parse_pcd_header(path: str | os.PathLike, data: bytes) -> tuple[dict[str, tuple[list[str], int]], str, int, int]:
     """Split off the header: its entries by keyword, the DATA kind, where data start, and their line."""
     entries: dict[str, tuple[list[str], int]] = {}
     pos = 0
@@ -451,8 +442,7 @@ def _parse_pcd_header(
                 shown = _show(words[1].encode("latin-1")) if len(words) > 1 else "nothing"
                 raise PartFileError(
                     path,
-                    f"header line {line}: unknown DATA kind {shown} "
-                    "(expected ascii, binary or binary_compressed)",
+                    f"header line {line}: unknown DATA kind {shown} (expected ascii, binary or binary_compressed)",
                 )
             return entries, kind, min(pos, len(data)), line + 1
         entries[key] = (words[1:], line)
@@ -515,8 +505,7 @@ def parse_pcd(data: bytes, path: str | os.PathLike = "<bytes>") -> tuple[np.ndar
             if sizes is not None and sizes[index] not in _PCD_SIZES[letter]:
                 raise PartFileError(
                     path,
-                    f"header line {line}: field {names[index]} of TYPE {letter} "
-                    f"cannot have SIZE {sizes[index]}",
+                    f"header line {line}: field {names[index]} of TYPE {letter} cannot have SIZE {sizes[index]}",
                 )
     if kind != "ascii" and (sizes is None or types is None):
         missing_key = "SIZE" if sizes is None else "TYPE"
@@ -542,9 +531,7 @@ def parse_pcd(data: bytes, path: str | os.PathLike = "<bytes>") -> tuple[np.ndar
     elif "WIDTH" in entries and "HEIGHT" in entries:
         (width_values, width_line), (height_values, height_line) = entries["WIDTH"], entries["HEIGHT"]
         if len(width_values) != 1 or len(height_values) != 1:
-            raise PartFileError(
-                path, f"header line {width_line}: WIDTH and HEIGHT need one whole number each"
-            )
+            raise PartFileError(path, f"header line {width_line}: WIDTH and HEIGHT need one whole number each")
         width = _header_ints(path, "WIDTH", width_values, width_line, 0)[0]
         height = _header_ints(path, "HEIGHT", height_values, height_line, 0)[0]
         points_declared = width * height
@@ -582,9 +569,7 @@ def _pcd_ascii(
             f"line {lines[0]}: {values.shape[1]} values, but the header's FIELDS and COUNT describe {total}",
         )
     if points_declared is not None and values.shape[0] != points_declared:
-        raise PartFileError(
-            path, f"header declares {points_declared} points but the data has {values.shape[0]} rows"
-        )
+        raise PartFileError(path, f"header declares {points_declared} points but the data has {values.shape[0]} rows")
     offsets = np.concatenate([[0], np.cumsum(counts)])
     columns = {name: values[:, int(offsets[index])] for name, index in wanted.items()}
     return columns, lines
@@ -609,8 +594,7 @@ def _pcd_binary(
         if len(body) < need:
             raise PartFileError(
                 path,
-                f"binary data is truncated: {n} points of {record} bytes need {need} bytes, "
-                f"the file has {len(body)}",
+                f"binary data is truncated: {n} points of {record} bytes need {need} bytes, the file has {len(body)}",
             )
         buffer = body
         starts, steps = offsets, [record] * len(widths)  # row-major records
@@ -618,8 +602,7 @@ def _pcd_binary(
         if len(body) < 8:
             raise PartFileError(
                 path,
-                "compressed data is truncated: expected an 8-byte size header, "
-                f"the file has {len(body)} bytes",
+                f"compressed data is truncated: expected an 8-byte size header, the file has {len(body)} bytes",
             )
         compressed, uncompressed = struct.unpack_from("<II", body)
         if compressed > len(body) - 8:
@@ -669,8 +652,6 @@ def _pcd_result(
         normals = np.column_stack([columns[name] for name in _NORMAL_NAMES[1]])[keep]
         if not np.isfinite(normals).all():
             bad = int((~np.isfinite(normals).all(axis=1)).sum())
-            logger.warning(
-                "%s: %d points have NaN or infinite normals; ignoring the file's normals", path, bad
-            )
+            logger.warning("%s: %d points have NaN or infinite normals; ignoring the file's normals", path, bad)
             normals = None
     return np.ascontiguousarray(points), None if normals is None else np.ascontiguousarray(normals)

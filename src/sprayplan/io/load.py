@@ -139,7 +139,7 @@ def _read_with_trimesh(data: bytes, suffix: str, path: str):
             # a missing .mtl or texture must not stop the geometry from loading
             resolver=_NoResolver(path),
         )
-    except Exception as exc:  # noqa: BLE001 - a third-party parser on user input: any failure is the file's
+    except Exception as exc:  # a third-party parser on user input: any failure is the file's
         message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise PartFileError(path, f"cannot parse {suffix[1:].upper()} file: {message}") from None
     if isinstance(loaded, trimesh.Scene):
@@ -178,6 +178,8 @@ class _NoResolver:
             log.info("%s: ignoring material/texture files (%s): only the geometry is used", self.path, name)
             self.said = True
         raise FileNotFoundError(name)
+
+    __getitem__ = get
 
     def namespaced(self, namespace):
         return self
@@ -239,5 +241,9 @@ def _warn_if_unit_looks_wrong(vertices: np.ndarray, units: str, name: str) -> No
     options = ", ".join(f"--units {u} makes it {file_size * UNITS_MM[u]:.4g} mm" for u in likely)
     log.warning(
         "%s: the part is %.4g mm across with --units %s, which is unlikely for a painted part; "
-        "if the file is in another unit: %s", name, size, units, options,
+        "if the file is in another unit: %s",
+        name,
+        size,
+        units,
+        options,
     )

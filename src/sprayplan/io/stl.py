@@ -14,9 +14,7 @@ import numpy as np
 from sprayplan.errors import PartFileError
 
 _BINARY_HEADER = 80
-_BINARY_RECORD = np.dtype(
-    [("normal", "<f4", (3,)), ("vertices", "<f4", (3, 3)), ("attr", "<u2")]
-)  # 50 bytes a facet
+_BINARY_RECORD = np.dtype([("normal", "<f4", (3,)), ("vertices", "<f4", (3, 3)), ("attr", "<u2")])  # 50 bytes a facet
 _VERTEX = re.compile(rb"vertex[ \t]+(\S+)[ \t]+(\S+)[ \t]+(\S+)")
 _FACET = re.compile(rb"\bfacet\b")
 _ENDFACET = re.compile(rb"\bendfacet\b")
@@ -102,9 +100,7 @@ def _check_finite(triangles: np.ndarray, path: str, where) -> None:
     bad = ~np.isfinite(triangles).all(axis=(1, 2))
     if bad.any():
         first = int(np.flatnonzero(bad)[0])
-        raise PartFileError(
-            path, f"{where(first)}: NaN or infinite coordinate ({int(bad.sum())} facets affected)"
-        )
+        raise PartFileError(path, f"{where(first)}: NaN or infinite coordinate ({int(bad.sum())} facets affected)")
 
 
 def _first_bad_number(data: bytes) -> tuple[int, str]:

@@ -67,6 +67,4 @@ def spacing_for_overlap(overlap: float, radius_mm: float) -> float:
         raise ConfigError(f"spray radius must be positive, got {radius_mm}")
     if overlap == 0.0:
         return 2.0 * radius_mm
-    return float(
-        brentq(lambda d: overlap_ratio(d, radius_mm) - overlap, 0.0, 2.0 * radius_mm, xtol=1e-12, rtol=1e-14)
-    )
+    return float(brentq(lambda d: overlap_ratio(d, radius_mm) - overlap, 0.0, 2.0 * radius_mm, xtol=1e-12, rtol=1e-14))

@@ -183,9 +183,10 @@ def sample_even(
     if not spacing_mm > 0:
         raise ConfigError(f"spacing must be positive, got {spacing_mm}")
     triangles = np.asarray(triangles, dtype=float)
-    area = 0.5 * np.linalg.norm(
-        np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]), axis=1
-    ).sum()
+    area = (
+        0.5
+        * np.linalg.norm(np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]), axis=1).sum()
+    )
     count = int(np.ceil(oversample * area / spacing_mm**2)) + 1
     if count > MAX_POINTS:
         raise ConfigError(

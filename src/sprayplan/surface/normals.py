@@ -91,9 +91,7 @@ def _bfs_forest(graph: sparse.csr_matrix, component: np.ndarray, n_comp: int) ->
     roots = np.full(n_comp, m)
     np.minimum.at(roots, component, np.arange(m))
     # one walk from a virtual node joined to every root reaches every component at once
-    extra = sparse.coo_matrix(
-        (np.ones(n_comp), (np.full(n_comp, m), roots)), shape=(m + 1, m + 1)
-    )
+    extra = sparse.coo_matrix((np.ones(n_comp), (np.full(n_comp, m), roots)), shape=(m + 1, m + 1))
     big = sparse.bmat([[graph, None], [None, sparse.csr_matrix((1, 1))]]).tocsr() + extra.tocsr()
     _, pred = csgraph.breadth_first_order(big, m, directed=False, return_predecessors=True)
     parent = pred[:m].astype(np.int64)
@@ -163,9 +161,10 @@ def outward_face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.nd
     volume = np.bincount(component, np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])), n_comp)
     centre = tri.mean(axis=1)
     comp_area = np.bincount(component, area, n_comp)
-    comp_centroid = np.stack(
-        [np.bincount(component, area * centre[:, k], n_comp) for k in range(3)], axis=1
-    ) / np.maximum(comp_area, 1e-300)[:, None]
+    comp_centroid = (
+        np.stack([np.bincount(component, area * centre[:, k], n_comp) for k in range(3)], axis=1)
+        / np.maximum(comp_area, 1e-300)[:, None]
+    )
     away = np.einsum("ij,ij->i", centre - comp_centroid[component], normals)
     vote = np.bincount(component, area * np.sign(away), n_comp) / np.maximum(comp_area, 1e-300)
     kept = np.bincount(component, area * np.sign(np.einsum("ij,ij->i", normals, original)), n_comp)
@@ -206,7 +205,7 @@ def pca_fit(
     radius_mm: float,
     *,
     tree: cKDTree | None = None,
-    max_neighbours: int = 32,
+    max_neighbours: int = 16,
     min_neighbours: int = 5,
     center: str = "point",
     data: np.ndarray | None = None,
@@ -248,18 +247,25 @@ def pca_fit(
     data = points if data is None else np.asarray(data, dtype=float)
     tree = cKDTree(data) if tree is None else tree
     k = int(min(max_neighbours, len(data)))
-    dist, idx = tree.query(points, k=k)
+    k_min = int(min(min_neighbours, k))
+    dist, idx = tree.query(points, k=k, distance_upper_bound=radius_mm)
     dist, idx = dist.reshape(len(points), k), idx.reshape(len(points), k)
-    use = dist <= radius_mm
-    use[:, : min(min_neighbours, k)] = True
-    local = data[np.minimum(idx, len(data) - 1)] - points[:, None, :]
-    weight = use.astype(float)
-    if center == "mean":
-        mean = (local * weight[..., None]).sum(axis=1) / weight.sum(axis=1)[:, None]
-        local = local - mean[:, None, :]
-    elif center != "point":
+    short = ~np.isfinite(dist[:, k_min - 1])
+    if short.any():  # too few within the radius: take the nearest k_min whatever their distance
+        near_d, near_i = tree.query(points[short], k=k_min)
+        rows = np.flatnonzero(short)
+        dist[rows, :k_min] = near_d.reshape(-1, k_min)
+        idx[rows, :k_min] = near_i.reshape(-1, k_min)
+    use = np.isfinite(dist)
+    if center not in ("point", "mean"):
         raise ValueError("center must be 'point' or 'mean'")
-    scatter = np.einsum("nki,nkj,nk->nij", local, local, weight)
+    local = data[np.minimum(idx, len(data) - 1)] - points[:, None, :]
+    local *= use[..., None]  # unused slots contribute nothing
+    if center == "mean":
+        mean = local.sum(axis=1) / use.sum(axis=1)[:, None]
+        local -= mean[:, None, :]
+        local *= use[..., None]
+    scatter = local.transpose(0, 2, 1) @ local
     values, vectors = np.linalg.eigh(scatter)
     return vectors[:, :, 0], values
 

@@ -204,9 +204,7 @@ def clip_halfspace(
     one = _roll_first(one, inside[one])
     two = _roll_first(two, ~inside[two])
     # cut edges as (inside vertex, outside vertex); both faces of a shared edge name it the same way
-    edges = np.concatenate(
-        [one[:, [0, 1]], one[:, [0, 2]], two[:, [1, 0]], two[:, [2, 0]]]
-    ).reshape(-1, 2)
+    edges = np.concatenate([one[:, [0, 1]], one[:, [0, 2]], two[:, [1, 0]], two[:, [2, 0]]]).reshape(-1, 2)
     if len(edges) == 0:
         return vertices, keep
     unique, inverse = np.unique(edges, axis=0, return_inverse=True)

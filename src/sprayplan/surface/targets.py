@@ -80,8 +80,12 @@ def _mesh_targets(part: Part, config: TargetsConfig, spacing: float):
         # too few or collinear neighbours (skinny triangles stop the DFS early): no plane to fit
         degenerate = eigenvalues[:, 1] < 1e-2 * eigenvalues[:, 2]
         if degenerate.any():
-            log.info("%s: %d vertices have no fitting plane within %.4g mm; they take the mesh's vertex normal",
-                     part.name, int(degenerate.sum()), radius)
+            log.info(
+                "%s: %d vertices have no fitting plane within %.4g mm; they take the mesh's vertex normal",
+                part.name,
+                int(degenerate.sum()),
+                radius,
+            )
             vertex_pca[degenerate] = reference[degenerate]
         normals = np.vstack([face_n[fill_index], vertex_pca])
     if orient == "centroid":

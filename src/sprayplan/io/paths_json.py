@@ -1,0 +1,107 @@
+"""paths.json: the strokes of a :class:`~sprayplan.types.Paths`, their settings and a summary.
+
+Schema (see docs/paths-json.md): ``{"format": "sprayplan.paths", "version": 1, "units": "mm", "part": ...,
+"settings": {...}, "summary": {...}, "strokes": [{"index", "layer", "spray_on", "points", "normals", "tcp",
+"on_part"}, ...]}`` with strokes in execution order.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+
+import numpy as np
+
+from sprayplan import __version__
+from sprayplan.errors import PartFileError
+from sprayplan.io.writers import atomic_output
+from sprayplan.types import Paths, Stroke
+
+FORMAT = "sprayplan.paths"
+VERSION = 1
+
+
+def summary(paths: Paths) -> dict:
+    """Counts and lengths of a set of paths (mm)."""
+    spray = paths.spray_strokes
+    return {
+        "strokes": len(spray),
+        "transfers": len(paths.strokes) - len(spray),
+        "waypoints": int(sum(len(s) for s in paths.strokes)),
+        "spray_length_mm": round(paths.spray_length_mm, 3),
+        "transfer_length_mm": round(paths.transfer_length_mm, 3),
+    }
+
+
+def paths_to_dict(paths: Paths, settings=None) -> dict:
+    """The JSON-ready form of a set of paths."""
+    if dataclasses.is_dataclass(settings):
+        settings = dataclasses.asdict(settings)
+    strokes = []
+    for i, s in enumerate(paths.strokes):
+        strokes.append(
+            {
+                "index": i,
+                "layer": s.layer,
+                "spray_on": s.spray_on,
+                "points": np.round(s.points, 4).tolist(),
+                "normals": np.round(s.normals, 7).tolist(),
+                "tcp": np.round(s.tcp, 4).tolist(),
+                "on_part": s.on_part.tolist(),
+            }
+        )
+    return {
+        "format": FORMAT,
+        "version": VERSION,
+        "sprayplan_version": __version__,
+        "units": "mm",
+        "part": paths.name,
+        "settings": {"standoff_mm": paths.standoff_mm, "spacing_mm": paths.spacing_mm, **(settings or {})},
+        "summary": summary(paths),
+        "strokes": strokes,
+    }
+
+
+def write_paths_json(path: str | os.PathLike, paths: Paths, settings=None) -> None:
+    """Write paths.json (atomically)."""
+    data = paths_to_dict(paths, settings)
+    with atomic_output(path, "w", encoding="utf-8") as handle:
+        json.dump(data, handle, separators=(",", ":"))
+        handle.write("\n")
+
+
+def read_paths_json(path: str | os.PathLike) -> Paths:
+    """Read a paths.json written by :func:`write_paths_json`.
+
+    Raises
+    ------
+    PartFileError
+        When the file is missing, not JSON, or not a sprayplan paths file.
+    """
+    name = os.fspath(path)
+    try:
+        with open(path, encoding="utf-8") as handle:
+            data = json.load(handle)
+    except FileNotFoundError:
+        raise PartFileError(name, "no such file") from None
+    except (OSError, ValueError) as exc:
+        raise PartFileError(name, f"not a readable JSON file ({exc})") from None
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise PartFileError(name, f'not a sprayplan paths file (expected "format": "{FORMAT}")')
+    try:
+        strokes = tuple(
+            Stroke(
+                np.array(s["points"], float).reshape(-1, 3),
+                np.array(s["normals"], float).reshape(-1, 3),
+                np.array(s["tcp"], float).reshape(-1, 3),
+                bool(s["spray_on"]),
+                np.array(s["on_part"], bool),
+                int(s["layer"]),
+            )
+            for s in data["strokes"]
+        )
+        settings = data["settings"]
+        return Paths(strokes, float(settings["standoff_mm"]), float(settings["spacing_mm"]), str(data.get("part", "")))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise PartFileError(name, f"broken paths file: {exc}") from None

@@ -1,0 +1,94 @@
+"""Slicing layers of a point cloud (seed 003 sections 2.1-2.2 and 3.2): the cloud half of the paths stage."""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from sprayplan.config import PathConfig
+from sprayplan.paths import cloudprep
+from sprayplan.paths import polyline as pl
+from sprayplan.paths.cloud_slicing import slice_cloud
+from sprayplan.paths.planner import Piece, _section_pieces, covariance, march_offsets, slicing_frame
+from sprayplan.surface import normals as nm
+from sprayplan.types import Part
+
+log = logging.getLogger(__name__)
+
+#: Streamlining thresholds used for clouds when the config sets none (degrees): nearly straight points go.
+CLOUD_STREAMLINE_DEG = (175.0, 180.0)
+
+
+def cloud_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
+    """Resampled pieces of every slicing layer of a point cloud, in layer order.
+
+    Steps: statistical outlier removal and space sampling (003 section 2.2), outward normals (the file's, or
+    PCA oriented by propagation), slab sections ordered into polylines (003 section 2.1), angle-method
+    streamlining (2.1.1), normals at the section points taken from the nearest cloud points' oriented normals
+    re-fitted by the neighbour planes (3.2.2), then the same segmentation and resampling as for meshes.
+    """
+    points = part.vertices
+    given = part.vertex_normals
+    keep = cloudprep.remove_outliers(points)
+    keep = keep[cloudprep.space_sample(points[keep])]
+    points = points[keep]
+    given = None if given is None else given[keep]
+    if len(points) < 3:
+        return []
+    tree = cKDTree(points)
+    spacing = float(np.median(tree.query(points, k=2)[0][:, 1]))
+    if given is not None:
+        normals = nm.unit(given)
+    else:
+        normals = nm.orient_propagate(points, nm.pca_normals(points, 4 * spacing, tree=tree, center="mean"), tree=tree)
+    plane_normal, travel = slicing_frame(covariance(points), config.direction)
+    height = points @ plane_normal
+    lo, hi = float(height.min()), float(height.max())
+    slab = config.slab_mm if config.slab_mm is not None else max(2.0 * spacing, 0.5)
+    order = np.argsort(height)
+    sorted_h = height[order]
+
+    def slab_points(offset):
+        i0, i1 = np.searchsorted(sorted_h, [offset - slab, offset + slab])
+        chosen = points[order[i0:i1]]
+        return chosen - np.outer(chosen @ plane_normal - offset, plane_normal)
+
+    def samples(offset):
+        found = slab_points(offset)
+        return found[np.linspace(0, len(found) - 1, min(len(found), 400)).astype(int)] if len(found) else found
+
+    def distance(query, offset):
+        found = slab_points(offset)
+        return float(np.median(cKDTree(found).query(query)[0])) if len(found) else np.inf
+
+    d = config.spacing
+    if config.layers is not None:
+        offsets = list(lo + (hi - lo) / config.layers * (np.arange(config.layers) + 0.5))
+    elif config.spacing_mode == "uniform" or hi - lo <= d:
+        count = max(1, int(np.ceil((hi - lo) / d)))
+        offsets = list((lo + hi) / 2 - (count - 1) * d / 2 + d * np.arange(count))
+    else:
+        offsets = march_offsets(lo, hi, d, samples, distance)
+    sections = slice_cloud(points, plane_normal, offsets, slab, gap_mm=5.0 * spacing, travel=travel)
+    thresholds = np.radians(config.streamline_deg or CLOUD_STREAMLINE_DEG)
+    layers = []
+    for polylines in sections:
+        pieces = []
+        for line in polylines:
+            closed = _is_closed(line, 5.0 * spacing)
+            if len(line) >= 3:
+                line = line[pl.streamline(line, thresholds[0], thresholds[1], closed=closed)]
+            if len(line) < 2:
+                continue
+            near = tree.query(line, k=min(8, len(points)))[1]
+            line_n = nm.unit(normals[near].mean(axis=1))
+            pieces.extend(_section_pieces(line, line_n, closed, travel, config))
+        layers.append(pieces)
+    log.info("%s: %d cloud layers, slab +-%.3g mm", part.name, len(layers), slab)
+    return layers
+
+
+def _is_closed(line: np.ndarray, gap: float) -> bool:
+    return len(line) > 3 and np.linalg.norm(line[0] - line[-1]) <= gap and pl.polyline_length(line) > 4 * gap

@@ -1,0 +1,828 @@
+"""Spray paths on ruled surfaces between two boundary curves (seed 001).
+
+A ruled surface is swept by straight segments (rulings) between two boundary curves A and B::
+
+    S(u, v) = (1 - v) A(u) + v B(u),    u, v in [0, 1]
+
+where both curves are parametrised by normalised arc length u, so the ruling at u joins the points at the same
+fraction of each curve's length. Curves: a line, an arc (centre and angles, or three points), a circle, a point
+(the rulings then form a fan or cone) and a 2D/3D polyline. Give A and B in matching directions: rulings join
+A(0) to B(0) and A(1) to B(1), and opposite directions make a twisted, self-intersecting surface (logged).
+
+Normals are ``dS/du x dS/dv`` (analytic derivatives), made unit and turned toward the gun side: by default
+``gun_side = [0, 0, 1]``, i.e. every normal has a non-negative z component (the seed's gun looks straight down);
+with ``outward_from = [x, y, z]`` a normal points away from that point instead (a cylinder band's outside).
+The choice is made point by point; where the normal is perpendicular to the gun side the parametrisation's sign
+is kept and a warning is logged. Where the cross product vanishes (a cone's apex, where the curves touch) the
+normal is the limit from a point 1e-6 inside the parameter square.
+
+TOML schema (lengths in mm, angles in degrees in the file, radians inside)::
+
+    name = "case 1"                 # optional; default: the file's stem
+    [curve_a]                       # and [curve_b], both required; `type` is required
+    type = "line"                   # start = [x, y, z], end = [x, y, z]
+    type = "arc"                    # center = [x, y, z], radius (> 0), normal = [0, 0, 1] (default),
+                                    # start_angle_deg, end_angle_deg (sweep = end - start, 0 < |sweep| <= 360)
+    type = "arc"                    # or: start, mid, end = three points, the arc runs start -> mid -> end
+    type = "circle"                 # center, radius, normal = [0, 0, 1], start_angle_deg = 0 (full turn, ccw)
+    type = "point"                  # at = [x, y, z]
+    type = "polyline"               # points = [[x, y] or [x, y, z], ...] (>= 2 distinct), z = 0 (for the 2D
+                                    # points), closed = false (true: back to the first point)
+    [path]                          # required
+    spot_diameter_mm = 100.0        # paint spot on the surface; required unless `passes` is given
+    overlap = 0.4                   # overlap ratio p of neighbouring spots, in [0, 1): spacing d =
+                                    # spacing_for_overlap(p, spot_diameter_mm / 2) (seed 000's eq. 6)
+    passes = 5                      # instead of `overlap`: exactly this many passes, edge to edge
+    standoff_mm = 0.0               # gun tip to surface along the normal (0: the tables' surface points)
+    direction = "rulings"           # "rulings": passes along the rulings from A to B; "across": along the
+                                    # curves of constant v (from u = 0 to 1)
+    step_mm = 10.0                  # default: rulings: only the two ends; across: the pass spacing
+    zigzag = true                   # false: every pass runs the same way (A -> B, or u = 0 -> 1)
+    gun_side = [0, 0, 1]            # or outward_from = [x, y, z] (not both)
+
+Angles of an arc or circle are measured counter-clockwise about ``normal`` from the projection of world x onto
+the curve's plane (world y when the normal is parallel to x).
+
+Spacing, measured along the boundary curves. ``rulings``: the passes are the rulings at parameters u_k, the same
+on both curves; their distance along the longer curve (length L) is ``(u_{k+1} - u_k) L``, so on the shorter one
+it is less. With ``overlap``, the passes are exactly d apart along the longer curve: ``N = floor(L / d) + 1``
+passes, centred, leaving an equal margin under d / 2 (inside the spot's radius) at both ends; when both curves
+are closed (a band between two circles, a cone) ``N = ceil(L / d)`` passes go all the way round, L / N apart.
+With ``passes = N``: u_k = k / (N - 1), the first and last passes on the surface's edges (closed: u_k = k / N).
+``across``: the same rules along the longest ruling (length W, sampled): passes at v_k are ``(v_{k+1} - v_k) W``
+apart there, and closer on shorter rulings. Adjacent passes run in opposite directions (zig-zag); between them
+a spray-off transfer stroke (layer -1) runs over the surface, straight in (u, v), at the standoff.
+
+The seed's tables 4 and 5 (what they show, and what this module reproduces):
+
+* The column headers are shuffled in the extracted text. Table 4's rows satisfy the R5150 forward kinematics
+  (d1 = 255.55, a2 = a3 = 190, d5 = 115 mm; eq. 3) to within 3e-4 mm when read as x = "X", y = "q2", z = "q3",
+  theta1 = "q4" (= atan2(y, x)), theta2 = "q5", theta3 = "Z", theta4 = "Y", with theta2 + theta3 + theta4 = 0
+  (tool straight down); "q1" is 90 in every row. Its points are (150,100,150), (150,300,150), (180,290,160),
+  (180,110,160), (210,120,170), (210,280,170), (240,270,180), (240,130,180), (270,140,190), (270,260,190): five
+  rulings, zig-zag, between the lines A (150,100,150)-(270,140,190) and B (150,300,150)-(270,260,190) (a plane
+  trapezoid). ``examples/ruled/case1_table4.toml`` (``passes = 5``) gives these ten points exactly, in order.
+* Table 5 lists rows 1-3 and 10 only: (172,162,300), (300,162,300), (192,182,300), (300,255.4,300). Its joint
+  columns, read in the printed order as theta1..theta4 (the only order, of all orders and signs of the five
+  columns, that comes within 6.9 mm of any row), give under eq. 3 the positions (171.88, 164.20, 296.25),
+  (299.04, 161.89, 297.13), (192.89, 182.53, 299.23), (300.02, 255.42, 299.96): row 10 is met to 0.05 mm (the
+  angles' rounding), rows 1-3 miss by 4.35, 3.02 and 1.29 mm. Their theta1 (43.69, 28.43, 43.42, 40.41 deg) is
+  not atan2(y, x) of the listed points (43.29, 28.37, 43.47, 40.41), so those joint rows belong to other points
+  (or carry typos); and theta2 + theta3 + theta4 is 44.11, 44.38, 44.83, 44.99 deg: the tool is tilted about
+  45 deg from vertical and the tilt is not constant, unlike table 4. The elbow-up inverse kinematics of the
+  listed points with a 45 deg tilt is (43.29, 97.38, -116.64, 64.26), (28.37, 66.45, -81.22, 59.76),
+  (43.47, 88.67, -108.41, 64.74), (40.41, 49.43, -55.03, 50.60) deg.
+  Rows 2 -> 3 jump back from x = 300 to x = 192, so table 5 lists every ruling from A to B (one way), not a
+  zig-zag. ``examples/ruled/case2_table5.toml`` assumes two lines in the plane z = 300, A from (172,162) to
+  (252,242) and B from (300,162) to (300,255.4), 5 passes, ``zigzag = false``: rows 2k-1 and 2k are A(u_k) and
+  B(u_k) with u_k = (k - 1) / 4. It meets the four listed rows exactly; its unlisted rows 4-9 are assumptions:
+  (300,185.35), (212,202), (300,208.7), (232,222), (300,232.05), (252,242), all at z = 300.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from sprayplan.errors import ConfigError, PartFileError
+from sprayplan.io.writers import atomic_output
+from sprayplan.surface.coverage import spacing_for_overlap
+from sprayplan.types import Paths, Stroke
+
+log = logging.getLogger(__name__)
+
+DIRECTIONS = ("rulings", "across")
+_NO_BREAKS = np.zeros(0)
+
+
+def _params(u) -> np.ndarray:
+    """Parameters as a (n,) float array (a scalar gives n = 1)."""
+    return np.atleast_1d(np.asarray(u, dtype=float)).reshape(-1)
+
+
+def _vector3(value, name: str) -> np.ndarray:
+    out = np.array(value, dtype=float).reshape(-1)
+    if out.shape != (3,) or not np.all(np.isfinite(out)):
+        raise ConfigError(f"{name} must be three finite numbers, got {value!r}")
+    out.flags.writeable = False
+    return out
+
+
+def _unit(value, name: str) -> np.ndarray:
+    vector = _vector3(value, name)
+    norm = float(np.linalg.norm(vector))
+    if norm == 0.0:
+        raise ConfigError(f"{name} must not be the zero vector")
+    out = vector / norm
+    out.flags.writeable = False
+    return out
+
+
+def plane_basis(normal) -> tuple[np.ndarray, np.ndarray]:
+    """The in-plane axes (e1, e2) of the plane with the unit ``normal``, right-handed: e1 x e2 = normal.
+
+    e1 is world x projected onto the plane (world y when the normal is parallel to x).
+
+    Parameters
+    ----------
+    normal : (3,) float
+        Unit normal.
+
+    Returns
+    -------
+    e1, e2 : (3,) float
+    """
+    normal = np.asarray(normal, dtype=float)
+    ref = np.array([1.0, 0.0, 0.0])
+    if np.linalg.norm(np.cross(normal, ref)) < 1e-12:
+        ref = np.array([0.0, 1.0, 0.0])
+    e1 = ref - np.dot(ref, normal) * normal
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(normal, e1)
+
+
+# ------------------------------------------------------------------------------------------------ curves
+
+
+@dataclass(frozen=True, eq=False)
+class Line:
+    """The segment from ``start`` to ``end``, (3,) float, mm."""
+
+    start: np.ndarray
+    end: np.ndarray
+
+    def __post_init__(self):
+        object.__setattr__(self, "start", _vector3(self.start, "start"))
+        object.__setattr__(self, "end", _vector3(self.end, "end"))
+        if self.length_mm == 0.0:
+            raise ConfigError("a line's start and end must differ (use a point curve for a single point)")
+
+    closed = False
+    breaks = _NO_BREAKS
+
+    @property
+    def length_mm(self) -> float:
+        return float(np.linalg.norm(self.end - self.start))
+
+    def evaluate(self, u) -> np.ndarray:
+        """Points at normalised arc lengths ``u`` ((n,) in [0, 1]): (n, 3) float, mm."""
+        u = _params(u)
+        return self.start + u[:, None] * (self.end - self.start)
+
+    def derivative(self, u) -> np.ndarray:
+        """d/du of :meth:`evaluate`: (n, 3) float, mm (its norm is the curve's length)."""
+        return np.tile(self.end - self.start, (len(_params(u)), 1))
+
+
+@dataclass(frozen=True, eq=False)
+class Arc:
+    """A circular arc; a full circle when ``|sweep_rad| = 2 pi``.
+
+    Attributes
+    ----------
+    center : (3,) float, mm
+    radius_mm : float
+    normal : (3,) float
+        The axis; angles run counter-clockwise about it (made unit).
+    start_angle_rad : float
+        From the axis e1 of :func:`plane_basis`.
+    sweep_rad : float
+        Signed: positive counter-clockwise about ``normal``; 0 < |sweep| <= 2 pi.
+    """
+
+    center: np.ndarray
+    radius_mm: float
+    normal: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    start_angle_rad: float = 0.0
+    sweep_rad: float = 2.0 * math.pi
+
+    def __post_init__(self):
+        object.__setattr__(self, "center", _vector3(self.center, "center"))
+        object.__setattr__(self, "normal", _unit(self.normal, "normal"))
+        if not (math.isfinite(self.radius_mm) and self.radius_mm > 0):
+            raise ConfigError(f"radius must be a positive number, got {self.radius_mm}")
+        if not (math.isfinite(self.start_angle_rad) and math.isfinite(self.sweep_rad)):
+            raise ConfigError("arc angles must be finite")
+        if not 0.0 < abs(self.sweep_rad) <= 2.0 * math.pi + 1e-12:
+            raise ConfigError(f"an arc's sweep must be in (0, 360] deg, got {math.degrees(self.sweep_rad):g}")
+        object.__setattr__(self, "_basis", plane_basis(self.normal))
+
+    @classmethod
+    def through_points(cls, start, mid, end) -> Arc:
+        """The arc from ``start`` through ``mid`` to ``end`` ((3,) float each, mm, not collinear)."""
+        a, b, c = (_vector3(p, name) for p, name in ((start, "start"), (mid, "mid"), (end, "end")))
+        ab, ac = b - a, c - a
+        axis = np.cross(ab, ac)
+        area2 = float(np.dot(axis, axis))
+        if area2 <= 1e-18 * max(np.dot(ab, ab), np.dot(ac, ac)) ** 2:
+            raise ConfigError("an arc's start, mid and end points must not be collinear")
+        center = a + (np.dot(ac, ac) * np.cross(axis, ab) + np.dot(ab, ab) * np.cross(ac, axis)) / (2.0 * area2)
+        normal = axis / math.sqrt(area2)  # a -> b -> c runs counter-clockwise about it
+        e1, e2 = plane_basis(normal)
+        angle_a = math.atan2(np.dot(a - center, e2), np.dot(a - center, e1))
+        angle_c = math.atan2(np.dot(c - center, e2), np.dot(c - center, e1))
+        sweep = (angle_c - angle_a) % (2.0 * math.pi)
+        return cls(center, float(np.linalg.norm(a - center)), normal, angle_a, sweep)
+
+    @property
+    def closed(self) -> bool:
+        return abs(abs(self.sweep_rad) - 2.0 * math.pi) < 1e-12
+
+    breaks = _NO_BREAKS
+
+    @property
+    def length_mm(self) -> float:
+        return self.radius_mm * abs(self.sweep_rad)
+
+    def evaluate(self, u) -> np.ndarray:
+        """Points at normalised arc lengths ``u`` ((n,) in [0, 1]): (n, 3) float, mm."""
+        e1, e2 = self._basis
+        t = self.start_angle_rad + _params(u) * self.sweep_rad
+        return self.center + self.radius_mm * (np.cos(t)[:, None] * e1 + np.sin(t)[:, None] * e2)
+
+    def derivative(self, u) -> np.ndarray:
+        """d/du of :meth:`evaluate`: (n, 3) float, mm."""
+        e1, e2 = self._basis
+        t = self.start_angle_rad + _params(u) * self.sweep_rad
+        return self.radius_mm * self.sweep_rad * (-np.sin(t)[:, None] * e1 + np.cos(t)[:, None] * e2)
+
+
+@dataclass(frozen=True, eq=False)
+class PointCurve:
+    """A boundary shrunk to one point ``point`` ((3,) float, mm): the rulings form a fan or a cone."""
+
+    point: np.ndarray
+
+    def __post_init__(self):
+        object.__setattr__(self, "point", _vector3(self.point, "point"))
+
+    closed = True
+    breaks = _NO_BREAKS
+    length_mm = 0.0
+
+    def evaluate(self, u) -> np.ndarray:
+        """(n, 3) float, mm: the point, n times."""
+        return np.tile(self.point, (len(_params(u)), 1))
+
+    def derivative(self, u) -> np.ndarray:
+        """(n, 3) zeros."""
+        return np.zeros((len(_params(u)), 3))
+
+
+@dataclass(frozen=True, eq=False)
+class Polyline:
+    """Straight segments through ``vertices`` ((k, 3) float, mm; repeated consecutive vertices are dropped)."""
+
+    vertices: np.ndarray
+
+    def __post_init__(self):
+        vertices = np.array(self.vertices, dtype=float)
+        if vertices.ndim != 2 or vertices.shape[1] != 3 or not np.all(np.isfinite(vertices)):
+            raise ConfigError("polyline vertices must be a (k, 3) array of finite numbers")
+        keep = np.ones(len(vertices), dtype=bool)
+        keep[1:] = np.any(vertices[1:] != vertices[:-1], axis=1)
+        vertices = vertices[keep]
+        if len(vertices) < 2:
+            raise ConfigError("a polyline needs at least two distinct points")
+        cumulative = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(vertices, axis=0), axis=1))])
+        vertices.flags.writeable = False
+        object.__setattr__(self, "vertices", vertices)
+        object.__setattr__(self, "_length", float(cumulative[-1]))
+        object.__setattr__(self, "_s", cumulative / cumulative[-1])
+
+    @property
+    def closed(self) -> bool:
+        return bool(np.all(self.vertices[0] == self.vertices[-1]))
+
+    @property
+    def breaks(self) -> np.ndarray:
+        """(k - 2,) float: the normalised arc lengths of the inner vertices (the corners)."""
+        return self._s[1:-1]
+
+    @property
+    def length_mm(self) -> float:
+        return self._length
+
+    def evaluate(self, u) -> np.ndarray:
+        """Points at normalised arc lengths ``u`` ((n,) in [0, 1]): (n, 3) float, mm."""
+        u = _params(u)
+        return np.stack([np.interp(u, self._s, self.vertices[:, i]) for i in range(3)], axis=1)
+
+    def derivative(self, u) -> np.ndarray:
+        """d/du of :meth:`evaluate`, (n, 3) float, mm; at a corner, that of the segment after it."""
+        i = np.clip(np.searchsorted(self._s, _params(u), side="right") - 1, 0, len(self._s) - 2)
+        return (self.vertices[i + 1] - self.vertices[i]) / (self._s[i + 1] - self._s[i])[:, None]
+
+
+Curve = Line | Arc | PointCurve | Polyline
+
+
+# ------------------------------------------------------------------------------------------------ surface
+
+
+def _warn_normals(no_normal: int, undecided: int) -> None:
+    if no_normal:
+        log.warning("%d surface points have no normal (degenerate surface there): the gun side is used", no_normal)
+    if undecided:
+        log.warning(
+            "%d normals are perpendicular to the gun side: their side is the parametrisation's "
+            "(set gun_side or outward_from)",
+            undecided,
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class RuledSurface:
+    """S(u, v) = (1 - v) A(u) + v B(u), with unit normals turned toward the gun.
+
+    Attributes
+    ----------
+    curve_a, curve_b : Curve
+    gun_side : (3,) float
+        The normals satisfy ``n . gun_side >= 0`` (made unit; default +z).
+    outward_from : (3,) float, mm, or None
+        When given, used instead of ``gun_side``: ``n . (S - outward_from) >= 0``.
+    """
+
+    curve_a: Curve
+    curve_b: Curve
+    gun_side: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    outward_from: np.ndarray | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "gun_side", _unit(self.gun_side, "gun_side"))
+        if self.outward_from is not None:
+            object.__setattr__(self, "outward_from", _vector3(self.outward_from, "outward_from"))
+        u = np.linspace(0.0, 1.0, 65)
+        rulings = np.linalg.norm(self.curve_b.evaluate(u) - self.curve_a.evaluate(u), axis=1)
+        scale = max(self.curve_a.length_mm, self.curve_b.length_mm, float(rulings.max()))
+        object.__setattr__(self, "_tol", 1e-12 * scale * scale)
+        uu, vv = np.meshgrid(u, [0.0, 0.5, 1.0])
+        su, sv = self.tangents(uu.ravel(), vv.ravel())
+        if scale == 0.0 or not np.any(np.linalg.norm(np.cross(su, sv), axis=1) > self._tol):
+            raise ConfigError("the two curves span no surface (they coincide, or lie on one line)")
+        a_ends, b_ends = self.curve_a.evaluate([0.0, 1.0]), self.curve_b.evaluate([0.0, 1.0])
+        straight = np.linalg.norm(a_ends - b_ends, axis=1).sum()
+        crossed = np.linalg.norm(a_ends - b_ends[::-1], axis=1).sum()
+        if not self.closed and crossed < straight - 1e-9 * scale:
+            log.warning("curves A and B run in opposite directions: the rulings cross (reverse one curve)")
+
+    @property
+    def closed(self) -> bool:
+        """True when the surface closes on itself in u (both curves closed: a band, a cone)."""
+        return bool(self.curve_a.closed and self.curve_b.closed)
+
+    @property
+    def breaks(self) -> np.ndarray:
+        """Sorted u of the boundary curves' corners."""
+        return np.unique(np.concatenate([self.curve_a.breaks, self.curve_b.breaks]))
+
+    def evaluate(self, u, v) -> np.ndarray:
+        """Surface points at parameters ``u``, ``v`` ((n,) each, in [0, 1]): (n, 3) float, mm."""
+        u, v = np.broadcast_arrays(_params(u), _params(v))
+        return (1.0 - v)[:, None] * self.curve_a.evaluate(u) + v[:, None] * self.curve_b.evaluate(u)
+
+    def tangents(self, u, v) -> tuple[np.ndarray, np.ndarray]:
+        """The partial derivatives dS/du and dS/dv: (n, 3) float each, mm."""
+        u, v = np.broadcast_arrays(_params(u), _params(v))
+        s_u = (1.0 - v)[:, None] * self.curve_a.derivative(u) + v[:, None] * self.curve_b.derivative(u)
+        return s_u, self.curve_b.evaluate(u) - self.curve_a.evaluate(u)
+
+    def ruling_length(self, u) -> np.ndarray:
+        """(n,) float, mm: |B(u) - A(u)|."""
+        return np.linalg.norm(self.curve_b.evaluate(u) - self.curve_a.evaluate(u), axis=1)
+
+    def normals(self, u, v) -> np.ndarray:
+        """Unit normals toward the gun at ``u``, ``v`` ((n,) each): (n, 3) float.
+
+        Where dS/du x dS/dv vanishes, the normal is taken 1e-6 further inside the parameter square (v first,
+        then u, then both); if it still vanishes, the gun side is used. Both cases, and normals perpendicular to
+        the gun side, are logged as warnings.
+        """
+        normals, no_normal, undecided = self._normals(u, v)
+        _warn_normals(no_normal, undecided)
+        return normals
+
+    def _normals(self, u, v) -> tuple[np.ndarray, int, int]:
+        """:meth:`normals`, and the counts of points without a normal and of normals the gun side left open."""
+        u, v = (np.array(a, dtype=float) for a in np.broadcast_arrays(_params(u), _params(v)))
+        raw = np.cross(*self.tangents(u, v))
+        h = 1e-6
+        for du, dv in ((0.0, h), (h, 0.0), (h, h)):
+            bad = np.linalg.norm(raw, axis=1) <= self._tol
+            if not bad.any():
+                break
+            ub = u[bad] + du * np.where(u[bad] < 0.5, 1.0, -1.0)
+            vb = v[bad] + dv * np.where(v[bad] < 0.5, 1.0, -1.0)
+            raw[bad] = np.cross(*self.tangents(ub, vb))
+        bad = np.linalg.norm(raw, axis=1) <= self._tol
+        raw[bad] = self.gun_side
+        normals = raw / np.linalg.norm(raw, axis=1)[:, None]
+        if self.outward_from is None:
+            toward = np.broadcast_to(self.gun_side, normals.shape)
+        else:
+            toward = self.evaluate(u, v) - self.outward_from
+        dots = np.einsum("ij,ij->i", normals, toward)
+        normals[dots < 0] *= -1.0
+        undecided = np.abs(dots) <= 1e-9 * np.linalg.norm(toward, axis=1)
+        return normals, int(bad.sum()), int(undecided.sum())
+
+    def grid(self, n_u: int, n_v: int) -> tuple[np.ndarray, np.ndarray]:
+        """Points and normals on a regular (u, v) grid: (n_u, n_v, 3) float each (mm, unit)."""
+        uu, vv = np.meshgrid(np.linspace(0.0, 1.0, n_u), np.linspace(0.0, 1.0, n_v), indexing="ij")
+        points = self.evaluate(uu.ravel(), vv.ravel()).reshape(n_u, n_v, 3)
+        return points, self.normals(uu.ravel(), vv.ravel()).reshape(n_u, n_v, 3)
+
+
+# ------------------------------------------------------------------------------------------------ settings
+
+
+@dataclass(frozen=True)
+class RuledPathConfig:
+    """How the passes over a ruled surface are laid out (the ``[path]`` table; see the module docstring).
+
+    Attributes
+    ----------
+    spot_diameter_mm : float or None
+        Paint spot diameter on the surface; required unless ``passes`` is given.
+    overlap : float
+        Overlap ratio of neighbouring spots in [0, 1) (seed 000's eq. 6); unused with ``passes``.
+    passes : int or None
+        Exactly this many passes, the outer ones on the surface's edges.
+    standoff_mm : float
+        Gun tip to surface along the normal.
+    direction : {"rulings", "across"}
+    step_mm : float or None
+        Distance between the points of a pass; None: rulings: the two ends; across: the pass spacing.
+    zigzag : bool
+        Adjacent passes in opposite directions (True) or all the same way.
+    """
+
+    spot_diameter_mm: float | None = None
+    overlap: float = 0.4
+    passes: int | None = None
+    standoff_mm: float = 0.0
+    direction: str = "rulings"
+    step_mm: float | None = None
+    zigzag: bool = True
+
+    def __post_init__(self):
+        if self.spot_diameter_mm is None and self.passes is None:
+            raise ConfigError("give spot_diameter_mm (with overlap) or passes")
+        for name in ("spot_diameter_mm", "step_mm"):
+            value = getattr(self, name)
+            if value is not None and not (math.isfinite(value) and value > 0):
+                raise ConfigError(f"{name} must be a positive number, got {value}")
+        if not 0.0 <= self.overlap < 1.0:
+            raise ConfigError(f"overlap must be in [0, 1), got {self.overlap}")
+        if self.passes is not None and (
+            isinstance(self.passes, bool) or int(self.passes) != self.passes or self.passes < 1
+        ):
+            raise ConfigError(f"passes must be a whole number >= 1, got {self.passes}")
+        if not (math.isfinite(self.standoff_mm) and self.standoff_mm >= 0):
+            raise ConfigError(f"standoff_mm must be a number >= 0, got {self.standoff_mm}")
+        if self.direction not in DIRECTIONS:
+            raise ConfigError(f"direction must be one of {', '.join(DIRECTIONS)}, got {self.direction!r}")
+
+    @property
+    def spacing_mm(self) -> float | None:
+        """The pass spacing d from the spot and overlap (inverse of eq. 6), mm; None when ``passes`` is set."""
+        if self.passes is not None:
+            return None
+        return spacing_for_overlap(self.overlap, self.spot_diameter_mm / 2.0)
+
+
+@dataclass(frozen=True)
+class RuledJob:
+    """A ruled surface and the settings of its paths, as read from one TOML file."""
+
+    surface: RuledSurface
+    config: RuledPathConfig
+    name: str = ""
+
+
+# ------------------------------------------------------------------------------------------------ paths
+
+
+def _pass_positions(extent_mm: float, closed: bool, config: RuledPathConfig) -> tuple[np.ndarray, float]:
+    """Pass parameters in [0, 1] and their spacing in mm, over an extent measured in mm (module docstring)."""
+    if config.passes is not None:
+        n = int(config.passes)
+        if closed:
+            return np.arange(n) / n, extent_mm / n
+        if n == 1:
+            return np.array([0.5]), extent_mm
+        return np.linspace(0.0, 1.0, n), extent_mm / (n - 1)
+    d = config.spacing_mm
+    if closed:
+        n = max(1, math.ceil(extent_mm / d - 1e-9))
+        return np.arange(n) / n, extent_mm / n
+    n = math.floor(extent_mm / d + 1e-9) + 1
+    margin = max(extent_mm - (n - 1) * d, 0.0) / 2.0
+    return (margin + np.arange(n) * d) / extent_mm, d
+
+
+def _count(length_mm: float, step_mm: float) -> int:
+    return max(2, math.ceil(length_mm / step_mm - 1e-9) + 1)
+
+
+def _with_breaks(t: np.ndarray, breaks: np.ndarray) -> np.ndarray:
+    lo, hi = min(t[0], t[-1]), max(t[0], t[-1])
+    inner = breaks[(breaks > lo) & (breaks < hi)]
+    out = np.unique(np.concatenate([t, inner]))
+    return out if t[-1] >= t[0] else out[::-1]
+
+
+def _polyline_length(points: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+
+
+def _stroke(surface: RuledSurface, u, v, standoff: float, spray_on: bool, layer: int, counts: list) -> Stroke:
+    points = surface.evaluate(u, v)
+    normals, no_normal, undecided = surface._normals(u, v)
+    counts[0] += no_normal
+    counts[1] += undecided
+    on_part = np.full(len(points), spray_on)
+    return Stroke(points, normals, points + standoff * normals, spray_on, on_part, layer)
+
+
+def ruled_paths(job: RuledJob) -> Paths:
+    """Zig-zag spray passes over a ruled surface, with spray-off transfers between them.
+
+    Parameters
+    ----------
+    job : RuledJob
+
+    Returns
+    -------
+    Paths
+        Strokes in execution order: pass 0, transfer, pass 1, ... Pass k has ``layer = k``; transfers have
+        ``spray_on = False``, ``layer = -1``, ``on_part`` False. With ``zigzag = False`` every pass runs the same
+        way (A to B, or u = 0 to 1). ``spacing_mm`` is the pass spacing along the longer boundary curve
+        (rulings) or the longest ruling (across); for a single pass (``passes = 1``) that length itself.
+    """
+    surface, config = job.surface, job.config
+    breaks = surface.breaks
+    fine = _with_breaks(np.linspace(0.0, 1.0, 1025), breaks)
+    if config.direction == "rulings":
+        extent = max(surface.curve_a.length_mm, surface.curve_b.length_mm)
+        positions, spacing = _pass_positions(extent, surface.closed, config)
+    else:
+        extent = float(surface.ruling_length(fine).max())
+        positions, spacing = _pass_positions(extent, False, config)
+    step = config.step_mm
+    params = []
+    for k, p in enumerate(positions):
+        if config.direction == "rulings":
+            w = float(surface.ruling_length(p)[0])
+            v = np.array([0.0, 1.0]) if step is None else np.linspace(0.0, 1.0, _count(w, step))
+            u = np.full(len(v), p)
+        else:
+            length = _polyline_length(surface.evaluate(fine, p))
+            u = _with_breaks(np.linspace(0.0, 1.0, _count(length, step or spacing)), breaks)
+            v = np.full(len(u), p)
+        if config.zigzag and k % 2 == 1:
+            u, v = u[::-1], v[::-1]
+        params.append((u, v))
+    strokes, counts = [], [0, 0]
+    for k, (u, v) in enumerate(params):
+        if k > 0:
+            (u0, v0), (u1, v1) = (params[k - 1][0][-1], params[k - 1][1][-1]), (u[0], v[0])
+            t = np.linspace(0.0, 1.0, 65)
+            length = _polyline_length(surface.evaluate(u0 + t * (u1 - u0), v0 + t * (v1 - v0)))
+            t = np.linspace(0.0, 1.0, _count(length, step or spacing))
+            if u1 != u0:
+                t = _with_breaks(t, (breaks - u0) / (u1 - u0))
+            strokes.append(
+                _stroke(surface, u0 + t * (u1 - u0), v0 + t * (v1 - v0), config.standoff_mm, False, -1, counts)
+            )
+        strokes.append(_stroke(surface, u, v, config.standoff_mm, True, k, counts))
+    _warn_normals(*counts)
+    log.info("ruled %s: %d passes (%s), spacing %.3f mm", job.name, len(params), config.direction, spacing)
+    return Paths(tuple(strokes), config.standoff_mm, spacing, job.name)
+
+
+def cartesian_table(paths: Paths) -> np.ndarray:
+    """The gun tip positions of the spray passes in execution order (the seed's tables 4 and 5).
+
+    Returns
+    -------
+    (m, 3) float, mm
+        ``tcp`` of every spray stroke, concatenated (transfers left out); with standoff 0 the surface points.
+    """
+    rows = [stroke.tcp for stroke in paths.spray_strokes]
+    return np.vstack(rows) if rows else np.zeros((0, 3))
+
+
+def write_table_csv(path: str | os.PathLike, paths: Paths) -> None:
+    """Write :func:`cartesian_table` as CSV with the header ``n,x,y,z``, rows numbered from 1 (mm)."""
+    table = cartesian_table(paths)
+    with atomic_output(path, "w", newline="") as handle:
+        handle.write("n,x,y,z\n")
+        for n, row in enumerate(table, start=1):
+            handle.write(f"{n}," + ",".join(np.format_float_positional(x, precision=6, trim="-") for x in row) + "\n")
+
+
+# ------------------------------------------------------------------------------------------------ TOML
+
+
+class _Table:
+    """One TOML table being read: every error names the file and the dotted key."""
+
+    def __init__(self, source, table, prefix: str):
+        self.source, self.table, self.prefix = source, table, prefix
+
+    def fail(self, problem: str):
+        raise PartFileError(self.source, problem)
+
+    def key(self, name: str) -> str:
+        return f"{self.prefix}.{name}" if self.prefix else name
+
+    def allow(self, names):
+        unknown = sorted(set(self.table) - set(names))
+        if unknown:
+            where = f"[{self.prefix}]" if self.prefix else "the top level"
+            self.fail(f"unknown key '{self.key(unknown[0])}' (known in {where}: {', '.join(sorted(names))})")
+
+    def get(self, name: str, kind: str, default=..., optional=False):
+        if name not in self.table:
+            if default is ... and not optional:
+                self.fail(f"missing key '{self.key(name)}'")
+            return None if default is ... else default
+        value = self.table[name]
+        ok = {
+            "number": lambda x: isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x),
+            "integer": lambda x: isinstance(x, int) and not isinstance(x, bool),
+            "string": lambda x: isinstance(x, str),
+            "bool": lambda x: isinstance(x, bool),
+            "vector": lambda x: (
+                isinstance(x, list)
+                and len(x) == 3
+                and all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in x)
+            ),
+            "points": lambda x: (
+                isinstance(x, list)
+                and all(
+                    isinstance(p, list)
+                    and len(p) in (2, 3)
+                    and all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in p)
+                    for p in x
+                )
+            ),
+            "table": lambda x: isinstance(x, dict),
+        }[kind]
+        if not ok(value):
+            want = {
+                "vector": "a list of three numbers [x, y, z]",
+                "points": "a list of [x, y] or [x, y, z] points",
+                "table": "a table",
+                "bool": "true or false",
+                "integer": "a whole number",
+            }.get(kind, f"a {kind}")
+            self.fail(f"'{self.key(name)}' must be {want}, got {value!r}")
+        return float(value) if kind == "number" else value
+
+
+_CURVE_KEYS = {
+    "line": ("start", "end"),
+    "arc": ("center", "radius", "normal", "start_angle_deg", "end_angle_deg"),
+    "arc3": ("start", "mid", "end"),
+    "circle": ("center", "radius", "normal", "start_angle_deg"),
+    "point": ("at",),
+    "polyline": ("points", "z", "closed"),
+}
+
+
+def _curve(source, data, name: str) -> Curve:
+    t = _Table(source, data.get(name), name)
+    kind = t.get("type", "string")
+    if kind == "arc" and "mid" in t.table:
+        kind = "arc3"
+    if kind not in _CURVE_KEYS:
+        t.fail(f"'{name}.type' must be one of line, arc, circle, point, polyline, got {kind!r}")
+    t.allow(("type",) + _CURVE_KEYS[kind])
+    try:
+        if kind == "line":
+            return Line(t.get("start", "vector"), t.get("end", "vector"))
+        if kind == "arc3":
+            return Arc.through_points(t.get("start", "vector"), t.get("mid", "vector"), t.get("end", "vector"))
+        if kind in ("arc", "circle"):
+            center, radius = t.get("center", "vector"), t.get("radius", "number")
+            normal = t.get("normal", "vector", [0.0, 0.0, 1.0])
+            if kind == "circle":
+                start = t.get("start_angle_deg", "number", 0.0)
+                return Arc(center, radius, normal, math.radians(start), 2.0 * math.pi)
+            start, end = t.get("start_angle_deg", "number"), t.get("end_angle_deg", "number")
+            return Arc(center, radius, normal, math.radians(start), math.radians(end - start))
+        if kind == "point":
+            return PointCurve(t.get("at", "vector"))
+        points, z = t.get("points", "points"), t.get("z", "number", 0.0)
+        vertices = np.array([list(p) + [z] if len(p) == 2 else list(p) for p in points], dtype=float).reshape(-1, 3)
+        if t.get("closed", "bool", False) and len(vertices):
+            vertices = np.vstack([vertices, vertices[:1]])
+        return Polyline(vertices)
+    except ConfigError as err:
+        t.fail(f"[{name}]: {err}")
+
+
+def ruled_job_from_dict(data: dict, source: str | os.PathLike = "<dict>", name: str | None = None) -> RuledJob:
+    """Build a :class:`RuledJob` from parsed TOML (the schema in the module docstring).
+
+    Parameters
+    ----------
+    data : dict
+        The parsed file.
+    source : str or os.PathLike
+        The file, named in every error.
+    name : str or None
+        Used when the file has no ``name``; default: ``source``'s stem.
+
+    Raises
+    ------
+    PartFileError
+        On an unknown, missing or mistyped key or an out-of-range value; the message names the file and key.
+    """
+    top = _Table(source, data, "")
+    top.allow(("name", "curve_a", "curve_b", "path"))
+    for key in ("curve_a", "curve_b", "path"):
+        top.get(key, "table")
+    curve_a, curve_b = _curve(source, data, "curve_a"), _curve(source, data, "curve_b")
+    p = _Table(source, data["path"], "path")
+    p.allow(
+        (
+            "spot_diameter_mm",
+            "overlap",
+            "passes",
+            "standoff_mm",
+            "direction",
+            "step_mm",
+            "zigzag",
+            "gun_side",
+            "outward_from",
+        )
+    )
+    if "passes" in p.table and "overlap" in p.table:
+        p.fail("give either 'path.overlap' or 'path.passes', not both")
+    if "gun_side" in p.table and "outward_from" in p.table:
+        p.fail("give either 'path.gun_side' or 'path.outward_from', not both")
+    settings = {
+        "spot_diameter_mm": p.get("spot_diameter_mm", "number", optional=True),
+        "overlap": p.get("overlap", "number", RuledPathConfig.overlap),
+        "passes": p.get("passes", "integer", optional=True),
+        "standoff_mm": p.get("standoff_mm", "number", RuledPathConfig.standoff_mm),
+        "direction": p.get("direction", "string", RuledPathConfig.direction),
+        "step_mm": p.get("step_mm", "number", optional=True),
+        "zigzag": p.get("zigzag", "bool", RuledPathConfig.zigzag),
+    }
+    try:
+        config = RuledPathConfig(**settings)
+    except ConfigError as err:
+        p.fail(f"[path]: {err}")
+    try:
+        surface = RuledSurface(
+            curve_a,
+            curve_b,
+            p.get("gun_side", "vector", [0.0, 0.0, 1.0]),
+            p.get("outward_from", "vector", optional=True),
+        )
+    except ConfigError as err:
+        p.fail(f"[curve_a]/[curve_b]/[path]: {err}")
+    title = top.get("name", "string", optional=True)
+    return RuledJob(surface, config, title or name or Path(os.fspath(source)).stem)
+
+
+def load_ruled(path: str | os.PathLike) -> RuledJob:
+    """Read a ruled-surface job from a TOML file (schema: the module docstring).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    RuledJob
+
+    Raises
+    ------
+    PartFileError
+        The file is missing or unreadable, is not valid TOML, or breaks the schema; the message names the file.
+    """
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise PartFileError(path, "file not found") from None
+    except UnicodeDecodeError:
+        raise PartFileError(path, "not UTF-8 text") from None
+    except OSError as err:
+        raise PartFileError(path, f"cannot be read ({err.strerror})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise PartFileError(path, f"not valid TOML: {' '.join(str(err).split())}") from None
+    return ruled_job_from_dict(data, path)

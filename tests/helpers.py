@@ -1,0 +1,45 @@
+"""Independent geometric checks shared by the tests (not part of the package)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+
+def barycentric_inside(points, triangles, tol=1e-9):
+    """True where each point lies in its triangle's plane and inside it."""
+    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
+    n = np.cross(b - a, c - a)
+    area2 = np.linalg.norm(n, axis=1)
+    off_plane = np.abs(np.einsum("ij,ij->i", points - a, n)) / area2
+    w_a = np.einsum("ij,ij->i", np.cross(c - b, points - b), n) / area2**2
+    w_b = np.einsum("ij,ij->i", np.cross(a - c, points - c), n) / area2**2
+    w_c = 1 - w_a - w_b
+    scale = np.ptp(triangles.reshape(-1, 3), axis=0).max()
+    return (off_plane <= tol * scale) & (w_a >= -tol) & (w_b >= -tol) & (w_c >= -tol)
+
+
+def on_mesh(points, vertices, faces, tol=1e-9):
+    """(n,) bool: which points lie on some triangle of the mesh (every face is tried)."""
+    return containing_face(points, vertices, faces, tol) >= 0
+
+
+def containing_face(points, vertices, faces, tol=1e-9):
+    """(n,) int: a face each point lies on, -1 where none does.
+
+    Every face whose centroid lies within the largest centroid-to-corner distance of a point is tried, so no
+    containing face can be missed.
+    """
+    points = np.asarray(points, dtype=float)
+    tri = vertices[faces]
+    centre = tri.mean(axis=1)
+    reach = np.linalg.norm(tri - centre[:, None, :], axis=2).max() * (1 + 1e-9) + tol
+    lists = cKDTree(centre).query_ball_point(points, reach)
+    counts = np.array([len(c) for c in lists])
+    rows = np.repeat(np.arange(len(points)), counts)
+    cols = np.concatenate([np.asarray(c, dtype=int) for c in lists]) if len(rows) else np.zeros(0, int)
+    found = np.full(len(points), -1)
+    if len(rows):
+        inside = barycentric_inside(points[rows], tri[cols], tol)
+        found[rows[inside]] = cols[inside]
+    return found
