@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 
 import numpy as np
@@ -43,7 +44,7 @@ def layer_spacings(paths):
         layers.setdefault(s.layer, []).append(s)
     keys = sorted(layers)
     out = []
-    for a, b in zip(keys, keys[1:]):
+    for a, b in itertools.pairwise(keys):
         query = np.vstack([s.points[s.on_part] for s in layers[a]])
         seg_a = np.vstack([s.points[:-1] for s in layers[b]])
         seg_b = np.vstack([s.points[1:] for s in layers[b]])
@@ -146,7 +147,7 @@ def test_zig_zag_and_transfers(reach, reach_paths):
     _, travel = slicing_frame(surface_covariance(reach.triangles), "auto")
     strokes = reach_paths.strokes
     assert strokes[0].spray_on and strokes[-1].spray_on
-    for a, b in zip(strokes, strokes[1:]):
+    for a, b in itertools.pairwise(strokes):
         assert a.spray_on != b.spray_on  # spray, transfer, spray, ...
         np.testing.assert_allclose(a.tcp[-1], b.tcp[0], atol=1e-9)
     # the main stroke of each layer runs against the one of the layer before
@@ -159,7 +160,7 @@ def test_zig_zag_and_transfers(reach, reach_paths):
         chord = longest[k].points[-1] - longest[k].points[0]
         straight = abs(chord @ travel) > 0.5 * longest[k].length_mm  # not a U-shaped section
         signs.append(np.sign(chord @ travel) if straight else 0)
-    pairs = [(a, b) for a, b in zip(signs, signs[1:]) if a and b]
+    pairs = [(a, b) for a, b in itertools.pairwise(signs) if a and b]
     assert len(pairs) >= 20
     assert all(a == -b for a, b in pairs)
 
@@ -295,3 +296,21 @@ def test_cli_ruled_surface_writes_paths_and_the_seed_table(tmp_path, capsys):
                 [210, 280, 170], [240, 270, 180], [240, 130, 180], [270, 140, 190], [270, 260, 190]]
     np.testing.assert_allclose(rows[:, 1:], expected, atol=1e-9)
     assert len(read_paths_json(out).spray_strokes) == 5
+
+
+def test_stroke_frames_and_rpy(reach_paths):
+    from sprayplan.surface.poses import matrix_from_rpy, rpy_from_matrix, stroke_frames
+
+    stroke = max(reach_paths.spray_strokes, key=lambda s: s.length_mm)
+    frames = stroke_frames(stroke.points, stroke.normals)
+    np.testing.assert_allclose(frames[:, :, 2], -stroke.normals, atol=1e-12)  # gun z along -normal
+    np.testing.assert_allclose(np.linalg.det(frames), 1.0, atol=1e-12)
+    travel = np.gradient(stroke.points, axis=0)
+    assert (np.einsum("ij,ij->i", frames[:, :, 0], travel) > 0).all()  # x along the direction of travel
+    np.testing.assert_allclose(matrix_from_rpy(rpy_from_matrix(frames)), frames, atol=1e-12)
+    # eq. 9 by hand for one rotation: Rot(x, a) Rot(y, b) Rot(z, c)
+    a, b, c = 0.3, -0.7, 1.1
+    rx = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+    ry = np.array([[np.cos(b), 0, np.sin(b)], [0, 1, 0], [-np.sin(b), 0, np.cos(b)]])
+    rz = np.array([[np.cos(c), -np.sin(c), 0], [np.sin(c), np.cos(c), 0], [0, 0, 1]])
+    np.testing.assert_allclose(rpy_from_matrix((rx @ ry @ rz)[None])[0], [a, b, c], atol=1e-12)

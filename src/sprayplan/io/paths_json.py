@@ -38,8 +38,11 @@ def paths_to_dict(paths: Paths, settings=None) -> dict:
     """The JSON-ready form of a set of paths."""
     if dataclasses.is_dataclass(settings):
         settings = dataclasses.asdict(settings)
+    from sprayplan.surface.poses import rpy_from_matrix, stroke_frames
+
     strokes = []
     for i, s in enumerate(paths.strokes):
+        rpy = rpy_from_matrix(stroke_frames(s.points, s.normals)) if len(s) >= 2 else np.zeros((len(s), 3))
         strokes.append(
             {
                 "index": i,
@@ -49,6 +52,7 @@ def paths_to_dict(paths: Paths, settings=None) -> dict:
                 "normals": np.round(s.normals, 7).tolist(),
                 "tcp": np.round(s.tcp, 4).tolist(),
                 "on_part": s.on_part.tolist(),
+                "rpy": np.round(rpy, 7).tolist(),
             }
         )
     return {

@@ -10,7 +10,7 @@ from scipy.spatial import cKDTree
 from sprayplan.config import PathConfig
 from sprayplan.paths import cloudprep
 from sprayplan.paths import polyline as pl
-from sprayplan.paths.cloud_slicing import slice_cloud
+from sprayplan.paths.cloud_slicing import neighbour_triangle_normals, slice_cloud
 from sprayplan.paths.planner import Piece, _section_pieces, covariance, march_offsets, slicing_frame
 from sprayplan.surface import normals as nm
 from sprayplan.types import Part
@@ -26,8 +26,9 @@ def cloud_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
 
     Steps: statistical outlier removal and space sampling (003 section 2.2), outward normals (the file's, or
     PCA oriented by propagation), slab sections ordered into polylines (003 section 2.1), angle-method
-    streamlining (2.1.1), normals at the section points taken from the nearest cloud points' oriented normals
-    re-fitted by the neighbour planes (3.2.2), then the same segmentation and resampling as for meshes.
+    streamlining (2.1.1), normals at the section points by the neighbour-triangle method (3.2.2, area
+    weighted) turned to agree with the nearest cloud points' oriented normals, then the same segmentation and
+    resampling as for meshes.
     """
     points = part.vertices
     given = part.vertex_normals
@@ -82,8 +83,10 @@ def cloud_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
                 line = line[pl.streamline(line, thresholds[0], thresholds[1], closed=closed)]
             if len(line) < 2:
                 continue
+            # 003 section 3.2.2: the normal from the neighbour triangles around each section point, turned to
+            # agree with the oriented normals of the nearest cloud points
             near = tree.query(line, k=min(8, len(points)))[1]
-            line_n = nm.unit(normals[near].mean(axis=1))
+            line_n = nm.orient_like(neighbour_triangle_normals(line, points, k=8), normals[near].mean(axis=1))
             pieces.extend(_section_pieces(line, line_n, closed, travel, config))
         layers.append(pieces)
     log.info("%s: %d cloud layers, slab +-%.3g mm", part.name, len(layers), slab)

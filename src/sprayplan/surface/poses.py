@@ -74,3 +74,75 @@ def tool_poses(points: np.ndarray, normals: np.ndarray, standoff_mm: float) -> n
     out[:, :3, 3] = points + standoff_mm * unit(np.asarray(normals, dtype=float))
     out[:, 3, 3] = 1.0
     return out
+
+
+def stroke_frames(points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Gun orientations along a stroke: z along ``-normal``, x along the direction of travel.
+
+    Parameters
+    ----------
+    points : (n, 3) float, mm
+        Waypoints in travel order (n >= 2).
+    normals : (n, 3) float
+        Unit outward normals.
+
+    Returns
+    -------
+    (n, 3, 3) float
+        Rotation matrices (columns x, y, z of the tool frame in the part frame), proper and orthonormal. The
+        travel direction at a waypoint is the central difference of its neighbours, projected onto the plane
+        normal to the gun axis; where it vanishes (the gun moves along its own axis) the previous waypoint's x
+        axis is kept.
+    """
+    points = np.asarray(points, dtype=float)
+    z = -unit(np.asarray(normals, dtype=float))
+    travel = np.gradient(points, axis=0) if len(points) >= 2 else np.zeros_like(points)
+    x = travel - np.einsum("ij,ij->i", travel, z)[:, None] * z
+    length = np.linalg.norm(x, axis=1)
+    good = length > 1e-9
+    if not good.any():
+        x = np.cross(z, np.where(np.abs(z[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
+    else:
+        index = np.maximum.accumulate(np.where(good, np.arange(len(x)), 0))
+        first = int(np.argmax(good))
+        index[:first] = first
+        x = x[index]
+        x = x - np.einsum("ij,ij->i", x, z)[:, None] * z
+    x = unit(x)
+    y = np.cross(z, x)
+    return np.stack([x, y, z], axis=2)
+
+
+def rpy_from_matrix(rotation: np.ndarray) -> np.ndarray:
+    """Roll-pitch-yaw angles of seed 001's eq. 9, ``R = Rot(x, psi_x) Rot(y, psi_y) Rot(z, psi_z)``.
+
+    Parameters
+    ----------
+    rotation : (n, 3, 3) float
+
+    Returns
+    -------
+    (n, 3) float, rad
+        ``(psi_x, psi_y, psi_z)``; at ``psi_y = +-pi/2`` (gimbal lock) ``psi_z`` is set to 0.
+    """
+    r = np.asarray(rotation, dtype=float).reshape(-1, 3, 3)
+    # R = Rx Ry Rz: r02 = sin(psi_y), r12 = -sin(psi_x) cos(psi_y), r22 = cos(psi_x) cos(psi_y),
+    # r01 = -cos(psi_y) sin(psi_z), r00 = cos(psi_y) cos(psi_z)
+    psi_y = np.arcsin(np.clip(r[:, 0, 2], -1.0, 1.0))
+    locked = np.abs(r[:, 0, 2]) > 1.0 - 1e-12
+    psi_x = np.where(locked, np.arctan2(r[:, 2, 1], r[:, 1, 1]), np.arctan2(-r[:, 1, 2], r[:, 2, 2]))
+    psi_z = np.where(locked, 0.0, np.arctan2(-r[:, 0, 1], r[:, 0, 0]))
+    return np.stack([psi_x, psi_y, psi_z], axis=1)
+
+
+def matrix_from_rpy(angles: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`rpy_from_matrix`: ``Rot(x, psi_x) Rot(y, psi_y) Rot(z, psi_z)`` for (n, 3) angles."""
+    a = np.asarray(angles, dtype=float).reshape(-1, 3)
+    cx, sx = np.cos(a[:, 0]), np.sin(a[:, 0])
+    cy, sy = np.cos(a[:, 1]), np.sin(a[:, 1])
+    cz, sz = np.cos(a[:, 2]), np.sin(a[:, 2])
+    one, zero = np.ones(len(a)), np.zeros(len(a))
+    rx = np.stack([one, zero, zero, zero, cx, -sx, zero, sx, cx], 1).reshape(-1, 3, 3)
+    ry = np.stack([cy, zero, sy, zero, one, zero, -sy, zero, cy], 1).reshape(-1, 3, 3)
+    rz = np.stack([cz, -sz, zero, sz, cz, zero, zero, zero, one], 1).reshape(-1, 3, 3)
+    return rx @ ry @ rz
