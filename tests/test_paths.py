@@ -213,14 +213,32 @@ def test_json_round_trip_and_schema(reach_paths, tmp_path):
 
 def test_cli_paths_writes_the_file_and_summary(testdata, tmp_path, capsys):
     out = tmp_path / "paths.json"
-    code = main(["paths", str(testdata / "meshes" / "reach_curved_part.ply"), "--units", "m", "-o", str(out),
-                 "--direction", "0,1,0", "--spacing-mm", "60", "--standoff-mm", "150", "--edge-margin-mm", "20"])
+    code = main(
+        [
+            "paths",
+            str(testdata / "meshes" / "reach_curved_part.ply"),
+            "--units",
+            "m",
+            "-o",
+            str(out),
+            "--direction",
+            "0,1,0",
+            "--spacing-mm",
+            "60",
+            "--standoff-mm",
+            "150",
+            "--edge-margin-mm",
+            "20",
+        ]
+    )
     stdout = capsys.readouterr().out
     assert code == 0 and "strokes" in stdout and "spray" in stdout and "transfer" in stdout
     data = json.loads(out.read_text())
     assert data["settings"]["standoff_mm"] == 150.0 and data["settings"]["spacing_mm"] == 60.0
     stroke = data["strokes"][0]
-    np.testing.assert_allclose(np.array(stroke["tcp"]), np.array(stroke["points"]) + 150 * np.array(stroke["normals"]), atol=1e-3)
+    np.testing.assert_allclose(
+        np.array(stroke["tcp"]), np.array(stroke["points"]) + 150 * np.array(stroke["normals"]), atol=1e-3
+    )
 
 
 def test_bad_path_options(testdata, tmp_path, capsys):
@@ -237,7 +255,9 @@ def test_bad_path_options(testdata, tmp_path, capsys):
 def test_spacing_larger_than_a_tiny_part_still_gives_one_layer():
     from sprayplan.types import Part
 
-    square = Part(np.array([[0, 0, 0], [10, 0, 0], [10, 10, 0], [0, 10, 0.0]]), np.array([[0, 1, 2], [0, 2, 3]]), None, "sq")
+    square = Part(
+        np.array([[0, 0, 0], [10, 0, 0], [10, 10, 0], [0, 10, 0.0]]), np.array([[0, 1, 2], [0, 2, 3]]), None, "sq"
+    )
     paths = plan_paths(square, PathConfig(spacing_mm=100.0))
     assert len(paths.spray_strokes) == 1
     with pytest.raises(InputError):
@@ -268,10 +288,18 @@ def test_mesh_and_sampled_cloud_give_nearby_strokes(reach):
         assert np.median(d) < 1.5 and np.percentile(d, 90) < 3.0 and np.percentile(d, 99) < 10.0
 
 
-@pytest.mark.parametrize("name", ["pcl_milk.pcd", "reach_part_normals_ascii.pcd"])
-def test_paths_on_real_clouds(testdata, name):
+@pytest.mark.parametrize(
+    "name, normals, smooth",
+    [
+        ("pcl_milk.pcd", "triangles", None),
+        ("pcl_milk.pcd", "plane", 5.0),
+        ("reach_part_normals_ascii.pcd", "triangles", None),
+    ],
+)
+def test_paths_on_real_clouds(testdata, name, normals, smooth):
     cloud = load_part(testdata / "pointclouds" / name, units="m")
-    paths = plan_paths(cloud, PathConfig(spacing_mm=20.0, standoff_mm=100.0))
+    config = PathConfig(spacing_mm=20.0, standoff_mm=100.0, cloud_normals=normals, cloud_smooth_mm=smooth)
+    paths = plan_paths(cloud, config)
     assert paths.spray_strokes
     tree = cKDTree(cloud.vertices)
     spacing = float(np.median(tree.query(cloud.vertices, k=2)[0][:, 1]))
@@ -287,13 +315,32 @@ def test_cli_ruled_surface_writes_paths_and_the_seed_table(tmp_path, capsys):
     from tests.conftest import REPO
 
     out, table = tmp_path / "ruled.json", tmp_path / "table.csv"
-    code = main(["paths", "--ruled", str(REPO / "examples" / "ruled" / "case1_table4.toml"), "-o", str(out),
-                 "--table", str(table)])
+    code = main(
+        [
+            "paths",
+            "--ruled",
+            str(REPO / "examples" / "ruled" / "case1_table4.toml"),
+            "-o",
+            str(out),
+            "--table",
+            str(table),
+        ]
+    )
     assert code == 0 and "strokes" in capsys.readouterr().out
     rows = np.loadtxt(table, delimiter=",", skiprows=1)
     # seed 001, table 4, read with its columns in the order that the R5150 forward kinematics confirms
-    expected = [[150, 100, 150], [150, 300, 150], [180, 290, 160], [180, 110, 160], [210, 120, 170],
-                [210, 280, 170], [240, 270, 180], [240, 130, 180], [270, 140, 190], [270, 260, 190]]
+    expected = [
+        [150, 100, 150],
+        [150, 300, 150],
+        [180, 290, 160],
+        [180, 110, 160],
+        [210, 120, 170],
+        [210, 280, 170],
+        [240, 270, 180],
+        [240, 130, 180],
+        [270, 140, 190],
+        [270, 260, 190],
+    ]
     np.testing.assert_allclose(rows[:, 1:], expected, atol=1e-9)
     assert len(read_paths_json(out).spray_strokes) == 5
 

@@ -177,6 +177,8 @@ def _path_config(args):
         interpolate=args.interpolate,
         points_per_section=args.points_per_section,
         slab_mm=args.slab_mm,
+        cloud_normals=args.cloud_normals,
+        cloud_smooth_mm=args.cloud_smooth_mm,
     )
     for name in ("spray_radius_mm", "overlap", "standoff_mm", "step_mm"):
         if getattr(args, name) is not None:
@@ -325,6 +327,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --points-per-section: line or arc interpolation between them",
     )
     group.add_argument("--slab-mm", type=float, help="point clouds: half-thickness of each slice")
+    group.add_argument(
+        "--cloud-normals",
+        choices=["triangles", "plane"],
+        default="triangles",
+        help="point clouds: neighbour-triangle (default) or plane-fit normals",
+    )
+    group.add_argument("--cloud-smooth-mm", type=float, help="point clouds: smoothing radius before slicing")
     paths.set_defaults(func=cmd_paths)
     return parser
 

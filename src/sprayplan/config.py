@@ -157,6 +157,12 @@ class PathConfig:
         points, every ``step_mm`` (003 section 3.2.3).
     slab_mm : float or None
         Point clouds: half-thickness of the slab around each plane; None: twice the cloud's median spacing.
+    cloud_normals : {"triangles", "plane"}
+        Point clouds: normals at section points by the neighbour-triangle method (003 section 3.2.2) or by a
+        k-nearest-neighbour plane fit.
+    cloud_smooth_mm : float or None
+        Point clouds: move each point onto the least-squares plane of its neighbours within this radius before
+        slicing (003 section 2.2.3); None: no smoothing.
     """
 
     direction: str | tuple = "auto"
@@ -174,8 +180,12 @@ class PathConfig:
     points_per_section: int | None = None
     interpolate: str = "none"
     slab_mm: float | None = None
+    cloud_normals: str = "triangles"
+    cloud_smooth_mm: float | None = None
 
     def __post_init__(self):
+        if self.cloud_normals not in ("triangles", "plane"):
+            raise ConfigError(f"cloud_normals must be triangles or plane, got {self.cloud_normals!r}")
         if isinstance(self.direction, str):
             if self.direction not in ("auto", "x", "y", "z"):
                 raise ConfigError(f"direction must be auto, x, y, z or a vector, got {self.direction!r}")
@@ -196,7 +206,7 @@ class PathConfig:
             raise ConfigError(f"points_per_section must be a whole number >= 2, got {self.points_per_section}")
         if self.layers is not None and self.spacing_mm is not None:
             raise ConfigError("give either layers or spacing_mm, not both")
-        for name in ("spacing_mm", "spray_radius_mm", "step_mm", "split_gap_mm", "slab_mm"):
+        for name in ("spacing_mm", "spray_radius_mm", "step_mm", "split_gap_mm", "slab_mm", "cloud_smooth_mm"):
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value > 0):
                 raise ConfigError(f"{name} must be a positive number, got {value}")

@@ -10,7 +10,7 @@ from scipy.spatial import cKDTree
 from sprayplan.config import PathConfig
 from sprayplan.paths import cloudprep
 from sprayplan.paths import polyline as pl
-from sprayplan.paths.cloud_slicing import neighbour_triangle_normals, slice_cloud
+from sprayplan.paths.cloud_slicing import neighbour_triangle_normals, plane_fit_normals, slice_cloud
 from sprayplan.paths.planner import Piece, _section_pieces, covariance, march_offsets, slicing_frame
 from sprayplan.surface import normals as nm
 from sprayplan.types import Part
@@ -36,6 +36,8 @@ def cloud_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
     keep = keep[cloudprep.space_sample(points[keep])]
     points = points[keep]
     given = None if given is None else given[keep]
+    if config.cloud_smooth_mm is not None:
+        points = cloudprep.smooth(points, config.cloud_smooth_mm)
     if len(points) < 3:
         return []
     tree = cKDTree(points)
@@ -86,7 +88,12 @@ def cloud_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
             # 003 section 3.2.2: the normal from the neighbour triangles around each section point, turned to
             # agree with the oriented normals of the nearest cloud points
             near = tree.query(line, k=min(8, len(points)))[1]
-            line_n = nm.orient_like(neighbour_triangle_normals(line, points, k=8), normals[near].mean(axis=1))
+            fitted = (
+                neighbour_triangle_normals(line, points, k=8)
+                if config.cloud_normals == "triangles"
+                else plane_fit_normals(line, points, k=12)
+            )
+            line_n = nm.orient_like(fitted, normals[near].mean(axis=1))
             pieces.extend(_section_pieces(line, line_n, closed, travel, config))
         layers.append(pieces)
     log.info("%s: %d cloud layers, slab +-%.3g mm", part.name, len(layers), slab)
