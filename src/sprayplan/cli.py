@@ -237,6 +237,196 @@ def cmd_paths(args) -> int:
     return 0
 
 
+def _robot(name: str):
+    from sprayplan.robots.model import load_robot
+
+    return load_robot("ur5" if name == "gantry-ur5" else name)
+
+
+def _tool_offset(args):
+    """gun2flange of --tool (identity without one)."""
+    import numpy as np
+
+    from sprayplan.robots.gantry import load_gun
+
+    return load_gun(args.tool).gun2flange if args.tool else np.eye(4)
+
+
+def cmd_fk(args) -> int:
+    from sprayplan.robots.csvio import POSE_COLUMNS, pose_rows, read_joints, write_table
+    from sprayplan.robots.model import fk
+
+    robot = _robot(args.robot)
+    q = read_joints(args.joints, robot.dof)
+    poses = fk(robot, q) @ _tool_offset(args)
+    write_table(args.output, POSE_COLUMNS[args.pose_format], pose_rows(poses, args.pose_format).tolist())
+    print(f"{len(q)} poses of the {'tool ' + args.tool if args.tool else 'flange'} ({robot.name}) -> {args.output}")
+    return 0
+
+
+def _r5150_ik(robot, poses):
+    """Position, pitch and roll of the R5150 from full poses; the 5-DOF arm reaches only some orientations."""
+    import numpy as np
+
+    from sprayplan.robots.gantry import pose_errors
+    from sprayplan.robots.model import fk
+    from sprayplan.robots.r5150 import r5150_ik
+
+    theta1 = np.arctan2(poses[:, 1, 3], poses[:, 0, 3])
+    c, s = np.cos(theta1), np.sin(theta1)
+    # R = Rz(theta1) Rx(pi/2) Rz(pitch) Rx(pi/2) Rz(roll): undo the first two to read pitch and roll
+    first = np.zeros((len(poses), 3, 3))
+    first[:, 0, 0], first[:, 0, 2] = c, s
+    first[:, 1, 0], first[:, 1, 2] = s, -c
+    first[:, 2, 1] = 1.0
+    rest = first.transpose(0, 2, 1) @ poses[:, :3, :3]
+    pitch = np.arctan2(rest[:, 0, 2], -rest[:, 1, 2])
+    roll = np.arctan2(rest[:, 2, 0], rest[:, 2, 1])
+    solution = r5150_ik(poses[:, :3, 3], pitch, roll, elbow="auto", model=robot)
+    reached = fk(robot, solution.q)
+    position, axis = pose_errors(reached, poses)
+    angle = np.arccos(np.clip((np.einsum("nij,nij->n", reached[:, :3, :3], poses[:, :3, :3]) - 1) / 2, -1, 1))
+    ok = solution.reachable & (position < 1e-6) & (angle < 1e-6)
+    reason = np.where(solution.reachable & ~ok, "orientation not reachable by 5 axes", solution.reason)
+    return solution.q, ok, reason
+
+
+def cmd_ik(args) -> int:
+    import numpy as np
+
+    from sprayplan.robots.csvio import read_poses, write_table
+
+    if args.robot == "gantry-ur5":
+        return _ik_gantry(args)
+    robot = _robot(args.robot)
+    poses = read_poses(args.poses, args.pose_format) @ np.linalg.inv(_tool_offset(args))
+    names = [f"q{i + 1}" for i in range(robot.dof)]
+    if robot.name == "r5150":
+        q, ok, reason = _r5150_ik(robot, poses)
+        rows = [[*(q[i] if ok[i] else [None] * 5), int(ok[i]), reason[i]] for i in range(len(q))]
+        write_table(args.output, [*names, "reachable", "reason"], rows)
+        print(f"{int(ok.sum())} of {len(q)} poses reachable ({robot.name}) -> {args.output}")
+        return 0
+    from sprayplan.robots.ur_ik import ik_path, ur_ik
+
+    if args.all:
+        solutions = ur_ik(robot, poses)
+        rows = [
+            [i + 1, b, *solutions.q[i, b], int(solutions.wrist_singular[i, b])]
+            for i in range(len(poses))
+            for b in range(8)
+            if solutions.valid[i, b]
+        ]
+        write_table(args.output, ["pose", "branch", *names, "wrist_singular"], rows)
+        print(f"{len(rows)} solutions for {len(poses)} poses ({robot.name}) -> {args.output}")
+        return 0
+    seed = None
+    if args.seed_joints:
+        seed = np.array([float(v) for v in args.seed_joints.split(",")])
+        if seed.shape != (robot.dof,):
+            raise ConfigError(f"--seed-joints needs {robot.dof} values")
+    path = ik_path(robot, poses, seed_q=seed)
+    rows = [
+        [
+            *(path.q[i] if path.reachable[i] else [None] * 6),
+            int(path.reachable[i]),
+            int(path.branch[i]),
+            int(path.branch_change[i]),
+            int(path.jump[i]),
+        ]
+        for i in range(len(poses))
+    ]
+    write_table(args.output, [*names, "reachable", "branch", "branch_change", "jump"], rows)
+    print(
+        f"{int(path.reachable.sum())} of {len(poses)} poses reachable, {int(path.branch_change.sum())} branch "
+        f"changes, {int(path.jump.sum())} jumps ({robot.name}) -> {args.output}"
+    )
+    return 0
+
+
+def _ik_gantry(args) -> int:
+    import numpy as np
+
+    from sprayplan.io.paths_json import read_paths_json
+    from sprayplan.robots.csvio import write_table
+    from sprayplan.robots.gantry import Gantry, load_gun, solve_gantry_path
+    from sprayplan.surface.poses import stroke_frames
+
+    gantry = Gantry(gun=load_gun(args.tool or "wa101"))
+    paths = read_paths_json(args.poses)
+    fixed = None
+    if args.platform and args.platform != "auto":
+        fixed = np.array([float(v) for v in args.platform.split(",")])
+        if fixed.shape != (3,):
+            raise ConfigError("--platform needs 'x,y,z' (mm) or 'auto'")
+    gun2world, platform, labels = [], [], []
+    platforms = []
+    for stroke in paths.strokes:
+        platforms.append(
+            fixed if fixed is not None else gantry.platform_for(stroke.points) if stroke.spray_on else None
+        )
+    for k in range(len(platforms) - 1, -1, -1):  # a transfer takes the platform of the stroke it leads to
+        if platforms[k] is None:
+            platforms[k] = platforms[k + 1] if k + 1 < len(platforms) else platforms[k - 1]
+    for k, stroke in enumerate(paths.strokes):
+        pose = np.zeros((len(stroke), 4, 4))
+        pose[:, :3, :3] = stroke_frames(stroke.points, stroke.normals)
+        pose[:, :3, 3] = stroke.tcp
+        pose[:, 3, 3] = 1.0
+        gun2world.append(pose)
+        platform.append(np.repeat(platforms[k][None], len(stroke), axis=0))
+        labels += [(k, i, stroke.spray_on) for i in range(len(stroke))]
+    with _stage("kinematics"):
+        result = solve_gantry_path(gantry, np.concatenate(gun2world), np.concatenate(platform))
+    header = [
+        "stroke",
+        "waypoint",
+        "spray_on",
+        "q1",
+        "q2",
+        "q3",
+        "q4",
+        "q5",
+        "q6",
+        "tx",
+        "ty",
+        "tz",
+        "reachable",
+        "method",
+        "region",
+        "position_error_mm",
+        "axis_error_deg",
+        "branch_change",
+        "jump",
+    ]
+    rows = []
+    for j, (k, i, on) in enumerate(labels):
+        joints = list(result.q9[j]) if result.reachable[j] else [None] * 9
+        rows.append(
+            [
+                k,
+                i,
+                int(on),
+                *joints,
+                int(result.reachable[j]),
+                result.method[j],
+                int(result.region[j]),
+                None if not result.reachable[j] else result.position_error_mm[j],
+                None if not result.reachable[j] else result.axis_error_deg[j],
+                int(result.branch_change[j]),
+                int(result.jump[j]),
+            ]
+        )
+    write_table(args.output, header, rows)
+    ok = result.reachable
+    worst = np.nanmax(result.position_error_mm) if ok.any() else float("nan")
+    print(
+        f"{int(ok.sum())} of {len(ok)} waypoints reachable ({int((result.method == 'sqp').sum())} by SQP), "
+        f"max position error {worst:.3g} mm, {int(result.branch_change.sum())} branch changes -> {args.output}"
+    )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="sprayplan",
@@ -335,6 +525,32 @@ def build_parser() -> argparse.ArgumentParser:
     )
     group.add_argument("--cloud-smooth-mm", type=float, help="point clouds: smoothing radius before slicing")
     paths.set_defaults(func=cmd_paths)
+
+    robots = "ur5, ur5e, ur5-seed, r5150 or a robot .toml"
+    fk_cmd = sub.add_parser("fk", parents=[common], help="forward kinematics: joints CSV -> poses CSV")
+    fk_cmd.add_argument("joints", help="CSV with columns q1..q6 (rad; q1..q5 for r5150)")
+    fk_cmd.add_argument("-o", "--output", required=True)
+    fk_cmd.add_argument("--robot", default="ur5", help=robots)
+    fk_cmd.add_argument("--pose-format", choices=["rotvec", "matrix"], default="rotvec")
+    fk_cmd.add_argument("--tool", help="give the pose of this gun (wa101) instead of the flange")
+    fk_cmd.set_defaults(func=cmd_fk)
+
+    ik_cmd = sub.add_parser(
+        "ik",
+        parents=[common],
+        help="inverse kinematics: poses CSV (or paths.json for gantry-ur5) -> joints CSV",
+        description="Inverse kinematics. Rows of a poses CSV are a trajectory: each gets the branch nearest the "
+        "previous row's joints. Unreachable poses give a row with empty joints and reachable=0.",
+    )
+    ik_cmd.add_argument("poses", help="CSV x,y,z,rx,ry,rz (mm, rotation vector) or a paths.json for gantry-ur5")
+    ik_cmd.add_argument("-o", "--output", required=True)
+    ik_cmd.add_argument("--robot", default="ur5", help=robots + ", or gantry-ur5 (nine axes, reads paths.json)")
+    ik_cmd.add_argument("--pose-format", choices=["rotvec", "matrix"], default="rotvec")
+    ik_cmd.add_argument("--tool", help="the poses are of this gun (wa101), not of the flange")
+    ik_cmd.add_argument("--all", action="store_true", help="every valid branch: columns pose,branch,q1..q6")
+    ik_cmd.add_argument("--seed-joints", help="'q1,...,q6': start the trajectory near these joints (rad)")
+    ik_cmd.add_argument("--platform", default="auto", help="gantry-ur5: 'x,y,z' (mm) for every stroke, or auto")
+    ik_cmd.set_defaults(func=cmd_ik)
     return parser
 
 

@@ -1,0 +1,401 @@
+"""The nine-axis robot of seed 000: a UR5 hanging from a three-axis x/y/z gantry (sections 3-4, 6.4).
+
+Pose of the spray target (eq. 8)::
+
+    T = Trans(tx, ty, tz) Rot(x, pi) T_robot T_tool T_dis
+
+with ``T_robot`` the UR5's ``flange2base`` (eq. 11), ``T_tool`` the gun on the flange (``gun2flange``) and
+``T_dis`` the spray distance along the gun's z axis (``target2gun``). Here ``Trans(t) Rot(x, pi)`` is
+``base2world``: the robot hangs upside down from the gantry carriage at ``t``.
+
+Workspace (section 4, eq. 13): the largest cylinder ``V = pi (r cos theta)^2 (h0 - r sin theta)`` inside the
+reach sphere of radius r = 850 mm around the shoulder, below the gantry's side wall h0 = 163 mm from the
+sphere's centre. dV/dtheta = 0 gives ``3 r s^2 - 2 h0 s - r = 0`` in s = sin(theta), whose negative root
+``s = (h0 - sqrt(h0^2 + 3 r^2)) / (3 r)`` is theta = -0.543 rad, radius 727.6 mm, height 602.4 mm: the seed's
+-0.54 rad, 727 mm and 602 mm. Assumption (the seed's figure 13 is not in the text): the cylinder's axis is the base's z
+axis, its top lies h0 above the shoulder toward the mount (73.8 mm above the mounting plane for the UR5's
+d1 = 89.2 mm), its bottom r |sin theta| below the shoulder. Inside it, a core cylinder of 151 mm diameter
+around the base axis is "not recommended" (the shoulder singularity).
+
+Inverse kinematics of a waypoint (section 4): in the recommended region the analytic UR IK
+(``robots.ur_ik``), branch chosen nearest the previous joints; elsewhere, or when the analytic solution fails,
+SQP (scipy's SLSQP) over the six joints and the three gantry axes, minimising eq. 20 subject to eqs. 21-22.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import minimize
+
+from sprayplan.errors import ConfigError
+from sprayplan.robots.model import RobotModel, fk, load_robot
+
+log = logging.getLogger(__name__)
+
+
+def trans(x: float, y: float, z: float) -> np.ndarray:
+    """4x4 translation."""
+    out = np.eye(4)
+    out[:3, 3] = (x, y, z)
+    return out
+
+
+ROT_X_PI = np.diag([1.0, -1.0, -1.0, 1.0])  # Rot(x, pi) of eq. 8
+
+
+@dataclass(frozen=True)
+class Gun:
+    """A spray gun on the flange.
+
+    Attributes
+    ----------
+    name : str
+    gun2flange : (4, 4) float, mm
+        T_tool of eq. 8.
+    spray_distance_mm : float
+        T_dis = Trans(0, 0, spray_distance_mm): the spray target on the gun's z axis.
+    """
+
+    name: str
+    gun2flange: np.ndarray
+    spray_distance_mm: float
+
+    @property
+    def target2gun(self) -> np.ndarray:
+        """T_dis."""
+        return trans(0.0, 0.0, self.spray_distance_mm)
+
+
+#: Seed 000's WA-101 gun: T_tool = Trans(5.5, 94.5, 165.5) mm, T_dis = Trans(0, 0, 113) mm.
+GUNS = {"wa101": Gun("wa101", trans(5.5, 94.5, 165.5), 113.0), "none": Gun("none", np.eye(4), 0.0)}
+
+
+def load_gun(name: str) -> Gun:
+    """A gun preset (``wa101``, ``none``)."""
+    if name not in GUNS:
+        raise ConfigError(f"unknown tool {name!r}: use one of {', '.join(GUNS)}")
+    return GUNS[name]
+
+
+@dataclass(frozen=True)
+class Workspace:
+    """The recommended working cylinder of a hanging UR5 (seed 000, section 4, eq. 13).
+
+    Attributes
+    ----------
+    reach_mm : float
+        r, the radius of the reach sphere around the shoulder (UR5: 850 mm).
+    wall_mm : float
+        h0, from the sphere's centre up to the gantry's side wall (seed: 163 mm).
+    core_diameter_mm : float
+        The non-recommended core around the base axis (seed: 151 mm).
+    """
+
+    reach_mm: float = 850.0
+    wall_mm: float = 163.0
+    core_diameter_mm: float = 151.0
+
+    @property
+    def theta(self) -> float:
+        """The angle of eq. 13 at which the cylinder's volume is largest, rad (negative: below the centre)."""
+        r, h0 = self.reach_mm, self.wall_mm
+        # dV/dtheta = 0  <=>  3 r s^2 - 2 h0 s - r = 0 with s = sin(theta); the negative root
+        s = (2 * h0 - math.sqrt(4 * h0 * h0 + 12 * r * r)) / (6 * r)
+        return math.asin(s)
+
+    @property
+    def radius_mm(self) -> float:
+        """Cylinder radius r cos(theta)."""
+        return self.reach_mm * math.cos(self.theta)
+
+    @property
+    def height_mm(self) -> float:
+        """Cylinder height h0 - r sin(theta)."""
+        return self.wall_mm - self.reach_mm * math.sin(self.theta)
+
+    def volume(self, theta: float) -> float:
+        """Eq. 13: V(theta) = pi (r cos theta)^2 (h0 - r sin theta), mm^3."""
+        return math.pi * (self.reach_mm * math.cos(theta)) ** 2 * (self.wall_mm - self.reach_mm * math.sin(theta))
+
+
+@dataclass(frozen=True)
+class Gantry:
+    """A UR-type robot hanging from a three-axis gantry, with a spray gun.
+
+    Attributes
+    ----------
+    robot : RobotModel
+    gun : Gun
+    workspace : Workspace
+    """
+
+    robot: RobotModel = field(default_factory=lambda: load_robot("ur5"))
+    gun: Gun = field(default_factory=lambda: GUNS["wa101"])
+    workspace: Workspace = field(default_factory=Workspace)
+
+    def base2world(self, platform: np.ndarray) -> np.ndarray:
+        """(n, 4, 4): ``Trans(t) Rot(x, pi)`` for platform positions t (n, 3), mm."""
+        platform = np.atleast_2d(np.asarray(platform, dtype=float))
+        out = np.broadcast_to(ROT_X_PI, (len(platform), 4, 4)).copy()
+        out[:, :3, 3] = platform
+        return out
+
+    def target2world(self, q9: np.ndarray) -> np.ndarray:
+        """Eq. 8 for (n, 9) joint vectors (q1..q6 rad, tx, ty, tz mm): the spray target's pose, (n, 4, 4)."""
+        q9 = np.atleast_2d(np.asarray(q9, dtype=float))
+        return self.base2world(q9[:, 6:9]) @ fk(self.robot, q9[:, :6]) @ self.gun.gun2flange @ self.gun.target2gun
+
+    def gun2world(self, q9: np.ndarray) -> np.ndarray:
+        """The gun's pose (without T_dis), (n, 4, 4)."""
+        q9 = np.atleast_2d(np.asarray(q9, dtype=float))
+        return self.base2world(q9[:, 6:9]) @ fk(self.robot, q9[:, :6]) @ self.gun.gun2flange
+
+    def flange_targets(self, gun2world: np.ndarray, platform: np.ndarray) -> np.ndarray:
+        """The flange poses in the robot base frame that put the gun at ``gun2world`` (eq. 14), (n, 4, 4)."""
+        base2world = self.base2world(platform)
+        return np.linalg.inv(base2world) @ gun2world @ np.linalg.inv(self.gun.gun2flange)
+
+    def region(self, points: np.ndarray, platform: np.ndarray) -> np.ndarray:
+        """Where world points lie for a platform position: 2 recommended, 1 inside the cylinder's
+        non-recommended core, 0 outside the cylinder. (n,) int."""
+        points = np.atleast_2d(np.asarray(points, dtype=float))
+        platform = np.broadcast_to(np.asarray(platform, dtype=float), points.shape)
+        radial = np.hypot(points[:, 0] - platform[:, 0], points[:, 1] - platform[:, 1])
+        shoulder_z = platform[:, 2] - self.robot.d[0]  # the robot hangs: its shoulder is d1 below the mount
+        top = shoulder_z + self.workspace.wall_mm
+        bottom = shoulder_z + self.workspace.reach_mm * math.sin(self.workspace.theta)
+        inside = (radial <= self.workspace.radius_mm) & (points[:, 2] <= top) & (points[:, 2] >= bottom)
+        core = radial < self.workspace.core_diameter_mm / 2.0
+        return np.where(inside, np.where(core, 1, 2), 0)
+
+    def platform_for(self, points: np.ndarray) -> np.ndarray:
+        """A platform position (3,) for painting a group of world points (a stroke) from one place.
+
+        In plan: beside the points' centre, half the cylinder's radius across their main direction, so that a
+        straight stroke passes the base axis at a distance (outside the non-recommended core) and stays in
+        the cylinder for up to ``2 sqrt(R^2 - (R/2)^2) = 1.73 R`` of its length. In height: the points' mean at
+        the middle of the cylinder.
+        """
+        points = np.atleast_2d(np.asarray(points, dtype=float))
+        centre = points.mean(axis=0)
+        flat = points[:, :2] - centre[:2]
+        if len(points) >= 2 and np.ptp(flat, axis=0).max() > 0:
+            _, vectors = np.linalg.eigh(flat.T @ flat)
+            along = vectors[:, -1]
+        else:
+            along = np.array([1.0, 0.0])
+        across = np.array([-along[1], along[0]])
+        if across[np.argmax(np.abs(across))] < 0:
+            across = -across
+        xy = centre[:2] + across * self.workspace.radius_mm / 2.0
+        shoulder_to_mid = (self.workspace.wall_mm + self.workspace.reach_mm * math.sin(self.workspace.theta)) / 2
+        return np.array([xy[0], xy[1], centre[2] - shoulder_to_mid + self.robot.d[0]])
+
+
+def pose_errors(achieved: np.ndarray, wanted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Position error (mm, eq. 21) and axis error (rad, eq. 22: angle between the z axes) of poses (n,4,4)."""
+    position = np.linalg.norm(achieved[..., :3, 3] - wanted[..., :3, 3], axis=-1)
+    cos = np.clip(np.einsum("...i,...i->...", achieved[..., :3, 2], wanted[..., :3, 2]), -1.0, 1.0)
+    return position, np.arccos(cos)
+
+
+@dataclass(frozen=True)
+class SQPResult:
+    """One SQP solve: the nine axes, whether the constraints hold, and the errors."""
+
+    q9: np.ndarray
+    success: bool
+    position_error_mm: float
+    axis_error_rad: float
+    iterations: int
+    message: str
+
+
+def solve_sqp(
+    gantry: Gantry,
+    target2world: np.ndarray,
+    start_q9: np.ndarray,
+    *,
+    k_d: float = 1e-3,
+    position_tol_mm: float = 5.0,
+    axis_tol_rad: float = math.radians(5.0),
+    max_iter: int = 200,
+) -> SQPResult:
+    """Seed 000 section 4.2: SQP from the previous solution for a pose the analytic IK cannot serve.
+
+    Minimises eq. 20, ``sum (theta_i - theta_i^0)^2 + K_d |t - t^0|^2`` (its square root has the same minimiser
+    and is not smooth at the start), over the six joints and the gantry position t, subject to eq. 21 (the
+    spray target within ``position_tol_mm``) and eq. 22 (the gun axis within ``axis_tol_rad``), and the joint
+    limits. The printed eq. 20 calls K_d "the number of movements of the platform"; it is read as the weight
+    that trades a millimetre of gantry travel against a radian of joint motion (default 1e-3 rad^2/mm^2: 30 mm
+    of gantry travel costs as much as 1 rad of joint motion).
+
+    Returns
+    -------
+    SQPResult
+        ``success`` is True only when both constraints hold at the returned point (checked by forward
+        kinematics, whatever the optimiser reports).
+    """
+    start = np.asarray(start_q9, dtype=float).reshape(9)
+    wanted = np.asarray(target2world, dtype=float).reshape(4, 4)
+    step = np.array([1e-7] * 6 + [1e-5] * 3)  # rad, mm
+    cache: dict = {}
+
+    def evaluate(x):
+        """Errors at x and their finite-difference gradients, from one batched forward kinematics call."""
+        key = x.tobytes()
+        if key not in cache:
+            batch = np.vstack([x, x + np.diag(step)])
+            position, axis = pose_errors(gantry.target2world(batch), wanted)
+            cache.clear()
+            cache[key] = (position[0], axis[0], (position[1:] - position[0]) / step, (axis[1:] - axis[0]) / step)
+        return cache[key]
+
+    def objective(x):
+        dq = x[:6] - start[:6]
+        dt = x[6:] - start[6:]
+        return float(dq @ dq + k_d * dt @ dt)
+
+    def objective_grad(x):
+        return np.concatenate([2.0 * (x[:6] - start[:6]), 2.0 * k_d * (x[6:] - start[6:])])
+
+    constraints = [
+        {"type": "ineq", "fun": lambda x: position_tol_mm - evaluate(x)[0], "jac": lambda x: -evaluate(x)[2]},
+        {"type": "ineq", "fun": lambda x: axis_tol_rad - evaluate(x)[1], "jac": lambda x: -evaluate(x)[3]},
+    ]
+    bounds = [(lo, hi) for lo, hi in zip(gantry.robot.lower, gantry.robot.upper)] + [(None, None)] * 3
+    result = minimize(
+        objective,
+        start,
+        jac=objective_grad,
+        method="SLSQP",
+        bounds=bounds,
+        constraints=constraints,
+        options={"maxiter": max_iter, "ftol": 1e-10},
+    )
+
+    def errors(x):
+        return evaluate(x)[:2]
+
+    position, axis = errors(result.x)
+    ok = bool(position <= position_tol_mm * (1 + 1e-6) and axis <= axis_tol_rad * (1 + 1e-6))
+    return SQPResult(result.x, ok, float(position), float(axis), int(result.nit), str(result.message))
+
+
+@dataclass(frozen=True)
+class GantryPath:
+    """The nine-axis solution of a path, waypoint by waypoint (seed 000, figures 33-34).
+
+    Attributes
+    ----------
+    q9 : (n, 9) float
+        q1..q6 (rad) and the gantry position tx, ty, tz (mm); zeros where unreachable.
+    reachable : (n,) bool
+    method : (n,) str
+        ``"analytic"``, ``"sqp"`` or ``""`` (unreachable).
+    region : (n,) int
+        2 recommended, 1 non-recommended core, 0 outside the working cylinder (for the given platform).
+    position_error_mm : (n,) float
+        Distance between the achieved and the wanted spray target (eq. 21).
+    axis_error_deg : (n,) float
+        Angle between the achieved and the wanted gun axis (eq. 22).
+    branch : (n,) int
+        The analytic branch used (-1 for SQP or unreachable).
+    branch_change : (n,) bool
+        The branch differs from the previous analytic waypoint's.
+    jump : (n,) bool
+        A joint moved by more than the jump threshold since the previous reachable waypoint.
+    """
+
+    q9: np.ndarray
+    reachable: np.ndarray
+    method: np.ndarray
+    region: np.ndarray
+    position_error_mm: np.ndarray
+    axis_error_deg: np.ndarray
+    branch: np.ndarray
+    branch_change: np.ndarray
+    jump: np.ndarray
+
+
+def solve_gantry_path(
+    gantry: Gantry,
+    gun2world: np.ndarray,
+    platform: np.ndarray,
+    *,
+    seed_q: np.ndarray | None = None,
+    jump_rad: float = 0.5,
+    k_d: float = 1e-3,
+    position_tol_mm: float = 5.0,
+    axis_tol_rad: float = math.radians(5.0),
+) -> GantryPath:
+    """Joint values for a sequence of gun poses, with the gantry at the given positions.
+
+    Parameters
+    ----------
+    gantry : Gantry
+    gun2world : (n, 4, 4) float, mm
+        Wanted gun poses (z axis toward the surface), in path order.
+    platform : (n, 3) or (3,) float, mm
+        Gantry position for each waypoint (a station's position repeated over its waypoints).
+    seed_q : (6,) float, optional
+        Joints to start near; default: the UR's "home" (0, -pi/2, 0, -pi/2, 0, 0).
+
+    Returns
+    -------
+    GantryPath
+        Unreachable waypoints are data (``reachable = False``), never exceptions.
+    """
+    from sprayplan.robots.ur_ik import nearest_equivalent, ur_ik
+
+    gun2world = np.asarray(gun2world, dtype=float).reshape(-1, 4, 4)
+    n = len(gun2world)
+    platform = np.broadcast_to(np.asarray(platform, dtype=float), (n, 3)).copy()
+    wanted_target = gun2world @ gantry.gun.target2gun
+    region = gantry.region(wanted_target[:, :3, 3], platform)
+    flange = gantry.flange_targets(gun2world, platform)
+    solutions = ur_ik(gantry.robot, flange)
+    robot = gantry.robot
+    q9 = np.zeros((n, 9))
+    reachable = np.zeros(n, dtype=bool)
+    method = np.full(n, "", dtype=object)
+    branch = np.full(n, -1)
+    branch_change = np.zeros(n, dtype=bool)
+    jump = np.zeros(n, dtype=bool)
+    previous = np.array([0.0, -math.pi / 2, 0.0, -math.pi / 2, 0.0, 0.0]) if seed_q is None else np.asarray(seed_q)
+    previous_branch = -1
+    for i in range(n):
+        candidates = nearest_equivalent(solutions.q[i], np.broadcast_to(previous, (8, 6)), robot.lower, robot.upper)
+        valid = solutions.valid[i] & robot.within_limits(candidates)
+        if region[i] == 2 and valid.any():
+            distance = np.where(valid, np.linalg.norm(candidates - previous, axis=1), np.inf)
+            best = int(np.argmin(distance))
+            q9[i, :6], q9[i, 6:] = candidates[best], platform[i]
+            method[i], branch[i] = "analytic", best
+            branch_change[i] = previous_branch >= 0 and best != previous_branch
+            previous_branch = best
+        else:
+            start = np.concatenate([previous, platform[i]])
+            if valid.any():  # an analytic solution exists (near the core): start SQP from it
+                best = int(np.argmin(np.where(valid, np.linalg.norm(candidates - previous, axis=1), np.inf)))
+                start = np.concatenate([candidates[best], platform[i]])
+            result = solve_sqp(
+                gantry, wanted_target[i], start, k_d=k_d, position_tol_mm=position_tol_mm, axis_tol_rad=axis_tol_rad
+            )
+            if not result.success:
+                log.info("waypoint %d: SQP failed (%s)", i, result.message)
+                continue
+            q9[i] = result.q9
+            method[i] = "sqp"
+        reachable[i] = True
+        jump[i] = bool(np.abs(q9[i, :6] - previous).max() > jump_rad) if i else False
+        previous = q9[i, :6]
+    achieved = gantry.target2world(q9)
+    position, axis = pose_errors(achieved, wanted_target)
+    position = np.where(reachable, position, np.nan)
+    axis = np.where(reachable, np.degrees(axis), np.nan)
+    return GantryPath(q9, reachable, method.astype(str), region, position, axis, branch, branch_change, jump)

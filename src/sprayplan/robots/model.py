@@ -1,0 +1,221 @@
+"""Robot models as data: standard Denavit-Hartenberg chains with joint limits, and forward kinematics.
+
+A model is a :class:`RobotModel`: the D-H table of seed 000's eq. 10 (standard convention: ``Rot(z, theta)
+Trans(z, d) Trans(x, a) Rot(x, alpha)`` per joint), joint offsets and limits. Presets:
+
+``ur5``
+    Universal Robots' published table (d1 89.159, a2 -425, a3 -392.25, d4 109.15, d5 94.65, d6 82.3 mm;
+    alpha = [pi/2, 0, 0, pi/2, -pi/2, 0]); joints -2 pi .. 2 pi.
+``ur5-seed``
+    Seed 000's table 1: the same robot with rounded values and a2 = 425, a3 = 392.3 (the opposite sign
+    convention). Its joint vector q' reaches the pose of the ``ur5`` joint vector q when
+    ``q' = q + (0, pi, 0, -pi, 0, 0)``: negating a2 and a3 turns frames 2 and 3 by pi about their z axes, which
+    theta2 + pi puts in and theta4 - pi takes out again (tests/test_kinematics.py checks it).
+``ur5e``
+    Universal Robots' UR5e table (d1 162.5, a2 -425, a3 -392.2, d4 133.3, d5 99.7, d6 99.6 mm).
+``r5150``
+    The Lab-Volt R5150 of seed 001, table 2: d1 255.55, a2 190, a3 190, d5 115 mm, alpha1 = alpha4 = pi/2,
+    joint ranges -185..153, -32..149, -147..51, -5..180, -360..360 degrees.
+
+A user model is a TOML file (see :func:`load_robot`).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from sprayplan.errors import ConfigError, PartFileError
+
+TAU = 2.0 * math.pi
+
+
+def _frozen(values, name: str, n: int | None = None) -> np.ndarray:
+    out = np.array(values, dtype=float).reshape(-1)
+    if n is not None and len(out) != n:
+        raise ConfigError(f"{name} must have {n} values, got {len(out)}")
+    if not np.isfinite(out).all():
+        raise ConfigError(f"{name} must be finite numbers")
+    out.flags.writeable = False
+    return out
+
+
+@dataclass(frozen=True)
+class RobotModel:
+    """A serial robot as a standard D-H table.
+
+    Attributes
+    ----------
+    name : str
+    d, a : (dof,) float, mm
+    alpha : (dof,) float, rad
+    theta_offset : (dof,) float, rad
+        Added to the joint value to give the D-H theta (0 for the presets).
+    lower, upper : (dof,) float, rad
+        Joint limits.
+    """
+
+    name: str
+    d: np.ndarray
+    a: np.ndarray
+    alpha: np.ndarray
+    theta_offset: np.ndarray = field(default=None)  # type: ignore[assignment]
+    lower: np.ndarray = field(default=None)  # type: ignore[assignment]
+    upper: np.ndarray = field(default=None)  # type: ignore[assignment]
+
+    def __post_init__(self):
+        d = _frozen(self.d, "d")
+        dof = len(d)
+        object.__setattr__(self, "d", d)
+        object.__setattr__(self, "a", _frozen(self.a, "a", dof))
+        object.__setattr__(self, "alpha", _frozen(self.alpha, "alpha", dof))
+        offset = np.zeros(dof) if self.theta_offset is None else self.theta_offset
+        object.__setattr__(self, "theta_offset", _frozen(offset, "theta_offset", dof))
+        lower = np.full(dof, -TAU) if self.lower is None else self.lower
+        upper = np.full(dof, TAU) if self.upper is None else self.upper
+        object.__setattr__(self, "lower", _frozen(lower, "lower", dof))
+        object.__setattr__(self, "upper", _frozen(upper, "upper", dof))
+        if np.any(self.lower > self.upper):
+            raise ConfigError(f"robot {self.name}: a lower joint limit exceeds its upper limit")
+
+    @property
+    def dof(self) -> int:
+        """Number of joints."""
+        return len(self.d)
+
+    def within_limits(self, q: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+        """(n,) bool: joint vectors inside the limits."""
+        q = np.atleast_2d(q)
+        return ((q >= self.lower - tol) & (q <= self.upper + tol)).all(axis=-1)
+
+
+def dh_transforms(model: RobotModel, q: np.ndarray) -> np.ndarray:
+    """Link transforms ``{i-1}T{i}`` of seed 000's eq. 10 for many joint vectors.
+
+    Parameters
+    ----------
+    model : RobotModel
+    q : (n, dof) float, rad
+
+    Returns
+    -------
+    (n, dof, 4, 4) float
+    """
+    q = np.asarray(q, dtype=float).reshape(-1, model.dof)
+    theta = q + model.theta_offset
+    ct, st = np.cos(theta), np.sin(theta)
+    ca, sa = np.cos(model.alpha), np.sin(model.alpha)
+    out = np.zeros(q.shape + (4, 4))
+    out[..., 0, 0] = ct
+    out[..., 0, 1] = -st * ca
+    out[..., 0, 2] = st * sa
+    out[..., 0, 3] = model.a * ct
+    out[..., 1, 0] = st
+    out[..., 1, 1] = ct * ca
+    out[..., 1, 2] = -ct * sa
+    out[..., 1, 3] = model.a * st
+    out[..., 2, 1] = sa
+    out[..., 2, 2] = ca
+    out[..., 2, 3] = model.d
+    out[..., 3, 3] = 1.0
+    return out
+
+
+def fk(model: RobotModel, q: np.ndarray) -> np.ndarray:
+    """Forward kinematics: the flange pose in the robot base frame, ``flange2base`` (seed 000, eq. 11).
+
+    Parameters
+    ----------
+    model : RobotModel
+    q : (dof,) or (n, dof) float, rad
+
+    Returns
+    -------
+    (n, 4, 4) float, mm
+    """
+    links = dh_transforms(model, q)
+    out = links[:, 0]
+    for i in range(1, model.dof):
+        out = out @ links[:, i]
+    return out
+
+
+def _deg(values) -> list[float]:
+    return [math.radians(v) for v in values]
+
+
+PRESETS = {
+    "ur5": dict(
+        d=[89.159, 0, 0, 109.15, 94.65, 82.3],
+        a=[0, -425.0, -392.25, 0, 0, 0],
+        alpha=[math.pi / 2, 0, 0, math.pi / 2, -math.pi / 2, 0],
+    ),
+    "ur5-seed": dict(
+        d=[89.2, 0, 0, 109.2, 94.7, 82.3],
+        a=[0, 425.0, 392.3, 0, 0, 0],
+        alpha=[math.pi / 2, 0, 0, math.pi / 2, -math.pi / 2, 0],
+    ),
+    "ur5e": dict(
+        d=[162.5, 0, 0, 133.3, 99.7, 99.6],
+        a=[0, -425.0, -392.2, 0, 0, 0],
+        alpha=[math.pi / 2, 0, 0, math.pi / 2, -math.pi / 2, 0],
+    ),
+    "r5150": dict(
+        d=[255.55, 0, 0, 0, 115.0],
+        a=[0, 190.0, 190.0, 0, 0],
+        alpha=[math.pi / 2, 0, 0, math.pi / 2, 0],
+        lower=_deg([-185, -32, -147, -5, -360]),
+        upper=_deg([153, 149, 51, 180, 360]),
+    ),
+}
+
+
+def load_robot(name_or_path: str | os.PathLike) -> RobotModel:
+    """A robot model from a preset name (``ur5``, ``ur5-seed``, ``ur5e``, ``r5150``) or a TOML file.
+
+    The TOML file has ``name``, and lists ``d_mm``, ``a_mm``, ``alpha_deg`` and optionally ``theta_offset_deg``,
+    ``lower_deg``, ``upper_deg``, one value per joint.
+
+    Raises
+    ------
+    ConfigError
+        An unknown preset name.
+    PartFileError
+        A TOML file that is missing, broken or incomplete.
+    """
+    key = os.fspath(name_or_path)
+    if key in PRESETS:
+        return RobotModel(name=key, **PRESETS[key])
+    path = Path(key)
+    if path.suffix.lower() != ".toml":
+        raise ConfigError(f"unknown robot {key!r}: use one of {', '.join(PRESETS)} or a .toml file")
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise PartFileError(key, "no such file") from None
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise PartFileError(key, f"not a readable TOML file ({exc})") from None
+    known = {"name", "d_mm", "a_mm", "alpha_deg", "theta_offset_deg", "lower_deg", "upper_deg"}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise PartFileError(key, f"unknown key(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
+    try:
+        dof = len(data["d_mm"])
+        return RobotModel(
+            name=str(data.get("name", path.stem)),
+            d=data["d_mm"],
+            a=data["a_mm"],
+            alpha=_deg(data["alpha_deg"]),
+            theta_offset=_deg(data.get("theta_offset_deg", [0.0] * dof)),
+            lower=_deg(data["lower_deg"]) if "lower_deg" in data else None,
+            upper=_deg(data["upper_deg"]) if "upper_deg" in data else None,
+        )
+    except KeyError as exc:
+        raise PartFileError(key, f"missing key {exc.args[0]}") from None
+    except (ConfigError, TypeError, ValueError) as exc:
+        raise PartFileError(key, str(exc)) from None
