@@ -10,7 +10,7 @@ import pytest
 from sprayplan.cli import main
 from sprayplan.errors import ConfigError, PartFileError
 from sprayplan.robots.gantry import Gantry, Workspace, pose_errors, solve_gantry_path, trans
-from sprayplan.robots.model import fk, load_robot
+from sprayplan.robots.model import fk, fk_world, flange_target, load_robot
 from sprayplan.robots.ur_ik import ur_ik
 
 
@@ -46,6 +46,18 @@ def test_robot_from_toml_and_bad_files(tmp_path):
     q = np.random.default_rng(1).uniform(-3, 3, (10, 6))
     np.testing.assert_allclose(fk(custom, q), fk(preset, q), atol=1e-9)
     assert custom.lower[2] == pytest.approx(-math.pi)
+    # base and tool transforms: the tool's world pose, and back to the flange target
+    placed = tmp_path / "placed.toml"
+    extra = "base_xyz_mm = [1000, 0, 500]\nbase_rpy_deg = [180, 0, 0]\ntool_xyz_mm = [0, 0, 200]\n"
+    placed.write_text(path.read_text() + extra)
+    robot = load_robot(placed)
+    tool = fk_world(robot, q)
+    np.testing.assert_allclose(
+        tool[:, :3, 3],
+        (trans(1000, 0, 500) @ np.diag([1, -1, -1, 1]) @ fk(preset, q) @ trans(0, 0, 200))[:, :3, 3],
+        atol=1e-9,
+    )
+    np.testing.assert_allclose(flange_target(robot, tool), fk(preset, q), atol=1e-9)
     (tmp_path / "bad.toml").write_text("d_mm = [1, 2]\nspeed = 3\n")
     with pytest.raises(PartFileError, match="unknown key"):
         load_robot(tmp_path / "bad.toml")
@@ -134,7 +146,7 @@ def test_sqp_meets_its_constraints_inside_the_core():
     # the solution is what forward kinematics says it is
     achieved = gantry.target2world(path.q9)
     wanted = poses @ gantry.gun.target2gun
-    position, axis = pose_errors(achieved, wanted)
+    position, _axis = pose_errors(achieved, wanted)
     np.testing.assert_allclose(position, path.position_error_mm, atol=1e-9)
 
 

@@ -243,13 +243,11 @@ def _robot(name: str):
     return load_robot("ur5" if name == "gantry-ur5" else name)
 
 
-def _tool_offset(args):
-    """gun2flange of --tool (identity without one)."""
-    import numpy as np
-
+def _tool_offset(args, robot):
+    """gun2flange of --tool, else the robot model's own tool."""
     from sprayplan.robots.gantry import load_gun
 
-    return load_gun(args.tool).gun2flange if args.tool else np.eye(4)
+    return load_gun(args.tool).gun2flange if args.tool else robot.tool2flange
 
 
 def cmd_fk(args) -> int:
@@ -258,7 +256,7 @@ def cmd_fk(args) -> int:
 
     robot = _robot(args.robot)
     q = read_joints(args.joints, robot.dof)
-    poses = fk(robot, q) @ _tool_offset(args)
+    poses = robot.base2world @ fk(robot, q) @ _tool_offset(args, robot)
     write_table(args.output, POSE_COLUMNS[args.pose_format], pose_rows(poses, args.pose_format).tolist())
     print(f"{len(q)} poses of the {'tool ' + args.tool if args.tool else 'flange'} ({robot.name}) -> {args.output}")
     return 0
@@ -284,7 +282,7 @@ def _r5150_ik(robot, poses):
     roll = np.arctan2(rest[:, 2, 0], rest[:, 2, 1])
     solution = r5150_ik(poses[:, :3, 3], pitch, roll, elbow="auto", model=robot)
     reached = fk(robot, solution.q)
-    position, axis = pose_errors(reached, poses)
+    position, _axis = pose_errors(reached, poses)
     angle = np.arccos(np.clip((np.einsum("nij,nij->n", reached[:, :3, :3], poses[:, :3, :3]) - 1) / 2, -1, 1))
     ok = solution.reachable & (position < 1e-6) & (angle < 1e-6)
     reason = np.where(solution.reachable & ~ok, "orientation not reachable by 5 axes", solution.reason)
@@ -299,7 +297,8 @@ def cmd_ik(args) -> int:
     if args.robot == "gantry-ur5":
         return _ik_gantry(args)
     robot = _robot(args.robot)
-    poses = read_poses(args.poses, args.pose_format) @ np.linalg.inv(_tool_offset(args))
+    poses = np.linalg.inv(robot.base2world) @ read_poses(args.poses, args.pose_format)
+    poses = poses @ np.linalg.inv(_tool_offset(args, robot))
     names = [f"q{i + 1}" for i in range(robot.dof)]
     if robot.name == "r5150":
         q, ok, reason = _r5150_ik(robot, poses)

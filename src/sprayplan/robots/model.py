@@ -58,6 +58,10 @@ class RobotModel:
         Added to the joint value to give the D-H theta (0 for the presets).
     lower, upper : (dof,) float, rad
         Joint limits.
+    base2world : (4, 4) float, mm
+        Where the robot's base stands in the world (the cell); identity by default.
+    tool2flange : (4, 4) float, mm
+        The tool (gun) on the flange; identity by default.
     """
 
     name: str
@@ -67,8 +71,16 @@ class RobotModel:
     theta_offset: np.ndarray = field(default=None)  # type: ignore[assignment]
     lower: np.ndarray = field(default=None)  # type: ignore[assignment]
     upper: np.ndarray = field(default=None)  # type: ignore[assignment]
+    base2world: np.ndarray = field(default=None)  # type: ignore[assignment]
+    tool2flange: np.ndarray = field(default=None)  # type: ignore[assignment]
 
     def __post_init__(self):
+        for name in ("base2world", "tool2flange"):
+            value = np.eye(4) if getattr(self, name) is None else np.array(getattr(self, name), dtype=float)
+            if value.shape != (4, 4) or not np.isfinite(value).all():
+                raise ConfigError(f"{name} must be a finite 4x4 transform")
+            value.flags.writeable = False
+            object.__setattr__(self, name, value)
         d = _frozen(self.d, "d")
         dof = len(d)
         object.__setattr__(self, "d", d)
@@ -145,6 +157,26 @@ def fk(model: RobotModel, q: np.ndarray) -> np.ndarray:
     return out
 
 
+def fk_world(model: RobotModel, q: np.ndarray) -> np.ndarray:
+    """The tool's pose in the world, ``tool2world = base2world @ flange2base @ tool2flange``, (n, 4, 4)."""
+    return model.base2world @ fk(model, q) @ model.tool2flange
+
+
+def flange_target(model: RobotModel, tool2world: np.ndarray) -> np.ndarray:
+    """The flange pose in the base frame that puts the tool at ``tool2world``: the input of inverse kinematics."""
+    return np.linalg.inv(model.base2world) @ np.asarray(tool2world, dtype=float) @ np.linalg.inv(model.tool2flange)
+
+
+def transform_from_xyz_rpy(xyz_mm, rpy_deg) -> np.ndarray:
+    """A 4x4 transform from a translation and seed 001's eq. 9 angles ``Rot(x) Rot(y) Rot(z)`` in degrees."""
+    from sprayplan.surface.poses import matrix_from_rpy
+
+    out = np.eye(4)
+    out[:3, :3] = matrix_from_rpy(np.radians(np.asarray(rpy_deg, dtype=float)))[0]
+    out[:3, 3] = np.asarray(xyz_mm, dtype=float)
+    return out
+
+
 def _deg(values) -> list[float]:
     return [math.radians(v) for v in values]
 
@@ -179,7 +211,9 @@ def load_robot(name_or_path: str | os.PathLike) -> RobotModel:
     """A robot model from a preset name (``ur5``, ``ur5-seed``, ``ur5e``, ``r5150``) or a TOML file.
 
     The TOML file has ``name``, and lists ``d_mm``, ``a_mm``, ``alpha_deg`` and optionally ``theta_offset_deg``,
-    ``lower_deg``, ``upper_deg``, one value per joint.
+    ``lower_deg``, ``upper_deg``, one value per joint; optionally the base in the world and the tool on the
+    flange as ``base_xyz_mm``, ``base_rpy_deg``, ``tool_xyz_mm``, ``tool_rpy_deg`` (three values each; angles
+    as seed 001's eq. 9, ``Rot(x) Rot(y) Rot(z)``).
 
     Raises
     ------
@@ -201,6 +235,7 @@ def load_robot(name_or_path: str | os.PathLike) -> RobotModel:
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise PartFileError(key, f"not a readable TOML file ({exc})") from None
     known = {"name", "d_mm", "a_mm", "alpha_deg", "theta_offset_deg", "lower_deg", "upper_deg"}
+    known |= {"base_xyz_mm", "base_rpy_deg", "tool_xyz_mm", "tool_rpy_deg"}
     unknown = sorted(set(data) - known)
     if unknown:
         raise PartFileError(key, f"unknown key(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
@@ -214,6 +249,8 @@ def load_robot(name_or_path: str | os.PathLike) -> RobotModel:
             theta_offset=_deg(data.get("theta_offset_deg", [0.0] * dof)),
             lower=_deg(data["lower_deg"]) if "lower_deg" in data else None,
             upper=_deg(data["upper_deg"]) if "upper_deg" in data else None,
+            base2world=transform_from_xyz_rpy(data.get("base_xyz_mm", [0, 0, 0]), data.get("base_rpy_deg", [0, 0, 0])),
+            tool2flange=transform_from_xyz_rpy(data.get("tool_xyz_mm", [0, 0, 0]), data.get("tool_rpy_deg", [0, 0, 0])),
         )
     except KeyError as exc:
         raise PartFileError(key, f"missing key {exc.args[0]}") from None
