@@ -136,8 +136,9 @@ def test_gantry_path_in_the_recommended_region_is_analytic_and_smooth():
 def test_sqp_meets_its_constraints_inside_the_core():
     gantry = Gantry()
     platform = np.array([0.0, 0.0, 1500.0])
-    # targets straight under the base axis: the non-recommended core
-    poses = line_of_gun_poses(gantry, platform, [-40, 20, 1300.0], [40, -20, 1300.0], 9)
+    # the flange straight under the base axis, the non-recommended core: with the gun pointing down, the
+    # flange sits at tcp + (-5.5, 94.5, 165.5) (T_tool of the WA-101 turned by Rot(x, pi))
+    poses = line_of_gun_poses(gantry, platform, [5.5 - 40, -94.5 + 20, 1300.0], [5.5 + 40, -94.5 - 20, 1300.0], 9)
     path = solve_gantry_path(gantry, poses, platform)
     assert (path.region == 1).all()
     assert (path.method == "sqp").all() and path.reachable.all()
@@ -198,7 +199,8 @@ def test_cli_gantry_ik_along_paths(tmp_path, capsys):
     from sprayplan.paths.planner import plan_paths
     from sprayplan.surface.region import select_region
 
-    roof = select_region(car_roof(resolution_mm=50.0), "box(-600, -350, 1000, 600, 350, 2000)")
+    # strokes short enough (0.9 m plus lead-in and lead-out) to fit one working cylinder each
+    roof = select_region(car_roof(resolution_mm=50.0), "box(-450, -350, 1000, 450, 350, 2000)")
     paths = plan_paths(roof, PathConfig(spacing_mm=150.0, step_mm=50.0, direction="y"))
     write_paths_json(tmp_path / "paths.json", paths)
     code = main(["ik", "--robot", "gantry-ur5", str(tmp_path / "paths.json"), "-o", str(tmp_path / "j.csv")])

@@ -131,7 +131,7 @@ def cmd_targets(args) -> int:
 
 
 def cmd_demo(args) -> int:
-    from sprayplan.config import TargetsConfig
+    from sprayplan.config import JobConfig, LoadConfig, TargetsConfig
     from sprayplan.demo import DEMO_REGION, car_roof
     from sprayplan.io.stl import write_stl_binary
     from sprayplan.io.writers import atomic_output
@@ -144,6 +144,8 @@ def cmd_demo(args) -> int:
     print(f"demo part: {part_file} ({len(roof.faces)} triangles, 2635 x 1959 mm above z = 1000 mm)")
     load_args = argparse.Namespace(units="mm", up="z", region=DEMO_REGION)
     print(_run_targets(str(part_file), out / "targets.csv", load_args, TargetsConfig()))
+    job = JobConfig(load=LoadConfig(region=DEMO_REGION))
+    print(_run_plan(str(part_file), out, job))
     return 0
 
 
@@ -347,9 +349,9 @@ def _ik_gantry(args) -> int:
     import numpy as np
 
     from sprayplan.io.paths_json import read_paths_json
+    from sprayplan.pipeline import gun_poses
     from sprayplan.robots.csvio import write_table
     from sprayplan.robots.gantry import Gantry, load_gun, solve_gantry_path
-    from sprayplan.surface.poses import stroke_frames
 
     gantry = Gantry(gun=load_gun(args.tool or "wa101"))
     paths = read_paths_json(args.poses)
@@ -361,19 +363,19 @@ def _ik_gantry(args) -> int:
     gun2world, platform, labels = [], [], []
     platforms = []
     for stroke in paths.strokes:
-        platforms.append(
-            fixed if fixed is not None else gantry.platform_for(stroke.points) if stroke.spray_on else None
-        )
-    for k in range(len(platforms) - 1, -1, -1):  # a transfer takes the platform of the stroke it leads to
-        if platforms[k] is None:
-            platforms[k] = platforms[k + 1] if k + 1 < len(platforms) else platforms[k - 1]
+        flange = (gun_poses(stroke) @ np.linalg.inv(gantry.gun.gun2flange))[:, :3, 3]
+        platforms.append(fixed if fixed is not None else gantry.platform_for(flange) if stroke.spray_on else None)
     for k, stroke in enumerate(paths.strokes):
-        pose = np.zeros((len(stroke), 4, 4))
-        pose[:, :3, :3] = stroke_frames(stroke.points, stroke.normals)
-        pose[:, :3, 3] = stroke.tcp
-        pose[:, 3, 3] = 1.0
-        gun2world.append(pose)
-        platform.append(np.repeat(platforms[k][None], len(stroke), axis=0))
+        gun2world.append(gun_poses(stroke))
+        if platforms[k] is None:  # a transfer: its first half from the stroke before, the rest from the next
+            before = platforms[k - 1] if k > 0 else platforms[k + 1]
+            after = platforms[k + 1] if k + 1 < len(platforms) else before
+            half = len(stroke) // 2
+            platform.append(
+                np.vstack([np.repeat(before[None], half, 0), np.repeat(after[None], len(stroke) - half, 0)])
+            )
+        else:
+            platform.append(np.repeat(platforms[k][None], len(stroke), axis=0))
         labels += [(k, i, stroke.spray_on) for i in range(len(stroke))]
     with _stage("kinematics"):
         result = solve_gantry_path(gantry, np.concatenate(gun2world), np.concatenate(platform))
@@ -423,6 +425,63 @@ def _ik_gantry(args) -> int:
         f"{int(ok.sum())} of {len(ok)} waypoints reachable ({int((result.method == 'sqp').sum())} by SQP), "
         f"max position error {worst:.3g} mm, {int(result.branch_change.sum())} branch changes -> {args.output}"
     )
+    return 0
+
+
+def _job_config(args):
+    """The job's settings: defaults, then the TOML file (-c), then the flags given on the command line."""
+    from sprayplan.config import JobConfig, job_from_toml
+
+    job = job_from_toml(args.config) if args.config else JobConfig()
+    load = {k: getattr(args, k) for k in ("units", "up", "region") if getattr(args, k) is not None}
+    plan = {k: getattr(args, k) for k in ("mode", "tour") if getattr(args, k) is not None}
+    paths = {}
+    for key in ("spacing_mm", "spray_radius_mm", "overlap", "standoff_mm", "step_mm"):
+        if getattr(args, key, None) is not None:
+            paths[key] = getattr(args, key)
+    if args.direction is not None:
+        paths["direction"] = _direction(args.direction)
+    if "spacing_mm" in paths and "overlap" in paths:
+        raise ConfigError("give either --spacing-mm or --overlap, not both")
+    if args.robot is not None and args.robot != "gantry-ur5":
+        raise ConfigError(f"sprayplan plan drives the gantry-ur5 (seed 000's nine axes), not {args.robot!r}")
+    return dataclasses.replace(
+        job,
+        load=dataclasses.replace(job.load, **load),
+        paths=dataclasses.replace(job.paths, **paths),
+        plan=dataclasses.replace(job.plan, **plan),
+    )
+
+
+def _run_plan(part_path: str, outdir: Path, job) -> str:
+    from sprayplan.io.load import load_part
+    from sprayplan.io.plan_files import write_plan
+    from sprayplan.pipeline import plan, plan_totals
+    from sprayplan.surface.region import select_region
+
+    start = time.perf_counter()
+    with _stage("load"):
+        part = load_part(part_path, units=job.load.units, up=job.load.up)
+    with _stage("region"):
+        part = select_region(part, job.load.region)
+    with _stage("plan (paths, stations, ordering, kinematics)"):
+        result = plan(part, job)
+    totals = plan_totals(result, job)
+    elapsed = time.perf_counter() - start
+    totals["planning_time_s"] = round(elapsed, 3)
+    write_plan(outdir, result, job, totals)
+    return (
+        f"{totals['stations']} stations, {totals['strokes']} strokes, {totals['waypoints']} waypoints "
+        f"({totals['unreachable_waypoints']} unreachable, {totals['unassigned_points']} unassigned), spray "
+        f"{totals['spray_length_mm'] / 1000:.2f} m, transfer {totals['transfer_length_mm'] / 1000:.2f} m, gantry "
+        f"{totals['platform_travel_mm'] / 1000:.2f} m, cycle {totals['cycle_time_s']:.0f} s, planned in {elapsed:.1f} s "
+        f"-> {outdir}/plan.json"
+    )
+
+
+def cmd_plan(args) -> int:
+    job = _job_config(args)
+    print(_run_plan(args.part, Path(args.output), job))
     return 0
 
 
@@ -550,6 +609,34 @@ def build_parser() -> argparse.ArgumentParser:
     ik_cmd.add_argument("--seed-joints", help="'q1,...,q6': start the trajectory near these joints (rad)")
     ik_cmd.add_argument("--platform", default="auto", help="gantry-ur5: 'x,y,z' (mm) for every stroke, or auto")
     ik_cmd.set_defaults(func=cmd_ik)
+
+    plan_cmd = sub.add_parser(
+        "plan",
+        parents=[common],
+        help="the main job: paths, gantry stations, ordering, nine-axis kinematics -> OUTDIR/plan.json",
+        description="Plan a whole spray program: load -> region -> paths (or target points) -> stations -> "
+        "ordering -> kinematics. Settings: defaults, then -c FILE.toml (see examples/process.toml), then flags.",
+    )
+    plan_cmd.add_argument("part", help="mesh or point cloud file")
+    plan_cmd.add_argument("-o", "--output", required=True, help="output folder (plan.json, waypoints.csv)")
+    plan_cmd.add_argument("-c", "--config", help="process TOML file")
+    group = plan_cmd.add_argument_group("part")
+    group.add_argument("--units", choices=["mm", "cm", "m", "in"])
+    group.add_argument("--up", choices=["z", "y", "x"])
+    group.add_argument("--region")
+    group = plan_cmd.add_argument_group("plan")
+    group.add_argument("--robot", help="gantry-ur5 (the default and only choice for now)")
+    group.add_argument(
+        "--mode", choices=["paths", "points"], help="slicing strokes (default) or the seed's target points"
+    )
+    group.add_argument("--tour", choices=["auto", "ga", "exact", "keep"], help="ordering inside a station")
+    group.add_argument("--direction", help="slicing direction (auto, x, y, z, 'dx,dy,dz')")
+    group.add_argument("--spacing-mm", type=float)
+    group.add_argument("--spray-radius-mm", type=float)
+    group.add_argument("--overlap", type=float)
+    group.add_argument("--standoff-mm", type=float)
+    group.add_argument("--step-mm", type=float)
+    plan_cmd.set_defaults(func=cmd_plan)
     return parser
 
 

@@ -240,3 +240,109 @@ class PathConfig:
     def gap(self) -> float:
         """Widest gap sprayed across, mm."""
         return 2.0 * self.spray_radius_mm if self.split_gap_mm is None else float(self.split_gap_mm)
+
+
+@dataclass(frozen=True)
+class PlanConfig:
+    """The main job, ``sprayplan plan`` (seed 000 sections 5-6 around the paths of seed 003).
+
+    Attributes
+    ----------
+    mode : {"paths", "points"}
+        ``paths``: slicing strokes (the default); ``points``: the seed's target points visited in a tour.
+    tour : {"auto", "ga", "exact", "keep"}
+        Ordering inside a station: of the strokes (``keep``: zig-zag order as sliced) or, in points mode, of
+        the targets (``ga``: the seed's genetic algorithm).
+    robot : str
+        ``gantry-ur5`` (seed 000's nine axes).
+    tool : str
+        Gun preset (``wa101``).
+    gun_speed_mm_s, transfer_speed_mm_s, platform_speed_mm_s : float
+        For the cycle time: spraying, spray-off moves of the arm, and the gantry.
+    home_mm : tuple of 3 float
+        Where the gantry starts and ends (the seed's "zero").
+    platform_z_mm : float or None
+        Gantry height; None: the part's targets at the middle of the working cylinder.
+    position_tol_mm, axis_tol_deg : float
+        Allowed errors of the SQP fallback (eqs. 21-22; seed: 5 mm, 5 degrees).
+    k_d : float
+        Weight of gantry travel in eq. 20, rad^2/mm^2.
+    seed : int
+    """
+
+    mode: str = "paths"
+    tour: str = "auto"
+    robot: str = "gantry-ur5"
+    tool: str = "wa101"
+    gun_speed_mm_s: float = 400.0
+    transfer_speed_mm_s: float = 1000.0
+    platform_speed_mm_s: float = 250.0
+    home_mm: tuple = (0.0, 0.0, 0.0)
+    platform_z_mm: float | None = None
+    position_tol_mm: float = 5.0
+    axis_tol_deg: float = 5.0
+    k_d: float = 1e-3
+    seed: int = 0
+
+    def __post_init__(self):
+        if self.mode not in ("paths", "points"):
+            raise ConfigError(f"mode must be paths or points, got {self.mode!r}")
+        if self.tour not in ("auto", "ga", "exact", "keep"):
+            raise ConfigError(f"tour must be auto, ga, exact or keep, got {self.tour!r}")
+        if self.robot != "gantry-ur5":
+            raise ConfigError(f"robot must be gantry-ur5 for the plan, got {self.robot!r}")
+        for name in ("gun_speed_mm_s", "transfer_speed_mm_s", "platform_speed_mm_s", "position_tol_mm", "axis_tol_deg"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ConfigError(f"{name} must be a positive number, got {value}")
+        home = tuple(float(v) for v in self.home_mm)
+        if len(home) != 3 or not all(math.isfinite(v) for v in home):
+            raise ConfigError("home_mm must be three numbers")
+        object.__setattr__(self, "home_mm", home)
+
+
+@dataclass(frozen=True)
+class JobConfig:
+    """Every setting of ``sprayplan plan``, one section per stage (the TOML file's tables)."""
+
+    load: LoadConfig = LoadConfig()
+    targets: TargetsConfig = TargetsConfig()
+    paths: PathConfig = PathConfig()
+    plan: PlanConfig = PlanConfig()
+
+
+def job_from_toml(path) -> JobConfig:
+    """Read a process TOML file (tables ``[load]``, ``[targets]``, ``[paths]``, ``[plan]``).
+
+    Raises
+    ------
+    PartFileError
+        A missing or broken file, an unknown table or key, or a bad value; the message names the file.
+    """
+    import os
+    import tomllib
+
+    from sprayplan.errors import PartFileError
+
+    name = os.fspath(path)
+    try:
+        with open(path, "rb") as handle:
+            data = tomllib.load(handle)
+    except FileNotFoundError:
+        raise PartFileError(name, "no such file") from None
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise PartFileError(name, f"not a readable TOML file ({exc})") from None
+    tables = {"load": LoadConfig, "targets": TargetsConfig, "paths": PathConfig, "plan": PlanConfig}
+    unknown = sorted(set(data) - set(tables))
+    if unknown:
+        raise PartFileError(name, f"unknown table(s) {', '.join(unknown)}; known: {', '.join(tables)}")
+    parts = {}
+    for key, cls in tables.items():
+        table = data.get(key, {})
+        if not isinstance(table, dict):
+            raise PartFileError(name, f"[{key}] must be a table")
+        try:
+            parts[key] = config_from_dict(cls, table)
+        except (ConfigError, TypeError) as exc:
+            raise PartFileError(name, f"[{key}]: {exc}") from None
+    return JobConfig(**parts)

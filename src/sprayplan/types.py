@@ -217,3 +217,56 @@ class Paths:
     def transfer_length_mm(self) -> float:
         """Total gun tip path length with the spray off, mm."""
         return float(sum(s.length_mm for s in self.strokes if not s.spray_on))
+
+
+@dataclass(frozen=True)
+class StationPlan:
+    """What the robot does from one gantry station: ordered strokes and the nine axes at every waypoint.
+
+    Attributes
+    ----------
+    index : int
+        The station's number in the cover (its position in the visiting order is its place in ``Plan``).
+    platform_mm : (3,) float
+        Gantry position.
+    strokes : tuple of Stroke
+        Spray passes and transfers, in execution order.
+    q9 : (n, 9) float
+        q1..q6 (rad) and tx, ty, tz (mm) for the n waypoints of all strokes in order.
+    reachable : (n,) bool
+    method : (n,) str
+        ``analytic``, ``sqp`` or empty (unreachable).
+    position_error_mm, axis_error_deg : (n,) float
+        NaN where unreachable.
+    branch_change : (n,) bool
+    """
+
+    index: int
+    platform_mm: np.ndarray
+    strokes: tuple
+    q9: np.ndarray
+    reachable: np.ndarray
+    method: np.ndarray
+    position_error_mm: np.ndarray
+    axis_error_deg: np.ndarray
+    branch_change: np.ndarray
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A whole spray program: stations in visiting order, and what no station could take.
+
+    Attributes
+    ----------
+    stations : tuple of StationPlan
+        In visiting order (the gantry starts and ends at ``home_mm``).
+    home_mm : (3,) float
+    unassigned : (k, 3) float
+        Contact points no station reaches (reported, not painted).
+    name : str
+    """
+
+    stations: tuple
+    home_mm: np.ndarray
+    unassigned: np.ndarray
+    name: str = ""

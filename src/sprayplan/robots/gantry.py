@@ -172,6 +172,18 @@ class Gantry:
         core = radial < self.workspace.core_diameter_mm / 2.0
         return np.where(inside, np.where(core, 1, 2), 0)
 
+    def distance_outside(self, points: np.ndarray, platform: np.ndarray) -> np.ndarray:
+        """(n,) float, mm: how far world points lie outside the working cylinder (0 inside)."""
+        points = np.atleast_2d(np.asarray(points, dtype=float))
+        platform = np.broadcast_to(np.asarray(platform, dtype=float), points.shape)
+        radial = np.hypot(points[:, 0] - platform[:, 0], points[:, 1] - platform[:, 1])
+        shoulder_z = platform[:, 2] - self.robot.d[0]
+        top = shoulder_z + self.workspace.wall_mm
+        bottom = shoulder_z + self.workspace.reach_mm * math.sin(self.workspace.theta)
+        out_r = np.maximum(radial - self.workspace.radius_mm, 0.0)
+        out_z = np.maximum(np.maximum(points[:, 2] - top, bottom - points[:, 2]), 0.0)
+        return np.hypot(out_r, out_z)
+
     def platform_for(self, points: np.ndarray) -> np.ndarray:
         """A platform position (3,) for painting a group of world points (a stroke) from one place.
 
@@ -223,7 +235,7 @@ def solve_sqp(
     k_d: float = 1e-3,
     position_tol_mm: float = 5.0,
     axis_tol_rad: float = math.radians(5.0),
-    max_iter: int = 200,
+    max_iter: int = 150,
 ) -> SQPResult:
     """Seed 000 section 4.2: SQP from the previous solution for a pose the analytic IK cannot serve.
 
@@ -298,7 +310,7 @@ class GantryPath:
     method : (n,) str
         ``"analytic"``, ``"sqp"`` or ``""`` (unreachable).
     region : (n,) int
-        2 recommended, 1 non-recommended core, 0 outside the working cylinder (for the given platform).
+        Where the flange is: 2 recommended, 1 non-recommended core, 0 outside the working cylinder.
     position_error_mm : (n,) float
         Distance between the achieved and the wanted spray target (eq. 21).
     axis_error_deg : (n,) float
@@ -332,6 +344,8 @@ def solve_gantry_path(
     k_d: float = 1e-3,
     position_tol_mm: float = 5.0,
     axis_tol_rad: float = math.radians(5.0),
+    outside_policy: str = "analytic",
+    sqp_reach_mm: float = 150.0,
 ) -> GantryPath:
     """Joint values for a sequence of gun poses, with the gantry at the given positions.
 
@@ -344,6 +358,14 @@ def solve_gantry_path(
         Gantry position for each waypoint (a station's position repeated over its waypoints).
     seed_q : (6,) float, optional
         Joints to start near; default: the UR's "home" (0, -pi/2, 0, -pi/2, 0, 0).
+    outside_policy : {"analytic", "sqp"}
+        Outside the working cylinder: ``analytic`` uses the exact analytic solution when one exists (the
+        cylinder is the seed's conservative "recommended" space; the arm still reaches beyond it), ``sqp``
+        always goes to SQP there, as the seed does for its non-recommended area. The non-recommended core
+        always goes to SQP.
+    sqp_reach_mm : float
+        SQP is tried outside the cylinder only within this distance of it; farther waypoints without an
+        analytic solution are unreachable from the station (SQP would have to move the gantry a long way).
 
     Returns
     -------
@@ -356,7 +378,12 @@ def solve_gantry_path(
     n = len(gun2world)
     platform = np.broadcast_to(np.asarray(platform, dtype=float), (n, 3)).copy()
     wanted_target = gun2world @ gantry.gun.target2gun
-    region = gantry.region(wanted_target[:, :3, 3], platform)
+    # the working cylinder bounds where the robot's end (the flange) goes (seed 000, figure 25)
+    flange_world = gun2world @ np.linalg.inv(gantry.gun.gun2flange)
+    region = gantry.region(flange_world[:, :3, 3], platform)
+    beyond = gantry.distance_outside(flange_world[:, :3, 3], platform)
+    if outside_policy not in ("analytic", "sqp"):
+        raise ConfigError(f"outside_policy must be analytic or sqp, got {outside_policy!r}")
     flange = gantry.flange_targets(gun2world, platform)
     solutions = ur_ik(gantry.robot, flange)
     robot = gantry.robot
@@ -371,7 +398,10 @@ def solve_gantry_path(
     for i in range(n):
         candidates = nearest_equivalent(solutions.q[i], np.broadcast_to(previous, (8, 6)), robot.lower, robot.upper)
         valid = solutions.valid[i] & robot.within_limits(candidates)
-        if region[i] == 2 and valid.any():
+        use_analytic = valid.any() and (region[i] == 2 or (region[i] == 0 and outside_policy == "analytic"))
+        if region[i] == 0 and not valid.any() and beyond[i] > sqp_reach_mm:
+            continue  # far outside the cylinder and no analytic solution: unreachable from this station
+        if use_analytic:
             distance = np.where(valid, np.linalg.norm(candidates - previous, axis=1), np.inf)
             best = int(np.argmin(distance))
             q9[i, :6], q9[i, 6:] = candidates[best], platform[i]

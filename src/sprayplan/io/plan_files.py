@@ -1,0 +1,139 @@
+"""plan.json and waypoints.csv: the main job's output (schema in docs/plan-json.md)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+
+import numpy as np
+
+from sprayplan import __version__
+from sprayplan.errors import PartFileError
+from sprayplan.io.writers import atomic_output
+
+FORMAT = "sprayplan.plan"
+VERSION = 1
+
+
+def _clean(value):
+    """JSON-ready: tuples to lists, NaN to None."""
+    if isinstance(value, dict):
+        return {k: _clean(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_clean(v) for v in value]
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value
+
+
+def _round(array, digits):
+    """Rounded nested lists, with None for NaN."""
+    rounded = np.round(np.asarray(array, dtype=float), digits)
+    missing = ~np.isfinite(rounded)
+    if not missing.any():
+        return rounded.tolist()
+    return np.where(missing, None, rounded.astype(object)).tolist()
+
+
+def plan_to_dict(plan, job, totals: dict) -> dict:
+    """The JSON-ready form of a plan."""
+    stations = []
+    for place, st in enumerate(plan.stations):
+        strokes, start = [], 0
+        for i, s in enumerate(st.strokes):
+            sl = slice(start, start + len(s))
+            start += len(s)
+            strokes.append(
+                {
+                    "index": i,
+                    "spray_on": s.spray_on,
+                    "layer": s.layer,
+                    "tcp": _round(s.tcp, 4),
+                    "tool_axis": _round(-s.normals, 7),
+                    "points": _round(s.points, 4),
+                    "normals": _round(s.normals, 7),
+                    "on_part": s.on_part.tolist(),
+                    "joints": _round(st.q9[sl], 7),
+                    "reachable": st.reachable[sl].tolist(),
+                    "method": st.method[sl].tolist(),
+                    "position_error_mm": _round(st.position_error_mm[sl], 6),
+                    "axis_error_deg": _round(st.axis_error_deg[sl], 6),
+                    "branch_change": st.branch_change[sl].tolist(),
+                }
+            )
+        stations.append(
+            {"order": place, "station": st.index, "platform_mm": _round(st.platform_mm, 3), "strokes": strokes}
+        )
+    return {
+        "format": FORMAT,
+        "version": VERSION,
+        "sprayplan_version": __version__,
+        "units": {"length": "mm", "angle": "rad", "time": "s", "errors": "mm and deg"},
+        "part": plan.name,
+        "settings": _clean(dataclasses.asdict(job)),
+        "joints": ["q1", "q2", "q3", "q4", "q5", "q6", "tx", "ty", "tz"],
+        "home_mm": _round(plan.home_mm, 3),
+        "stations": stations,
+        "unassigned_points": _round(plan.unassigned, 4) if len(plan.unassigned) else [],
+        "totals": _clean(totals),
+    }
+
+
+def write_plan(outdir, plan, job, totals: dict) -> list[str]:
+    """Write OUTDIR/plan.json and OUTDIR/waypoints.csv (atomically); returns the paths written."""
+    outdir = os.fspath(outdir)
+    data = plan_to_dict(plan, job, totals)
+    plan_path = os.path.join(outdir, "plan.json")
+    with atomic_output(plan_path, "w", encoding="utf-8") as handle:
+        json.dump(data, handle, separators=(",", ":"))
+        handle.write("\n")
+    csv_path = os.path.join(outdir, "waypoints.csv")
+    header = "station,stroke,waypoint,spray_on,x,y,z,ax,ay,az,q1,q2,q3,q4,q5,q6,tx,ty,tz,reachable,position_error_mm,axis_error_deg\n"
+    with atomic_output(csv_path, "w", newline="") as handle:
+        handle.write(header)
+        for place, st in enumerate(plan.stations):
+            start = 0
+            for i, s in enumerate(st.strokes):
+                n = len(s)
+                q = st.q9[start : start + n]
+                ok = st.reachable[start : start + n]
+                table = np.column_stack(
+                    [
+                        np.full(n, place),
+                        np.full(n, i),
+                        np.arange(n),
+                        np.full(n, int(s.spray_on)),
+                        s.tcp,
+                        -s.normals,
+                        np.where(ok[:, None], q, np.nan),
+                        ok.astype(int),
+                        st.position_error_mm[start : start + n],
+                        st.axis_error_deg[start : start + n],
+                    ]
+                )
+                for row in table:
+                    cells = (
+                        [f"{int(v)}" for v in row[:4]]
+                        + ["" if not np.isfinite(v) else f"{v:.10g}" for v in row[4:19]]
+                        + [f"{int(row[19])}"]
+                        + ["" if not np.isfinite(v) else f"{v:.6g}" for v in row[20:]]
+                    )
+                    handle.write(",".join(cells) + "\n")
+                start += n
+    return [plan_path, csv_path]
+
+
+def read_plan(path) -> dict:
+    """Read a plan.json (as a dict), checking its format."""
+    name = os.fspath(path)
+    try:
+        with open(path, encoding="utf-8") as handle:
+            data = json.load(handle)
+    except FileNotFoundError:
+        raise PartFileError(name, "no such file") from None
+    except (OSError, ValueError) as exc:
+        raise PartFileError(name, f"not a readable JSON file ({exc})") from None
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise PartFileError(name, f'not a sprayplan plan file (expected "format": "{FORMAT}")')
+    return data

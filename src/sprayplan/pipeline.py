@@ -1,0 +1,227 @@
+"""The main job: part -> paths (or target points) -> stations -> ordering -> kinematics -> a Plan.
+
+paths or targets      spray strokes over the part (seed 003) or target points (seed 000 section 2)
+stations              the flange positions projected on xy, covered by the fewest working circles,
+                      each waypoint given greedily to a station (seed 000 section 5.1)
+platform tour         from home back to home over the stations, exact, Manhattan metric (section 5.1.3)
+ordering              strokes of a station (each either way round) or, in points mode, its targets as a
+                      travelling-salesman tour (section 5.2, the seed's GA on request)
+kinematics            nine axes at every waypoint: analytic IK in the recommended region, SQP elsewhere;
+                      the arm starts each station from home (collision avoidance, section 5.2)
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from sprayplan.config import JobConfig, PathConfig
+from sprayplan.errors import InputError
+from sprayplan.paths.planner import plan_paths, transfer
+from sprayplan.robots.gantry import Gantry, load_gun, solve_gantry_path
+from sprayplan.robots.model import load_robot
+from sprayplan.stations import assign_greedy, circle_cover
+from sprayplan.surface.poses import rotation_from_z
+from sprayplan.types import Part, Plan, StationPlan, Stroke
+
+log = logging.getLogger(__name__)
+
+HOME_JOINTS = np.array([0.0, -math.pi / 2, 0.0, -math.pi / 2, 0.0, 0.0])
+
+
+def gun_poses(stroke: Stroke) -> np.ndarray:
+    """(n, 4, 4) gun poses along a stroke: origin at the tcp, z along -normal, turned about z as seed 000's
+    eq. 5 (Rodrigues from (0, 0, 1)).
+
+    The roll about the gun's own axis does not change the spray, so it is not tied to the direction of travel:
+    a stroke run backwards keeps its poses, and the flange (offset sideways from the gun axis by T_tool)
+    stays where the station assignment put it.
+    """
+    poses = np.zeros((len(stroke), 4, 4))
+    poses[:, :3, :3] = rotation_from_z(-stroke.normals)
+    poses[:, :3, 3] = stroke.tcp
+    poses[:, 3, 3] = 1.0
+    return poses
+
+
+def _split_by_station(stroke: Stroke, station: np.ndarray) -> list[tuple[int, Stroke]]:
+    """Contiguous runs of a stroke's waypoints that belong to the same station (-1 runs dropped)."""
+    out = []
+    edges = np.flatnonzero(np.diff(station)) + 1
+    for start, stop in zip(np.r_[0, edges], np.r_[edges, len(station)]):
+        k = int(station[start])
+        if k < 0:
+            continue
+        sl = slice(start, stop)
+        out.append(
+            (k, Stroke(stroke.points[sl], stroke.normals[sl], stroke.tcp[sl], True, stroke.on_part[sl], stroke.layer))
+        )
+    return out
+
+
+@dataclass(frozen=True)
+class _Work:
+    """Spray strokes to place, with the flange xy of every waypoint."""
+
+    strokes: list
+    flange_xy: np.ndarray
+    flange_z: np.ndarray
+    owner: np.ndarray  # stroke index of each waypoint
+
+
+def _spray_work(part: Part, job: JobConfig, gantry: Gantry) -> _Work:
+    if job.plan.mode == "paths":
+        strokes = list(plan_paths(part, job.paths).spray_strokes)
+    else:
+        from sprayplan.surface.targets import make_targets
+
+        targets = make_targets(part, job.targets)
+        standoff = job.paths.standoff_mm
+        strokes = [
+            Stroke(p[None], n[None], (p + standoff * n)[None], True, None, -1)
+            for p, n in zip(targets.points, targets.normals)
+        ]
+    if not strokes:
+        raise InputError(f"{part.name}: nothing to paint")
+    poses = np.concatenate([gun_poses(s) for s in strokes])
+    flange = poses @ np.linalg.inv(gantry.gun.gun2flange)
+    owner = np.concatenate([np.full(len(s), i) for i, s in enumerate(strokes)])
+    return _Work(strokes, flange[:, :2, 3], flange[:, 2, 3], owner)
+
+
+def plan(part: Part, job: JobConfig | None = None) -> Plan:
+    """Plan a whole spray program for a part (already loaded and cut to its region).
+
+    Returns
+    -------
+    Plan
+        Stations in visiting order, each with its ordered strokes and the nine axes at every waypoint;
+        waypoints no station reaches are in ``Plan.unassigned``; unreachable waypoints are flagged, not
+        raised.
+    """
+    from sprayplan.ordering import order_strokes, solve_tour
+
+    job = JobConfig() if job is None else job
+    settings = job.plan
+    gantry = Gantry(robot=load_robot("ur5"), gun=load_gun(settings.tool))
+    work = _spray_work(part, job, gantry)
+    space = gantry.workspace
+    cover = circle_cover(work.flange_xy, space.radius_mm, space.core_diameter_mm / 2, seed=settings.seed)
+    centres = cover.centres
+    home = np.array(settings.home_mm)
+    if settings.platform_z_mm is not None:
+        platform_z = float(settings.platform_z_mm)
+    else:  # the flange positions' mean height at the middle of the working cylinder
+        middle = (space.wall_mm + space.reach_mm * math.sin(space.theta)) / 2
+        platform_z = float(work.flange_z.mean() - middle + gantry.robot.d[0])
+    platforms = np.column_stack([centres, np.full(len(centres), platform_z)])
+    # platform tour: home -> stations -> home, exact for few stations, Manhattan (the axes move separately)
+    nodes = np.vstack([home, platforms])
+    method = "exact" if len(nodes) <= 12 else "auto"
+    tour = solve_tour(nodes, method=method, closed=True, start=0, metric="manhattan", seed=settings.seed)
+    visit = [int(i) - 1 for i in tour.order if i != 0]
+    assignment = assign_greedy(work.flange_xy, centres, np.array(visit), space.radius_mm, space.core_diameter_mm / 2)
+    # pieces of strokes per station
+    per_station: dict[int, list[Stroke]] = {k: [] for k in visit}
+    offsets = np.r_[0, np.cumsum([len(s) for s in work.strokes])]
+    for i, stroke in enumerate(work.strokes):
+        for k, piece in _split_by_station(stroke, assignment.station[offsets[i] : offsets[i + 1]]):
+            per_station[k].append(piece)
+    unassigned_mask = assignment.station < 0
+    all_points = np.concatenate([s.points for s in work.strokes])
+    stations = []
+    paths_config = job.paths
+    for k in visit:
+        pieces = per_station[k]
+        if not pieces:
+            continue
+        ordered = _order_station(pieces, settings, platforms[k], order_strokes, solve_tour)
+        strokes = _with_transfers(ordered, paths_config)
+        poses = np.concatenate([gun_poses(s) for s in strokes])
+        result = solve_gantry_path(
+            gantry,
+            poses,
+            platforms[k],
+            seed_q=HOME_JOINTS,
+            k_d=settings.k_d,
+            position_tol_mm=settings.position_tol_mm,
+            axis_tol_rad=math.radians(settings.axis_tol_deg),
+        )
+        stations.append(
+            StationPlan(
+                k,
+                platforms[k],
+                tuple(strokes),
+                result.q9,
+                result.reachable,
+                result.method,
+                result.position_error_mm,
+                result.axis_error_deg,
+                result.branch_change,
+            )
+        )
+    log.info("%s: %d stations, %d waypoints unassigned", part.name, len(stations), int(unassigned_mask.sum()))
+    return Plan(tuple(stations), home, all_points[unassigned_mask], part.name)
+
+
+def _order_station(pieces, settings, platform, order_strokes, solve_tour) -> list[Stroke]:
+    if settings.mode == "points":
+        tcp = np.concatenate([p.tcp for p in pieces])
+        if len(pieces) == 1:
+            return pieces
+        method = {"keep": "auto"}.get(settings.tour, settings.tour)
+        if method == "exact" and len(pieces) > 12:
+            method = "auto"
+        order = solve_tour(tcp, method=method, closed=False, seed=settings.seed).order
+        points = np.concatenate([p.points for p in pieces])[order]
+        normals = np.concatenate([p.normals for p in pieces])[order]
+        return [Stroke(points, normals, tcp[order], True, None, -1)]
+    if settings.tour == "keep" or len(pieces) == 1:
+        return pieces
+    starts = np.array([p.tcp[0] for p in pieces])
+    ends = np.array([p.tcp[-1] for p in pieces])
+    method = "exact" if settings.tour == "exact" and len(pieces) <= 6 else "ga" if settings.tour == "ga" else "auto"
+    order, reverse, _ = order_strokes(starts, ends, start_point=None, method=method, seed=settings.seed)
+    return [pieces[i].reversed() if r else pieces[i] for i, r in zip(order, reverse)]
+
+
+def _with_transfers(strokes: list[Stroke], config: PathConfig) -> list[Stroke]:
+    out: list[Stroke] = []
+    for stroke in strokes:
+        if out:
+            out.append(transfer(out[-1], stroke, config))
+        out.append(stroke)
+    return out
+
+
+def plan_totals(plan_: Plan, job: JobConfig) -> dict:
+    """Lengths (mm), counts and the cycle time (s) of a plan."""
+    settings = job.plan
+    spray = sum(s.length_mm for st in plan_.stations for s in st.strokes if s.spray_on)
+    moves = sum(s.length_mm for st in plan_.stations for s in st.strokes if not s.spray_on)
+    stops = [plan_.home_mm, *[st.platform_mm for st in plan_.stations], plan_.home_mm]
+    platform = float(sum(np.abs(np.diff(np.array(stops), axis=0)).sum(axis=1)))
+    reachable = np.concatenate([st.reachable for st in plan_.stations]) if plan_.stations else np.zeros(0, bool)
+    errors = np.concatenate([st.position_error_mm for st in plan_.stations]) if plan_.stations else np.zeros(0)
+    axes = np.concatenate([st.axis_error_deg for st in plan_.stations]) if plan_.stations else np.zeros(0)
+    methods = np.concatenate([st.method for st in plan_.stations]) if plan_.stations else np.zeros(0, str)
+    cycle = (
+        spray / settings.gun_speed_mm_s + moves / settings.transfer_speed_mm_s + platform / settings.platform_speed_mm_s
+    )
+    return {
+        "stations": len(plan_.stations),
+        "strokes": int(sum(1 for st in plan_.stations for s in st.strokes if s.spray_on)),
+        "waypoints": len(reachable),
+        "unreachable_waypoints": int((~reachable).sum()),
+        "unassigned_points": len(plan_.unassigned),
+        "sqp_waypoints": int((methods == "sqp").sum()),
+        "spray_length_mm": round(float(spray), 3),
+        "transfer_length_mm": round(float(moves), 3),
+        "platform_travel_mm": round(platform, 3),
+        "max_position_error_mm": float(np.nanmax(errors)) if reachable.any() else None,
+        "max_axis_error_deg": float(np.nanmax(axes)) if reachable.any() else None,
+        "cycle_time_s": round(float(cycle), 3),
+    }
