@@ -266,7 +266,7 @@ class PlanConfig:
     position_tol_mm, axis_tol_deg : float
         Allowed errors of the SQP fallback (eqs. 21-22; seed: 5 mm, 5 degrees).
     k_d : float
-        Weight of gantry travel in eq. 20, rad^2/mm^2.
+        Weight of gantry travel in eq. 20, rad^2/mm^2 (0.1: 3.2 mm of travel costs as much as 1 rad).
     seed : int
     """
 
@@ -281,7 +281,7 @@ class PlanConfig:
     platform_z_mm: float | None = None
     position_tol_mm: float = 5.0
     axis_tol_deg: float = 5.0
-    k_d: float = 1e-3
+    k_d: float = 0.1
     seed: int = 0
 
     def __post_init__(self):

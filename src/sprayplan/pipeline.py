@@ -172,8 +172,10 @@ def _order_station(pieces, settings, platform, order_strokes, solve_tour) -> lis
         tcp = np.concatenate([p.tcp for p in pieces])
         if len(pieces) == 1:
             return pieces
+        from sprayplan.ordering import EXACT_MAX_N
+
         method = {"keep": "auto"}.get(settings.tour, settings.tour)
-        if method == "exact" and len(pieces) > 12:
+        if method == "exact" and len(tcp) > EXACT_MAX_N:
             method = "auto"
         order = solve_tour(tcp, method=method, closed=False, seed=settings.seed).order
         points = np.concatenate([p.points for p in pieces])[order]

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -209,17 +210,8 @@ def _random_cuts(rng: np.random.Generator, k: int, m: int) -> np.ndarray:
     return np.sort(rng.integers(0, m, size=(k, 2)), axis=1)
 
 
-def _evolve(
-    sub: np.ndarray,
-    head: np.ndarray | None,
-    tail: np.ndarray | None,
-    const: float,
-    cyclic: bool,
-    params: GAParams,
-    time_limit_s: float | None,
-    rng: np.random.Generator,
-):
-    """Run the GA on chromosomes over ``range(m)``; returns (best chromosome, history, generations run)."""
+def _matrix_lengths(sub: np.ndarray, head, tail, const: float, cyclic: bool):
+    """Vectorised length of chromosomes over ``range(m)`` on a sub-matrix, with fixed head/tail costs."""
     m = len(sub)
     flat = sub.reshape(-1)
 
@@ -233,9 +225,42 @@ def _evolve(
             out += tail[pop[:, -1]]
         return out
 
+    return lengths
+
+
+def evolve_permutations(
+    m: int,
+    lengths: Callable[[np.ndarray], np.ndarray],
+    params: GAParams,
+    time_limit_s: float | None,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """The GA loop (figures 17-20) over permutations of ``range(m)`` with any vectorised cost.
+
+    Parameters
+    ----------
+    m : int
+        Chromosome length, at least 2.
+    lengths : callable
+        ``lengths(pop (k, m) int) -> (k,) float``, positive: the cost of each chromosome (fitness is 1 / cost).
+    params : GAParams
+    time_limit_s : float or None
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    best : (m,) int
+        Best chromosome of the last generation.
+    history : (g + 1,) float
+        Best cost after each generation (non-increasing).
+    generations : int
+        Generations run.
+    """
     size = params.population
     pop = rng.permuted(np.tile(np.arange(m), (size, 1)), axis=1)
     length = lengths(pop)
+    # Fitness is 1 / cost; a cost floor keeps it finite when some chromosome costs nothing (strokes end to end).
+    floor = 1e-9 * float(length.mean()) + 1e-300
     best = int(np.argmin(length))
     history = [float(length[best])]
     deadline = None if time_limit_s is None else time.perf_counter() + time_limit_s
@@ -246,7 +271,7 @@ def _evolve(
             logger.info("GA stopped by its time limit after %d generations", done)
             break
         # Selection (figure 18): elite kept, roulette on the min-max normalised fitness.
-        fitness = 1.0 / length
+        fitness = 1.0 / np.maximum(length, floor)
         f_lo, f_hi = fitness.min(), fitness.max()
         weight = (fitness - f_lo) / (f_hi - f_lo) if f_hi > f_lo else np.ones(size)
         cdf = np.cumsum(weight)
@@ -263,8 +288,8 @@ def _evolve(
             kids[2 * crossed + 1] = order_crossover(second, first, cuts)
         kid_length = lengths(kids)
         # Mutation (figure 20) with the adaptive rate of eq. 31, on the population after crossover.
-        all_fit = 1.0 / np.concatenate([[length[best]], kid_length])
-        rate = adaptive_mutation_rate(1.0 / kid_length, all_fit.max(), all_fit.mean(), params.k1, params.k2)
+        all_fit = 1.0 / np.maximum(np.concatenate([[length[best]], kid_length]), floor)
+        rate = adaptive_mutation_rate(all_fit[1:], all_fit.max(), all_fit.mean(), params.k1, params.k2)
         mutated = np.flatnonzero(rng.random(size - 1) < rate)
         if len(mutated):
             kids[mutated] = inversion_mutation(kids[mutated], _random_cuts(rng, len(mutated), m))
@@ -305,9 +330,8 @@ def ga_tour_matrix(
     if len(free) < 2:
         chromosome, history, done = np.arange(len(free)), None, 0
     else:
-        chromosome, history, done = _evolve(
-            dist[np.ix_(free, free)], head, tail, const, cyclic, params, time_limit_s, rng
-        )
+        lengths = _matrix_lengths(dist[np.ix_(free, free)], head, tail, const, cyclic)
+        chromosome, history, done = evolve_permutations(len(free), lengths, params, time_limit_s, rng)
     order = free[chromosome]
     if cyclic:
         if start is not None:

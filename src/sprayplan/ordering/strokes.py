@@ -5,7 +5,7 @@ A stroke is painted from one end to the other with the gun on; between strokes t
 (straight lines, mm): from ``start_point`` (if given) to the first stroke's entry, then from each stroke's exit to
 the next one's entry. There is no return edge.
 
-Two solvers:
+Three solvers:
 
 - small stations (``m <= EXACT_MAX_STROKES`` with ``method="auto"`` or ``"exact"``): Held-Karp over (stroke,
   direction) pairs (:func:`~sprayplan.ordering.exact.held_karp` with two nodes per group), exact;
@@ -14,7 +14,8 @@ Two solvers:
   ends pays exactly ``m`` times ``M`` when it runs every stroke whole and more when it does not; the tour solver
   of :mod:`sprayplan.ordering.tour` then orders the ends (an open path, from ``start_point`` when given).
   The stroke order is read off the path (first visit of each stroke), the directions are then chosen optimally
-  for that order by dynamic programming.
+  for that order by dynamic programming;
+- ``method="ga"``: the seed's genetic algorithm over stroke orders, each order priced with its best directions.
 
 The result is finally compared with the input order (with its best directions, which include running it as
 given or in zig-zag) and the better of the two is returned, so ordering never lengthens the transfer of the
@@ -29,14 +30,15 @@ import numpy as np
 
 from sprayplan.errors import ConfigError, InputError
 from sprayplan.ordering.exact import held_karp
-from sprayplan.ordering.metrics import check_points, distance_matrix, pair_distances
+from sprayplan.ordering.genetic import GA_DEFAULT, evolve_permutations
+from sprayplan.ordering.metrics import check_points, check_time_limit, distance_matrix, pair_distances
 from sprayplan.ordering.tour import METHODS, solve_tour_matrix
 
 logger = logging.getLogger(__name__)
 
 #: Largest station ordered exactly by ``method="auto"`` or ``"exact"`` (2**12 subsets x 24 oriented strokes).
 EXACT_MAX_STROKES = 12
-STROKE_METHODS = tuple(m for m in METHODS if m != "ga")
+STROKE_METHODS = METHODS
 
 
 def _check_strokes(starts, ends, start_point):
@@ -129,6 +131,32 @@ def _exact_order(starts, ends, start_point) -> np.ndarray:
     return seq % m
 
 
+def _ga_order(starts, ends, start_point, time_limit_s, seed) -> np.ndarray:
+    """The seed's GA over stroke orders; each chromosome is priced with its best directions (DP, vectorised)."""
+    m = len(starts)
+    entry = np.stack([starts, ends], axis=1)  # entry[i, r]: entry of stroke i run in direction r
+    exit_ = entry[:, ::-1]
+    hop = pair_distances(exit_[:, None, :, None, :], entry[None, :, None, :, :])  # (m, m, 2, 2)
+    init = pair_distances(start_point, entry) if start_point is not None else np.zeros((m, 2))
+
+    # Columns of hop4: exit direction a -> entry direction b, as (a, b) = (0, 0), (0, 1), (1, 0), (1, 1).
+    hop4 = hop.reshape(m * m, 4).T.copy()
+    init0, init1 = init[:, 0].copy(), init[:, 1].copy()
+
+    def lengths(pop: np.ndarray) -> np.ndarray:
+        c0, c1 = init0[pop[:, 0]], init1[pop[:, 0]]
+        pair = pop[:, :-1] * m + pop[:, 1:]
+        for k in range(m - 1):
+            h = hop4[:, pair[:, k]]
+            c0, c1 = np.minimum(c0 + h[0], c1 + h[2]), np.minimum(c0 + h[1], c1 + h[3])
+        return np.minimum(c0, c1)
+
+    best, _, _ = evolve_permutations(
+        m, lengths, GA_DEFAULT, check_time_limit(time_limit_s), np.random.default_rng(seed)
+    )
+    return best
+
+
 def _tour_order(starts, ends, start_point, method, time_limit_s, seed) -> np.ndarray:
     m = len(starts)
     pts = np.concatenate([starts, ends] + ([start_point[None, :]] if start_point is not None else []))
@@ -160,12 +188,14 @@ def order_strokes(
         First and last point of each stroke as planned, mm (``(m, 2)`` works too).
     start_point : (3,) float or None
         Where the gun is before the first stroke (its travel to the first stroke is counted); None: free start.
-    method : {"auto", "exact", "fast-tsp", "local", "2opt", "nearest"}
+    method : {"auto", "exact", "fast-tsp", "local", "2opt", "nearest", "ga"}
         ``"auto"``: exact up to :data:`EXACT_MAX_STROKES` strokes, else the end-point tour with the default tour
-        solver. ``"exact"``: Held-Karp, at most :data:`EXACT_MAX_STROKES` strokes. Others: the end-point tour
-        with that tour method (see :func:`~sprayplan.ordering.tour.solve_tour`).
+        solver. ``"exact"``: Held-Karp, at most :data:`EXACT_MAX_STROKES` strokes. ``"ga"``: the seed's GA
+        (:data:`~sprayplan.ordering.genetic.GA_DEFAULT`) over stroke orders, each priced with its best directions
+        (slow for many strokes: 2000 generations of m vectorised steps). Others: the end-point tour with that tour
+        method (see :func:`~sprayplan.ordering.tour.solve_tour`).
     time_limit_s : float or None
-        Budget of the tour solver; None: its default for ``2m (+1)`` nodes.
+        Budget of the tour solver; None: its default for ``2m (+1)`` nodes (for ``"ga"``: all generations).
     seed : int
         Seed of the random tour methods.
 
@@ -200,6 +230,8 @@ def order_strokes(
         return identity, base_rev, base_len
     if method in ("auto", "exact") and m <= EXACT_MAX_STROKES:
         order = _exact_order(s, e, p)
+    elif method == "ga":
+        order = _ga_order(s, e, p, time_limit_s, seed)
     else:
         order = _tour_order(s, e, p, method, time_limit_s, seed)
     rev, length = _best_directions(s, e, order, p)

@@ -232,10 +232,11 @@ def solve_sqp(
     target2world: np.ndarray,
     start_q9: np.ndarray,
     *,
-    k_d: float = 1e-3,
+    k_d: float = 0.1,
     position_tol_mm: float = 5.0,
     axis_tol_rad: float = math.radians(5.0),
     max_iter: int = 150,
+    reference_q9: np.ndarray | None = None,
 ) -> SQPResult:
     """Seed 000 section 4.2: SQP from the previous solution for a pose the analytic IK cannot serve.
 
@@ -243,8 +244,12 @@ def solve_sqp(
     and is not smooth at the start), over the six joints and the gantry position t, subject to eq. 21 (the
     spray target within ``position_tol_mm``) and eq. 22 (the gun axis within ``axis_tol_rad``), and the joint
     limits. The printed eq. 20 calls K_d "the number of movements of the platform"; it is read as the weight
-    that trades a millimetre of gantry travel against a radian of joint motion (default 1e-3 rad^2/mm^2: 30 mm
-    of gantry travel costs as much as 1 rad of joint motion).
+    that trades a millimetre of gantry travel against a radian of joint motion (default 0.1 rad^2/mm^2: 3.2 mm
+    of gantry travel costs as much as 1 rad of joint motion, so the gantry moves only slightly, as the seed
+    says; with a joint change of at most 2 pi per joint the gantry moves at most sqrt(6 (2 pi)^2 / K_d) = 49 mm).
+
+    ``start_q9`` is the optimiser's first guess; ``reference_q9`` (default: the guess) holds the theta_i^0 and
+    t^0 of eq. 20: the previous solution and the station's gantry position.
 
     Returns
     -------
@@ -252,7 +257,8 @@ def solve_sqp(
         ``success`` is True only when both constraints hold at the returned point (checked by forward
         kinematics, whatever the optimiser reports).
     """
-    start = np.asarray(start_q9, dtype=float).reshape(9)
+    guess = np.asarray(start_q9, dtype=float).reshape(9)
+    start = guess if reference_q9 is None else np.asarray(reference_q9, dtype=float).reshape(9)
     wanted = np.asarray(target2world, dtype=float).reshape(4, 4)
     step = np.array([1e-7] * 6 + [1e-5] * 3)  # rad, mm
     cache: dict = {}
@@ -282,7 +288,7 @@ def solve_sqp(
     bounds = [(lo, hi) for lo, hi in zip(gantry.robot.lower, gantry.robot.upper)] + [(None, None)] * 3
     result = minimize(
         objective,
-        start,
+        guess,
         jac=objective_grad,
         method="SLSQP",
         bounds=bounds,
@@ -296,6 +302,32 @@ def solve_sqp(
     position, axis = errors(result.x)
     ok = bool(position <= position_tol_mm * (1 + 1e-6) and axis <= axis_tol_rad * (1 + 1e-6))
     return SQPResult(result.x, ok, float(position), float(axis), int(result.nit), str(result.message))
+
+
+#: Gantry steps tried (mm, in the plane) to find an exact starting point for SQP when the station has none.
+ASIDE_STEPS = np.array([[150.0, 0, 0], [-150.0, 0, 0], [0, 150.0, 0], [0, -150.0, 0], [0, 0, 150.0], [0, 0, -150.0]])
+
+
+def _shifted_start(gantry: Gantry, gun2world: np.ndarray, platform: np.ndarray, previous: np.ndarray):
+    """(9,) q9 that reaches the pose exactly from a gantry position stepped aside, nearest the previous joints."""
+    from sprayplan.robots.ur_ik import nearest_equivalent, ur_ik
+
+    trial = platform + ASIDE_STEPS
+    flange = gantry.flange_targets(np.broadcast_to(gun2world, (len(trial), 4, 4)), trial)
+    solutions = ur_ik(gantry.robot, flange)
+    best, best_cost = None, np.inf
+    for k in range(len(trial)):
+        q = nearest_equivalent(
+            solutions.q[k], np.broadcast_to(previous, (8, 6)), gantry.robot.lower, gantry.robot.upper
+        )
+        ok = solutions.valid[k] & gantry.robot.within_limits(q)
+        if not ok.any():
+            continue
+        cost = np.where(ok, np.linalg.norm(q - previous, axis=1), np.inf)
+        j = int(np.argmin(cost))
+        if cost[j] < best_cost:
+            best, best_cost = np.concatenate([q[j], trial[k]]), cost[j]
+    return best
 
 
 @dataclass(frozen=True)
@@ -341,11 +373,12 @@ def solve_gantry_path(
     *,
     seed_q: np.ndarray | None = None,
     jump_rad: float = 0.5,
-    k_d: float = 1e-3,
+    k_d: float = 0.1,
     position_tol_mm: float = 5.0,
     axis_tol_rad: float = math.radians(5.0),
     outside_policy: str = "analytic",
     sqp_reach_mm: float = 150.0,
+    max_gantry_move_mm: float = 200.0,
 ) -> GantryPath:
     """Joint values for a sequence of gun poses, with the gantry at the given positions.
 
@@ -366,6 +399,9 @@ def solve_gantry_path(
     sqp_reach_mm : float
         SQP is tried outside the cylinder only within this distance of it; farther waypoints without an
         analytic solution are unreachable from the station (SQP would have to move the gantry a long way).
+    max_gantry_move_mm : float
+        The seed lets SQP move the gantry "slightly": a solution that moves it farther from the station is
+        rejected and the waypoint reported unreachable.
 
     Returns
     -------
@@ -413,11 +449,24 @@ def solve_gantry_path(
             if valid.any():  # an analytic solution exists (near the core): start SQP from it
                 best = int(np.argmin(np.where(valid, np.linalg.norm(candidates - previous, axis=1), np.inf)))
                 start = np.concatenate([candidates[best], platform[i]])
+            else:  # none here: start from an exact solution with the gantry stepped aside, SQP brings it back
+                shifted = _shifted_start(gantry, gun2world[i], platform[i], previous)
+                if shifted is not None:
+                    start = shifted
             result = solve_sqp(
-                gantry, wanted_target[i], start, k_d=k_d, position_tol_mm=position_tol_mm, axis_tol_rad=axis_tol_rad
+                gantry,
+                wanted_target[i],
+                start,
+                k_d=k_d,
+                position_tol_mm=position_tol_mm,
+                axis_tol_rad=axis_tol_rad,
+                reference_q9=np.concatenate([previous, platform[i]]),
             )
             if not result.success:
                 log.info("waypoint %d: SQP failed (%s)", i, result.message)
+                continue
+            if np.linalg.norm(result.q9[6:] - platform[i]) > max_gantry_move_mm:
+                log.info("waypoint %d: SQP would move the gantry more than %g mm", i, max_gantry_move_mm)
                 continue
             q9[i] = result.q9
             method[i] = "sqp"

@@ -1,0 +1,146 @@
+"""The main job, ``sprayplan plan``: stations, ordering and nine-axis kinematics on real parts."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from sprayplan.cli import main
+from sprayplan.config import JobConfig, LoadConfig, PathConfig, PlanConfig, job_from_toml
+from sprayplan.errors import PartFileError
+from sprayplan.io.load import load_part
+from sprayplan.pipeline import plan, plan_totals
+from sprayplan.robots.gantry import Gantry
+from tests.conftest import REPO
+
+
+def test_process_toml_documents_every_default():
+    assert job_from_toml(REPO / "examples" / "process.toml") == JobConfig()
+
+
+def test_bad_process_toml(tmp_path):
+    (tmp_path / "p.toml").write_text("[paths]\nspacing = 40\n")
+    with pytest.raises(PartFileError, match=r"p.toml: \[paths\]: unknown PathConfig key\(s\): spacing"):
+        job_from_toml(tmp_path / "p.toml")
+    (tmp_path / "q.toml").write_text("[painting]\n")
+    with pytest.raises(PartFileError, match="unknown table"):
+        job_from_toml(tmp_path / "q.toml")
+
+
+@pytest.fixture(scope="module")
+def reach_plan(testdata, tmp_path_factory):
+    out = tmp_path_factory.mktemp("plan")
+    (out / "process.toml").write_text("[paths]\nspacing_mm = 80.0\nstep_mm = 20.0\n[plan]\ngun_speed_mm_s = 500.0\n")
+    code = main(
+        [
+            "plan",
+            str(testdata / "meshes" / "reach_curved_part.ply"),
+            "--units",
+            "m",
+            "-o",
+            str(out),
+            "-c",
+            str(out / "process.toml"),
+            "--standoff-mm",
+            "113",
+        ]
+    )
+    assert code == 0
+    return out, json.loads((out / "plan.json").read_text())
+
+
+def test_plan_json_reads_back(reach_plan):
+    out, data = reach_plan
+    assert data["format"] == "sprayplan.plan" and data["units"]["length"] == "mm"
+    # settings: the TOML file and the flags both took effect
+    assert data["settings"]["paths"]["spacing_mm"] == 80.0 and data["settings"]["plan"]["gun_speed_mm_s"] == 500.0
+    assert data["settings"]["load"]["units"] == "m"
+    totals = data["totals"]
+    assert totals["stations"] == len(data["stations"]) >= 2
+    spray = transfer = 0.0
+    waypoints = 0
+    for station in data["stations"]:
+        platform = np.array(station["platform_mm"])
+        for stroke in station["strokes"]:
+            tcp = np.array(stroke["tcp"])
+            length = float(np.linalg.norm(np.diff(tcp, axis=0), axis=1).sum())
+            spray, transfer = (spray + length, transfer) if stroke["spray_on"] else (spray, transfer + length)
+            waypoints += len(tcp)
+            for q, ok in zip(stroke["joints"], stroke["reachable"]):
+                if ok:
+                    assert len(q) == 9
+                    # SQP may move the gantry slightly (the seed), at most 200 mm (solve_gantry_path's limit)
+                    assert np.linalg.norm(np.array(q[6:]) - platform) <= 200.0 + 1e-9
+            # the gun axis points at the surface point from the tcp, at the standoff
+            np.testing.assert_allclose(tcp + 113.0 * np.array(stroke["tool_axis"]), stroke["points"], atol=1e-2)
+    assert spray == pytest.approx(totals["spray_length_mm"], rel=1e-6)
+    assert transfer == pytest.approx(totals["transfer_length_mm"], rel=1e-6)
+    assert waypoints == totals["waypoints"]
+    # cycle time from its parts
+    expected = spray / 500.0 + transfer / 1000.0 + totals["platform_travel_mm"] / 250.0
+    assert totals["cycle_time_s"] == pytest.approx(expected, rel=1e-4)
+    # the gantry tour starts and ends at home and is the Manhattan length of its legs
+    stops = np.array([data["home_mm"], *[s["platform_mm"] for s in data["stations"]], data["home_mm"]])
+    assert totals["platform_travel_mm"] == pytest.approx(np.abs(np.diff(stops, axis=0)).sum(), rel=1e-6)
+
+
+def test_waypoints_csv_matches_plan(reach_plan):
+    out, data = reach_plan
+    table = np.genfromtxt(out / "waypoints.csv", delimiter=",", names=True)
+    assert len(table) == data["totals"]["waypoints"]
+    first = data["stations"][0]["strokes"][0]
+    np.testing.assert_allclose([table["x"][0], table["y"][0], table["z"][0]], first["tcp"][0], atol=1e-6)
+    reachable = table["reachable"] == 1
+    assert np.isnan(table["q1"][~reachable]).all() and np.isfinite(table["q1"][reachable]).all()
+
+
+def test_joint_values_put_the_gun_where_the_plan_says(reach_plan):
+    _, data = reach_plan
+    gantry = Gantry()
+    for station in data["stations"][:2]:
+        for stroke in station["strokes"][:3]:
+            ok = np.array(stroke["reachable"])
+            q = np.array([j for j, r in zip(stroke["joints"], ok) if r], dtype=float)
+            target = gantry.target2world(q)
+            wanted = np.array(stroke["points"])[ok]
+            error = np.linalg.norm(target[:, :3, 3] - wanted, axis=1)
+            reported = np.array([np.nan if v is None else v for v in stroke["position_error_mm"]])[ok]
+            np.testing.assert_allclose(error, reported, atol=1e-3)
+            assert error.max() <= 5.0 + 1e-6
+
+
+def test_every_hull_point_is_assigned_or_reported(testdata):
+    hull = load_part(testdata / "meshes" / "dtc_ship_hull_ascii.stl.gz", units="m")
+    job = JobConfig(paths=PathConfig(spacing_mm=150.0, step_mm=60.0))
+    result = plan(hull, job)
+    totals = plan_totals(result, job)
+    planned = sum(len(s) for st in result.stations for s in st.strokes if s.spray_on)
+    # every waypoint of the sliced strokes is either in a station's strokes or listed as unassigned
+    from sprayplan.paths.planner import plan_paths
+
+    sliced = sum(len(s) for s in plan_paths(hull, job.paths).spray_strokes)
+    assert planned + len(result.unassigned) == sliced
+    assert totals["stations"] >= 4
+    # the hull's underside faces down: the hanging robot cannot paint it, and says so waypoint by waypoint
+    assert 0 < totals["unreachable_waypoints"] < totals["waypoints"]
+
+
+def test_points_mode_visits_every_target(tmp_path):
+    from sprayplan.demo import car_roof
+    from sprayplan.surface.region import select_region
+    from sprayplan.surface.targets import make_targets
+
+    roof = select_region(car_roof(resolution_mm=50.0), "box(-700, -500, 1000, 700, 500, 2000)")
+    job = JobConfig(
+        load=LoadConfig(region=None),
+        plan=dataclasses.replace(PlanConfig(), mode="points", tour="auto"),
+    )
+    result = plan(roof, job)
+    visited = np.vstack([s.points for st in result.stations for s in st.strokes if s.spray_on])
+    targets = make_targets(roof, job.targets)
+    assert len(visited) + len(result.unassigned) == len(targets)
+    # a permutation of the targets: each one exactly once
+    assert len(np.unique(np.round(visited, 6), axis=0)) == len(visited)
