@@ -53,7 +53,7 @@ def reach_plan(testdata, tmp_path_factory):
 
 
 def test_plan_json_reads_back(reach_plan):
-    out, data = reach_plan
+    _out, data = reach_plan
     assert data["format"] == "sprayplan.plan" and data["units"]["length"] == "mm"
     # settings: the TOML file and the flags both took effect
     assert data["settings"]["paths"]["spacing_mm"] == 80.0 and data["settings"]["plan"]["gun_speed_mm_s"] == 500.0
