@@ -97,7 +97,9 @@ def test_demo_runs_on_the_bundled_roof(tmp_path, capsys):
     assert table[:, 2].min() >= 1000 - 1e-9  # seed 000's region z > 1000
     span = np.ptp(table[:, :2], axis=0)
     assert 2500 < span[0] <= 2635 and 1800 < span[1] <= 1959
-    assert "targets" in stdout
+    assert "targets" in stdout and "stations" in stdout and "film: mean" in stdout
+    for name in ("plan.json", "waypoints.csv", "coating.json", "thickness.ply", "thickness.csv"):
+        assert (tmp_path / name).stat().st_size > 0
 
 
 def _bad_inputs(tmp_path, testdata):

@@ -92,7 +92,8 @@ def test_waypoints_csv_matches_plan(reach_plan):
     table = np.genfromtxt(out / "waypoints.csv", delimiter=",", names=True)
     assert len(table) == data["totals"]["waypoints"]
     first = data["stations"][0]["strokes"][0]
-    np.testing.assert_allclose([table["x"][0], table["y"][0], table["z"][0]], first["tcp"][0], atol=1e-6)
+    # plan.json rounds positions to 0.1 um (4 decimals), waypoints.csv keeps 10 significant digits
+    np.testing.assert_allclose([table["x"][0], table["y"][0], table["z"][0]], first["tcp"][0], atol=5e-5)
     reachable = table["reachable"] == 1
     assert np.isnan(table["q1"][~reachable]).all() and np.isfinite(table["q1"][reachable]).all()
 

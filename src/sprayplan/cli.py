@@ -145,7 +145,7 @@ def cmd_demo(args) -> int:
     load_args = argparse.Namespace(units="mm", up="z", region=DEMO_REGION)
     print(_run_targets(str(part_file), out / "targets.csv", load_args, TargetsConfig()))
     job = JobConfig(load=LoadConfig(region=DEMO_REGION))
-    print(_run_plan(str(part_file), out, job))
+    print(_run_plan(str(part_file), out, job, simulate=True, samples=420))
     return 0
 
 
@@ -434,7 +434,11 @@ def _job_config(args):
 
     job = job_from_toml(args.config) if args.config else JobConfig()
     load = {k: getattr(args, k) for k in ("units", "up", "region") if getattr(args, k) is not None}
-    plan = {k: getattr(args, k) for k in ("mode", "tour") if getattr(args, k) is not None}
+    plan = {
+        k: getattr(args, k)
+        for k in ("mode", "tour", "process", "thickness_um", "tolerance_um")
+        if getattr(args, k, None) is not None
+    }
     paths = {}
     for key in ("spacing_mm", "spray_radius_mm", "overlap", "standoff_mm", "step_mm"):
         if getattr(args, key, None) is not None:
@@ -453,13 +457,22 @@ def _job_config(args):
     )
 
 
-def _run_plan(part_path: str, outdir: Path, job) -> str:
+def _run_plan(part_path: str, outdir: Path, job, simulate: bool = False, samples: int | None = None) -> str:
+    from sprayplan.coating_stage import meet_thickness, simulate_plan, write_coating
     from sprayplan.io.load import load_part
     from sprayplan.io.plan_files import write_plan
     from sprayplan.pipeline import plan, plan_totals
     from sprayplan.surface.region import select_region
 
     start = time.perf_counter()
+    job, chosen = meet_thickness(job)
+    if chosen:
+        log.info(
+            "for %.4g um: spacing %.4g mm, gun speed %.4g mm/s",
+            chosen["target_um"],
+            chosen["spacing_mm"],
+            chosen["gun_speed_mm_s"],
+        )
     with _stage("load"):
         part = load_part(part_path, units=job.load.units, up=job.load.up)
     with _stage("region"):
@@ -467,21 +480,74 @@ def _run_plan(part_path: str, outdir: Path, job) -> str:
     with _stage("plan (paths, stations, ordering, kinematics)"):
         result = plan(part, job)
     totals = plan_totals(result, job)
+    if chosen:
+        totals["chosen_for_thickness"] = chosen
+    report = None
+    if simulate:
+        with _stage("coating"):
+            film = simulate_plan(part, result, job)
     elapsed = time.perf_counter() - start
     totals["planning_time_s"] = round(elapsed, 3)
-    write_plan(outdir, result, job, totals)
-    return (
+    write_plan(outdir, result, job, totals, part_path)
+    if simulate:
+        report = write_coating(outdir, film, job, samples, chosen)
+    line = (
         f"{totals['stations']} stations, {totals['strokes']} strokes, {totals['waypoints']} waypoints "
         f"({totals['unreachable_waypoints']} unreachable, {totals['unassigned_points']} unassigned), spray "
         f"{totals['spray_length_mm'] / 1000:.2f} m, transfer {totals['transfer_length_mm'] / 1000:.2f} m, gantry "
         f"{totals['platform_travel_mm'] / 1000:.2f} m, cycle {totals['cycle_time_s']:.0f} s, planned in {elapsed:.1f} s "
         f"-> {outdir}/plan.json"
     )
+    if report is not None:
+        line += "\n" + _coating_line(report, outdir)
+    return line
+
+
+def _coating_line(report: dict, outdir) -> str:
+    painted = report["painted"]
+    return (
+        f"film: mean {painted['mean_um']:.1f} um, std/mean {painted['cv']:.3f}, min {painted['min_um']:.1f}, "
+        f"max {painted['max_um']:.1f}, {100 * painted['share_in_spec']:.1f}% of the painted area in "
+        f"{report['spec']['target_um']:.0f} +- {report['spec']['tolerance_um']:.0f} um -> {outdir}/coating.json"
+    )
+
+
+def cmd_simulate(args) -> int:
+    import dataclasses as dc
+
+    from sprayplan.coating_stage import simulate_plan, write_coating
+    from sprayplan.io.load import load_part
+    from sprayplan.io.plan_files import plan_from_dict, read_plan
+    from sprayplan.surface.region import select_region
+
+    outdir = Path(args.outdir)
+    data = read_plan(outdir / "plan.json")
+    result, job = plan_from_dict(data)
+    if args.thickness_um is not None or args.tolerance_um is not None:
+        changes = {k: getattr(args, k) for k in ("thickness_um", "tolerance_um") if getattr(args, k) is not None}
+        job = dc.replace(job, plan=dc.replace(job.plan, **changes))
+    part_file = args.part or data.get("part_file")
+    if not part_file:
+        raise ConfigError("plan.json does not name its part file: give it with --part")
+    part = select_region(load_part(part_file, units=job.load.units, up=job.load.up), job.load.region)
+    with _stage("coating"):
+        film = simulate_plan(part, result, job)
+    report = write_coating(outdir, film, job, args.samples)
+    print(_coating_line(report, outdir))
+    return 0
 
 
 def cmd_plan(args) -> int:
     job = _job_config(args)
-    print(_run_plan(args.part, Path(args.output), job))
+    print(
+        _run_plan(
+            args.part,
+            Path(args.output),
+            job,
+            simulate=args.simulate or job.plan.thickness_um is not None,
+            samples=args.samples,
+        )
+    )
     return 0
 
 
@@ -636,7 +702,25 @@ def build_parser() -> argparse.ArgumentParser:
     group.add_argument("--overlap", type=float)
     group.add_argument("--standoff-mm", type=float)
     group.add_argument("--step-mm", type=float)
+    group = plan_cmd.add_argument_group("coating")
+    group.add_argument(
+        "--simulate", action="store_true", help="predict the film: thickness.ply, thickness.csv, coating.json"
+    )
+    group.add_argument(
+        "--thickness-um", type=float, help="film target: choose spacing and gun speed to meet it (implies --simulate)"
+    )
+    group.add_argument("--tolerance-um", type=float, help="film spec: target +- this (default 5)")
+    group.add_argument("--process", help="spray process preset (seed000_circle, seed000_flat, bell003) or .toml")
+    group.add_argument("--samples", type=int, help="also report the film at this many random points (seed 003: 420)")
     plan_cmd.set_defaults(func=cmd_plan)
+
+    sim = sub.add_parser("simulate", parents=[common], help="predict the film of a planned OUTDIR (coating.json)")
+    sim.add_argument("outdir", help="a folder written by 'sprayplan plan'")
+    sim.add_argument("--part", help="the part file (default: the one named in plan.json)")
+    sim.add_argument("--thickness-um", type=float, help="film target (default: the plan's, else 50)")
+    sim.add_argument("--tolerance-um", type=float, help="film spec: target +- this (default 5)")
+    sim.add_argument("--samples", type=int, help="also report the film at this many random points (seed 003: 420)")
+    sim.set_defaults(func=cmd_simulate)
     return parser
 
 

@@ -267,6 +267,16 @@ class PlanConfig:
         Allowed errors of the SQP fallback (eqs. 21-22; seed: 5 mm, 5 degrees).
     k_d : float
         Weight of gantry travel in eq. 20, rad^2/mm^2 (0.1: 3.2 mm of travel costs as much as 1 rad).
+    process : str
+        Spray process preset or TOML file (``seed000_circle``, ``seed000_flat``, ``bell003``): the pattern,
+        flow, solids and transfer efficiency used to predict the film.
+    thickness_um : float or None
+        A dry-film target: when set, the stroke spacing and the gun speed are chosen to meet it (the spacing
+        that makes the film across parallel strokes flattest, the speed that puts its mean on target), in
+        place of ``[paths] spacing_mm`` and ``gun_speed_mm_s``.
+    tolerance_um : float
+        The spec is ``thickness_um +- tolerance_um`` (default 5, seed 003's); without a target the film is
+        judged against seed 003's 50 +- 5 um.
     seed : int
     """
 
@@ -282,6 +292,9 @@ class PlanConfig:
     position_tol_mm: float = 5.0
     axis_tol_deg: float = 5.0
     k_d: float = 0.1
+    process: str = "seed000_circle"
+    thickness_um: float | None = None
+    tolerance_um: float = 5.0
     seed: int = 0
 
     def __post_init__(self):
@@ -295,6 +308,10 @@ class PlanConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ConfigError(f"{name} must be a positive number, got {value}")
+        if self.thickness_um is not None and not (math.isfinite(self.thickness_um) and self.thickness_um > 0):
+            raise ConfigError(f"thickness_um must be a positive number, got {self.thickness_um}")
+        if not (math.isfinite(self.tolerance_um) and self.tolerance_um >= 0):
+            raise ConfigError(f"tolerance_um must be a number >= 0, got {self.tolerance_um}")
         home = tuple(float(v) for v in self.home_mm)
         if len(home) != 3 or not all(math.isfinite(v) for v in home):
             raise ConfigError("home_mm must be three numbers")

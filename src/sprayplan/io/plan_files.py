@@ -36,8 +36,11 @@ def _round(array, digits):
     return np.where(missing, None, rounded.astype(object)).tolist()
 
 
-def plan_to_dict(plan, job, totals: dict) -> dict:
+def plan_to_dict(plan, job, totals: dict, part_file: str | None = None) -> dict:
     """The JSON-ready form of a plan."""
+    from sprayplan.coating import load_preset
+
+    flow = float(load_preset(job.plan.process).flow_ml_min)
     stations = []
     for place, st in enumerate(plan.stations):
         strokes, start = [], 0
@@ -60,6 +63,8 @@ def plan_to_dict(plan, job, totals: dict) -> dict:
                     "position_error_mm": _round(st.position_error_mm[sl], 6),
                     "axis_error_deg": _round(st.axis_error_deg[sl], 6),
                     "branch_change": st.branch_change[sl].tolist(),
+                    "flow_ml_min": flow if s.spray_on else 0.0,
+                    "speed_mm_s": job.plan.gun_speed_mm_s if s.spray_on else job.plan.transfer_speed_mm_s,
                 }
             )
         stations.append(
@@ -71,6 +76,7 @@ def plan_to_dict(plan, job, totals: dict) -> dict:
         "sprayplan_version": __version__,
         "units": {"length": "mm", "angle": "rad", "time": "s", "errors": "mm and deg"},
         "part": plan.name,
+        "part_file": part_file,
         "settings": _clean(dataclasses.asdict(job)),
         "joints": ["q1", "q2", "q3", "q4", "q5", "q6", "tx", "ty", "tz"],
         "home_mm": _round(plan.home_mm, 3),
@@ -80,10 +86,13 @@ def plan_to_dict(plan, job, totals: dict) -> dict:
     }
 
 
-def write_plan(outdir, plan, job, totals: dict) -> list[str]:
-    """Write OUTDIR/plan.json and OUTDIR/waypoints.csv (atomically); returns the paths written."""
+def write_plan(outdir, plan, job, totals: dict, part_file: str | None = None) -> list[str]:
+    """Write OUTDIR/plan.json and OUTDIR/waypoints.csv (atomically); returns the paths written.
+
+    ``part_file`` (the part's file, made absolute) lets ``sprayplan simulate OUTDIR`` load the part again.
+    """
     outdir = os.fspath(outdir)
-    data = plan_to_dict(plan, job, totals)
+    data = plan_to_dict(plan, job, totals, None if part_file is None else os.path.abspath(part_file))
     plan_path = os.path.join(outdir, "plan.json")
     with atomic_output(plan_path, "w", encoding="utf-8") as handle:
         json.dump(data, handle, separators=(",", ":"))
@@ -137,3 +146,52 @@ def read_plan(path) -> dict:
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise PartFileError(name, f'not a sprayplan plan file (expected "format": "{FORMAT}")')
     return data
+
+
+def plan_from_dict(data: dict):
+    """The Plan and JobConfig of a plan.json read with :func:`read_plan` (enough to simulate its film)."""
+    from sprayplan.config import JobConfig, LoadConfig, PathConfig, PlanConfig, TargetsConfig, config_from_dict
+    from sprayplan.types import Plan, StationPlan, Stroke
+
+    settings = data["settings"]
+    paths = dict(settings["paths"])
+    if isinstance(paths.get("direction"), list):
+        paths["direction"] = tuple(paths["direction"])
+    if isinstance(paths.get("streamline_deg"), list):
+        paths["streamline_deg"] = tuple(paths["streamline_deg"])
+    job = JobConfig(
+        load=config_from_dict(LoadConfig, settings["load"]),
+        targets=config_from_dict(TargetsConfig, settings["targets"]),
+        paths=config_from_dict(PathConfig, paths),
+        plan=config_from_dict(PlanConfig, {**settings["plan"], "home_mm": tuple(settings["plan"]["home_mm"])}),
+    )
+    stations = []
+    for st in data["stations"]:
+        strokes, q9 = [], []
+        for s in st["strokes"]:
+            strokes.append(
+                Stroke(
+                    np.array(s["points"], float),
+                    np.array(s["normals"], float),
+                    np.array(s["tcp"], float),
+                    bool(s["spray_on"]),
+                    np.array(s["on_part"], bool),
+                    int(s["layer"]),
+                )
+            )
+            q9 += [[np.nan] * 9 if q is None else q for q in s["joints"]]
+        n = len(q9)
+        stations.append(
+            StationPlan(
+                int(st["station"]),
+                np.array(st["platform_mm"], float),
+                tuple(strokes),
+                np.array(q9, float).reshape(n, 9),
+                np.ones(n, bool),
+                np.full(n, ""),
+                np.zeros(n),
+                np.zeros(n),
+                np.zeros(n, bool),
+            )
+        )
+    return Plan(tuple(stations), np.array(data["home_mm"], float), np.zeros((0, 3)), data.get("part", "")), job

@@ -1,0 +1,244 @@
+"""Film statistics against a specification, and the per-vertex thickness files (CSV, PLY).
+
+Statistics are area-weighted over the *painted* surface: the samples whose film is at least
+``painted_fraction`` of the target (default 10 %), so that bare or barely misted areas (the back of a
+part, points hidden from the gun) do not count as painted. Seed 003 (section 5) checks its car body at 420
+measuring points against 50 um +- 5 um; ``samples=420`` repeats that check on randomly chosen painted points
+(seeded, chosen with probability proportional to their area).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from sprayplan.coating.thickness import CoatingResult
+from sprayplan.errors import ConfigError
+from sprayplan.io.writers import atomic_output
+
+log = logging.getLogger(__name__)
+
+
+def _weighted_stats(values: np.ndarray, weights: np.ndarray, lo: float, hi: float) -> dict:
+    total = float(weights.sum())
+    if total <= 0 or not len(values):
+        return {"count": 0}
+    mean = float((values * weights).sum() / total)
+    std = float(np.sqrt((weights * (values - mean) ** 2).sum() / total))
+    inside = (values >= lo) & (values <= hi)
+    return {
+        "count": len(values),
+        "area_mm2": total,
+        "mean_um": mean,
+        "std_um": std,
+        "cv": std / mean if mean > 0 else float("nan"),
+        "min_um": float(values.min()),
+        "max_um": float(values.max()),
+        "range_um": float(values.max() - values.min()),
+        "share_in_spec": float(weights[inside].sum() / total),
+        "share_below": float(weights[values < lo].sum() / total),
+        "share_above": float(weights[values > hi].sum() / total),
+    }
+
+
+def coating_report(
+    result: CoatingResult,
+    target_um: float = 50.0,
+    tolerance_um: float = 5.0,
+    samples: int | np.ndarray | None = None,
+    *,
+    painted_fraction: float = 0.1,
+    edge_band_mm: float | None = None,
+    seed: int = 0,
+) -> dict:
+    """Statistics of the film, JSON-ready.
+
+    Parameters
+    ----------
+    result : CoatingResult
+    target_um, tolerance_um : float
+        The specification: target +- tolerance (seed 003: 50 +- 5 um).
+    samples : int or (k,) int, optional
+        Also report the statistics at this many randomly chosen painted points (seed 003: 420), or at these
+        sample indices.
+    painted_fraction : float
+        Samples with at least this fraction of the target count as painted.
+    edge_band_mm : float, optional
+        Also report ``interior``: the painted samples farther than this from the mesh's open boundary (its
+        edges that belong to one triangle only), where the film of the outermost strokes tapers off.
+    seed : int
+        Random seed of the measuring points.
+
+    Returns
+    -------
+    dict
+        ``spec`` (target, tolerance), ``painted`` (area-weighted mean, std, cv, min, max, share in spec, ...,
+        over the painted samples), ``all`` (the same over every sample), ``measuring_points`` (when asked),
+        ``paint`` (totals) and ``strokes`` (per stroke: time, flow, wet paint, dry film deposited).
+    """
+    if not (tolerance_um >= 0 and target_um > 0):
+        raise ConfigError(f"need target_um > 0 and tolerance_um >= 0, got {target_um}, {tolerance_um}")
+    t = result.thickness_um
+    w = result.area_mm2
+    lo, hi = target_um - tolerance_um, target_um + tolerance_um
+    painted = t >= painted_fraction * target_um
+    out = {
+        "spec": {
+            "target_um": float(target_um),
+            "tolerance_um": float(tolerance_um),
+            "painted_fraction": float(painted_fraction),
+        },
+        "painted": _weighted_stats(t[painted], w[painted], lo, hi),
+        "all": _weighted_stats(t, w, lo, hi),
+    }
+    out["painted"]["share_of_area"] = float(w[painted].sum() / max(w.sum(), 1e-300))
+    if edge_band_mm is not None:
+        inner = painted & (boundary_distance(result.points, result.faces) > edge_band_mm)
+        out["interior"] = _weighted_stats(t[inner], w[inner], lo, hi)
+        out["interior"]["edge_band_mm"] = float(edge_band_mm)
+        out["interior"]["share_of_area"] = float(w[inner].sum() / max(w.sum(), 1e-300))
+    if samples is not None:
+        index = _measuring_points(samples, painted, w, seed)
+        stats = _weighted_stats(t[index], np.ones(len(index)), lo, hi)
+        stats["indices"] = [int(i) for i in index]
+        out["measuring_points"] = stats
+    wet = float(result.stroke_paint_ml.sum())
+    dry = float(result.stroke_deposit_mm3.sum())
+    proc = result.process
+    out["paint"] = {
+        "wet_paint_ml": wet,
+        "dry_film_on_part_ml": dry / 1000.0,
+        "solids_sprayed_ml": wet * proc.solids_fraction,
+        "share_of_solids_on_part": dry / 1000.0 / (wet * proc.solids_fraction) if wet > 0 else float("nan"),
+        "spray_time_s": float(result.stroke_time_s[result.stroke_flow_ml_min > 0].sum()),
+        "total_time_s": float(result.stroke_time_s.sum()),
+    }
+    out["strokes"] = [
+        {
+            "index": i,
+            "time_s": float(result.stroke_time_s[i]),
+            "flow_ml_min": float(result.stroke_flow_ml_min[i]),
+            "paint_ml": float(result.stroke_paint_ml[i]),
+            "deposit_ml": float(result.stroke_deposit_mm3[i] / 1000.0),
+        }
+        for i in range(len(result.stroke_time_s))
+    ]
+    return out
+
+
+def boundary_distance(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(n,) float, mm: distance from each point to the open boundary of a triangle mesh (inf if it has none).
+
+    The boundary is the set of edges used by one face only, sampled every 1/8 of its longest edge.
+    """
+    faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if not len(faces):
+        return np.full(len(points), np.inf)
+    edges = np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
+    unique, counts = np.unique(edges, axis=0, return_counts=True)
+    border = unique[counts == 1]
+    if not len(border):
+        return np.full(len(points), np.inf)
+    a, b = points[border[:, 0]], points[border[:, 1]]
+    t = np.linspace(0.0, 1.0, 9)
+    samples = (a[:, None, :] + (b - a)[:, None, :] * t[None, :, None]).reshape(-1, 3)
+    return cKDTree(samples).query(points)[0]
+
+
+def _measuring_points(samples, painted: np.ndarray, area: np.ndarray, seed: int) -> np.ndarray:
+    if np.ndim(samples) == 0:
+        count = int(samples)
+        candidates = np.flatnonzero(painted)
+        if count < 1 or not len(candidates):
+            raise ConfigError(f"cannot choose {count} measuring points among {len(candidates)} painted samples")
+        rng = np.random.default_rng(seed)
+        p = area[candidates] / area[candidates].sum()
+        replace = count > len(candidates)
+        return np.sort(rng.choice(candidates, size=count, replace=replace, p=p))
+    index = np.asarray(samples, dtype=np.int64).reshape(-1)
+    if index.size and (index.min() < 0 or index.max() >= len(painted)):
+        raise ConfigError("measuring point indices out of range")
+    return index
+
+
+def write_thickness_csv(path: str | os.PathLike, result: CoatingResult) -> None:
+    """Write ``x,y,z,thickness_um`` (mm, um), one row per surface sample."""
+    table = np.column_stack([result.points, result.thickness_um])
+    with atomic_output(path, "w", newline="") as handle:
+        handle.write("x,y,z,thickness_um\n")
+        np.savetxt(handle, table, fmt=["%.6f", "%.6f", "%.6f", "%.4f"], delimiter=",")
+
+
+def thickness_colours(thickness_um: np.ndarray, target_um: float = 50.0, tolerance_um: float = 5.0) -> np.ndarray:
+    """(n, 3) uint8: blue (bare) -> cyan (thin) -> green (in spec) -> yellow -> red (twice the target)."""
+    t = np.clip(np.asarray(thickness_um, float) / (2.0 * target_um), 0.0, 1.0)
+    stops = np.array(
+        [
+            0.0,
+            0.5 * (target_um - tolerance_um) / target_um,
+            0.5,
+            0.5 * (target_um + tolerance_um) / target_um + 0.1,
+            1.0,
+        ]
+    )
+    stops = np.maximum.accumulate(np.clip(stops, 0.0, 1.0))
+    colours = np.array([[40, 40, 200], [0, 200, 220], [0, 190, 0], [240, 220, 0], [220, 0, 0]], float)
+    return np.stack([np.interp(t, stops, colours[:, k]) for k in range(3)], axis=1).round().astype(np.uint8)
+
+
+def write_thickness_ply(
+    path: str | os.PathLike, result: CoatingResult, target_um: float = 50.0, tolerance_um: float = 5.0
+) -> None:
+    """Write a binary little-endian PLY: vertices with ``nx ny nz``, ``thickness_um`` (float) and a colour.
+
+    Faces are written when the samples are mesh vertices. Viewers that do not know the ``thickness_um``
+    property show the colour (see :func:`thickness_colours`); MeshLab and CloudCompare also list it as a
+    scalar field.
+    """
+    n = len(result.points)
+    faces = np.asarray(result.faces, dtype=np.int32).reshape(-1, 3)
+    vertex = np.empty(
+        n,
+        dtype=[
+            ("x", "<f4"),
+            ("y", "<f4"),
+            ("z", "<f4"),
+            ("nx", "<f4"),
+            ("ny", "<f4"),
+            ("nz", "<f4"),
+            ("thickness_um", "<f4"),
+            ("red", "u1"),
+            ("green", "u1"),
+            ("blue", "u1"),
+        ],
+    )
+    for k, name in enumerate("xyz"):
+        vertex[name] = result.points[:, k]
+        vertex["n" + name] = result.normals[:, k]
+    vertex["thickness_um"] = result.thickness_um
+    rgb = thickness_colours(result.thickness_um, target_um, tolerance_um)
+    vertex["red"], vertex["green"], vertex["blue"] = rgb[:, 0], rgb[:, 1], rgb[:, 2]
+    header = [
+        "ply",
+        "format binary_little_endian 1.0",
+        "comment sprayplan coating: dry film thickness in um per vertex, lengths in mm",
+        f"element vertex {n}",
+        *[f"property float {name}" for name in ("x", "y", "z", "nx", "ny", "nz", "thickness_um")],
+        "property uchar red",
+        "property uchar green",
+        "property uchar blue",
+    ]
+    if len(faces):
+        header += [f"element face {len(faces)}", "property list uchar int vertex_indices"]
+    header.append("end_header")
+    with atomic_output(path, "wb") as handle:
+        handle.write(("\n".join(header) + "\n").encode("ascii"))
+        handle.write(vertex.tobytes())
+        if len(faces):
+            table = np.empty(len(faces), dtype=[("count", "u1"), ("index", "<i4", (3,))])
+            table["count"] = 3
+            table["index"] = faces
+            handle.write(table.tobytes())

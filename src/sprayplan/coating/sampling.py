@@ -1,0 +1,213 @@
+"""Where the film is computed and when the gun sprays: surface samples and the spray path as time steps.
+
+The plan's strokes become time steps: each stroke's tool-tip polyline is subdivided to at most ``max_step_mm``,
+and at speed v every node gets the time dt = (half its two adjacent segments) / v, so the steps of a stroke add
+up to its length / v. Transfer strokes and strokes whose flow is 0 give no time steps.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from sprayplan.coating.process import Process, StrokeOverride
+from sprayplan.errors import ConfigError, InputError
+from sprayplan.surface import normals as nm
+from sprayplan.types import Part, Paths, Targets
+
+
+@dataclass(frozen=True)
+class SurfaceSamples:
+    """Points where thickness is computed.
+
+    Attributes
+    ----------
+    points : (n, 3) float, mm
+    normals : (n, 3) float
+        Unit, outward.
+    area_mm2 : (n,) float
+        Surface area each point stands for (a third of its adjacent triangles' area for mesh vertices).
+    faces : (m, 3) int
+        Triangles over the points (mesh vertices), or (0, 3).
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    area_mm2: np.ndarray
+    faces: np.ndarray
+
+
+@dataclass(frozen=True)
+class GunSamples:
+    """The spray-on path as time steps.
+
+    Attributes
+    ----------
+    position : (k, 3) float, mm
+        Gun tip.
+    axis : (k, 3) float
+        Unit gun axis, towards the surface (-normal of the plan).
+    along : (k, 3) float
+        Unit travel direction, perpendicular to the axis.
+    aim : (k, 3) float, mm
+        The plan's contact point (where the axis meets the surface).
+    dt_s : (k,) float, s
+    volume_rate_mm3_s : (k,) float
+        Dry-film volume rate Q.
+    stroke : (k,) int
+        Index of the stroke in ``paths.strokes``.
+    """
+
+    position: np.ndarray
+    axis: np.ndarray
+    along: np.ndarray
+    aim: np.ndarray
+    dt_s: np.ndarray
+    volume_rate_mm3_s: np.ndarray
+    stroke: np.ndarray
+
+
+def surface_samples(part: Part, targets: Targets | None = None) -> SurfaceSamples:
+    """Surface samples of a part: its mesh vertices (or cloud points), or the given targets.
+
+    Parameters
+    ----------
+    part : Part
+    targets : Targets, optional
+        A sampling of the part to use instead of its vertices; each point stands for ``part.area / n``
+        (clouds: the area estimated from the point spacing).
+
+    Raises
+    ------
+    InputError
+        A point cloud without normals and no targets.
+    """
+    faces = np.zeros((0, 3), np.int64)
+    if part.is_mesh:
+        faces, face_n = nm.outward_face_normals(part.vertices, part.faces)
+    if targets is not None:
+        pts = np.asarray(targets.points, float)
+        total = part.area if part.is_mesh else _cloud_area(part.vertices).sum()
+        return SurfaceSamples(
+            pts,
+            np.asarray(targets.normals, float),
+            np.full(len(pts), total / max(len(pts), 1)),
+            np.zeros((0, 3), np.int64),
+        )
+    if part.is_mesh:
+        normals = nm.vertex_normals(part.vertices, faces, face_n)
+        area = np.bincount(faces.ravel(), np.repeat(part.face_areas / 3.0, 3), len(part.vertices))
+        return SurfaceSamples(part.vertices, normals, area, faces)
+    if part.vertex_normals is None:
+        raise InputError(f"{part.name}: a point cloud needs normals for a coating simulation")
+    return SurfaceSamples(part.vertices, part.vertex_normals, _cloud_area(part.vertices), faces)
+
+
+def _cloud_area(points: np.ndarray, k: int = 8) -> np.ndarray:
+    """(n,) float, mm^2: area per cloud point, pi d_k^2 / k from the distance d_k to the k-th neighbour."""
+    k = min(k, len(points) - 1)
+    if k < 1:
+        return np.ones(len(points))
+    dist, _ = cKDTree(points).query(points, k + 1)
+    return np.pi * dist[:, -1] ** 2 / k
+
+
+def gun_samples(
+    paths: Paths,
+    process: Process,
+    overrides: Mapping[int, StrokeOverride] | Sequence[StrokeOverride | None] | None = None,
+    max_step_mm: float | None = None,
+    speed_along: str = "tcp",
+) -> tuple[GunSamples, np.ndarray, np.ndarray]:
+    """Time steps of the spray-on path, and each stroke's duration and flow.
+
+    Parameters
+    ----------
+    paths : Paths
+    process : Process
+    overrides : mapping or sequence of StrokeOverride, optional
+        Per-stroke settings by stroke index (``paths.strokes`` order).
+    max_step_mm : float, optional
+        Longest travel between two time steps; None: the pattern radius / 10.
+    speed_along : {"tcp", "surface"}
+        The speed is the gun tip's (``tcp``: a robot moving its tool at a constant speed), or the contact
+        point's on the surface (``surface``: the tip slows down over convex bends and speeds up in concave
+        ones, which the robot program must then do).
+
+    Returns
+    -------
+    guns : GunSamples
+    stroke_time_s : (s,) float
+    stroke_flow_ml_min : (s,) float
+    """
+    step = process.pattern.radius_mm / 10.0 if max_step_mm is None else float(max_step_mm)
+    per = _stroke_settings(paths, process, overrides)
+    parts, times, flows = [], [], []
+    if speed_along not in ("tcp", "surface"):
+        raise ConfigError(f"speed_along must be tcp or surface, got {speed_along!r}")
+    for index, (stroke, (flow, speed, on)) in enumerate(zip(paths.strokes, per)):
+        path = stroke.tcp if speed_along == "tcp" else stroke.points
+        times.append(float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum()) / speed if len(path) > 1 else 0.0)
+        flows.append(flow if on else 0.0)
+        if not on or flow <= 0 or len(stroke) < 2:
+            continue
+        q = flow * 1000.0 / 60.0 * process.solids_fraction * process.transfer_efficiency
+        parts.append(_stroke_samples(stroke, step, speed, q, index, speed_along == "surface"))
+    if parts:
+        cols = [np.concatenate([p[c] for p in parts]) for c in range(7)]
+    else:
+        cols = [np.zeros((0, 3))] * 4 + [np.zeros(0), np.zeros(0), np.zeros(0, np.int64)]
+    return GunSamples(*cols), np.array(times, float), np.array(flows, float)
+
+
+def _stroke_settings(paths: Paths, process: Process, overrides) -> list[tuple[float, float, bool]]:
+    n = len(paths.strokes)
+    if overrides is None:
+        table = {}
+    elif isinstance(overrides, Mapping):
+        table = dict(overrides)
+    else:
+        if len(overrides) != n:
+            raise ConfigError(f"overrides must have one entry per stroke ({n}), got {len(overrides)}")
+        table = {i: o for i, o in enumerate(overrides) if o is not None}
+    bad = [i for i in table if not 0 <= int(i) < n]
+    if bad:
+        raise ConfigError(f"override for stroke {bad[0]}, but the plan has {n} strokes")
+    out = []
+    for i, stroke in enumerate(paths.strokes):
+        o = table.get(i, StrokeOverride())
+        flow = process.flow_ml_min if o.flow_ml_min is None else float(o.flow_ml_min)
+        speed = process.speed_mm_s if o.speed_mm_s is None else float(o.speed_mm_s)
+        on = stroke.spray_on and (o.spray_on is None or bool(o.spray_on))
+        out.append((flow, speed, on))
+    return out
+
+
+def _stroke_samples(stroke, step: float, speed: float, q: float, index: int, on_surface: bool):
+    tcp, nrm, pts = stroke.tcp, stroke.normals, stroke.points
+    seg = np.linalg.norm(np.diff(tcp, axis=0), axis=1)
+    sub = np.maximum(np.ceil(seg / step).astype(np.int64), 1)
+    timed = np.linalg.norm(np.diff(pts, axis=0), axis=1) if on_surface else seg
+    seg_of = np.repeat(np.arange(len(seg)), sub)
+    frac = (np.arange(sub.sum()) - np.repeat(np.cumsum(sub) - sub, sub)) / np.repeat(sub, sub)
+    frac = np.concatenate([frac, [1.0]])
+    seg_of = np.concatenate([seg_of, [len(seg) - 1]])
+
+    def lerp(arr):
+        return arr[seg_of] + (arr[seg_of + 1] - arr[seg_of]) * frac[:, None]
+
+    position, aim = lerp(tcp), lerp(pts)
+    axis = -nm.unit(lerp(nrm))
+    lengths = np.repeat(timed / sub, sub)
+    dt = (np.concatenate([lengths, [0.0]]) + np.concatenate([[0.0], lengths])) / (2.0 * speed)
+    along = np.gradient(position, axis=0) if len(position) > 2 else np.repeat(np.diff(position, axis=0), 2, axis=0)
+    along = along - np.einsum("ij,ij->i", along, axis)[:, None] * axis
+    norm = np.linalg.norm(along, axis=1)
+    fallback = np.cross(axis, np.where(np.abs(axis[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
+    along = np.where(norm[:, None] > 1e-9, along / np.maximum(norm, 1e-12)[:, None], nm.unit(fallback))
+    keep = dt > 0
+    k = int(keep.sum())
+    return (position[keep], axis[keep], along[keep], aim[keep], dt[keep], np.full(k, q), np.full(k, index))

@@ -1,0 +1,341 @@
+r"""Film thickness on a part's surface from a plan's spray strokes.
+
+The formula
+-----------
+A surface sample S (unit outward normal n) collects, from the plan's spray-on path sampled at gun positions
+G_j (axis a_j, towards the surface; travel direction u_j; time step dt_j; dry-film volume rate Q_j)::
+
+    T(S) = sum_j  V_j(S) Q_j dt_j  F(x_j, y_j)  (h / z_j)^2  cos(alpha_j) / cos(theta_j)
+
+    v_j = S - G_j,   z_j = v_j . a_j  (depth along the axis),   (x_j, y_j) = (h / z_j) (v_j . u_j, v_j . (a_j x u_j))
+    cos(theta_j) = z_j / |v_j|,   cos(alpha_j) = -(v_j . n) / |v_j|,
+    so  (h / z)^2 cos(alpha) / cos(theta) = -h^2 (v . n) / z^3
+
+with F the pattern's density (1/mm^2, integral 1) on the plane at the pattern's standoff h, (x_j, y_j) the
+point where the ray from the gun through S crosses that plane, and V_j(S) = 1 when the gun sees S, 0 when the
+part hides it (module ``occlusion``) or when S faces away (cos alpha <= 0) or lies behind the gun (z <= 0).
+The time steps come from the plan: each stroke's tool-tip polyline, subdivided to at most ``max_step_mm``,
+at speed v gives every node the time dt = (half its two adjacent segments) / v, so the steps add up to the
+stroke's length / v. Transfer strokes (``spray_on`` False) and strokes whose flow is 0 paint nothing.
+
+Derivation. Treat the gun as a point source at G: paint travels on straight rays, so the volume sent into a
+small solid angle dOmega around a ray is the same at every distance. On the pattern plane the ray meets the
+plane at distance l = h / cos(theta) and at an angle theta to the plane's normal (the axis), so dOmega covers
+the plane area dA_p = l^2 dOmega / cos(theta) = h^2 dOmega / cos^3(theta); the volume rate into dOmega is
+therefore Q F(x, y) dA_p. The same dOmega meets the surface at distance d = |v| at the incidence angle alpha
+between the ray and the surface normal, covering dA_s = d^2 dOmega / cos(alpha). The film growth rate on the
+surface is the volume rate over that area:
+
+    dT/dt = Q F(x, y) dA_p / dA_s = Q F(x, y) (h^2 / cos^3 theta) cos(alpha) / d^2
+          = Q F(x, y) (h / z)^2 cos(alpha) / cos(theta)         (d cos(theta) = z)
+
+The common engineering form "(h/d)^2 times the cosine of the incidence" is this with d read as the depth z
+along the axis and the 1 / cos(theta) obliquity factor left out (the paraxial form); the full form keeps it,
+so that on the pattern's own plane (z = h, alpha = theta) it gives back exactly Q F: a stationary gun
+reproduces its pattern, and on a plate that catches all the spray the deposited volume is Q times the spray
+time (mass balance). Paint is conserved along rays; drops that would land on a hidden point are lost (they
+hit the occluder, which is itself painted only if it is a sample facing the gun).
+
+Output thickness is in mm inside (``thickness_mm``); reports and files give um (``thickness_um``).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+from collections.abc import Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from sprayplan.coating.occlusion import METHODS, compute_occlusion, make_views
+from sprayplan.coating.patterns import SprayPattern
+from sprayplan.coating.process import Process, StrokeOverride
+from sprayplan.coating.sampling import gun_samples, surface_samples
+from sprayplan.errors import ConfigError
+from sprayplan.surface import normals as nm
+from sprayplan.types import Part, Paths, Targets
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class CoatingConfig:
+    """Numerical settings of :func:`simulate`.
+
+    Attributes
+    ----------
+    max_step_mm : float or None
+        Longest gun travel between two time steps; longer plan segments are subdivided (never coarsened).
+        None: the pattern radius / 10.
+    occlusion : {"auto", "zbuffer", "raster", "rays", "none"}
+        How hidden points are found (see ``sprayplan.coating.occlusion``); ``auto``: Embree rays when
+        ``embreex`` is installed, else ``raster`` (a numpy depth map).
+    occlusion_step_mm : float or None
+        Gun travel between two visibility views; 0: every time step; None: the pattern radius / 2.5.
+    occlusion_pixels : int
+        Side of the depth map (``zbuffer``, ``raster``), pixels.
+    speed_along : {"tcp", "surface"}
+        Whether the process speed is the gun tip's or the contact point's (see :func:`gun_samples`).
+    search_factor : float
+        Surface samples are gathered within the pattern radius (scaled to the stroke's standoff) times this
+        around each aim point; > 1 leaves room for surfaces that curve away from the gun.
+    batch : int
+        Gun samples handled at a time (memory: about 200 bytes x batch x samples per footprint, per worker).
+    workers : int or None
+        Threads that handle batches; None: the number of cores, at most 4. The result does not depend on it
+        (up to the order of floating-point additions).
+    """
+
+    max_step_mm: float | None = None
+    occlusion: str = "auto"
+    occlusion_step_mm: float | None = None
+    occlusion_pixels: int = 16
+    speed_along: str = "tcp"
+    search_factor: float = 1.15
+    batch: int = 4096
+    workers: int | None = None
+
+    def __post_init__(self):
+        if self.occlusion not in METHODS:
+            raise ConfigError(f"occlusion must be one of {', '.join(METHODS)}, got {self.occlusion!r}")
+        if self.max_step_mm is not None and not (math.isfinite(self.max_step_mm) and self.max_step_mm > 0):
+            raise ConfigError(f"max_step_mm must be positive, got {self.max_step_mm}")
+        if self.occlusion_step_mm is not None and not self.occlusion_step_mm >= 0:
+            raise ConfigError(f"occlusion_step_mm must be >= 0, got {self.occlusion_step_mm}")
+        if not self.search_factor >= 1.0:
+            raise ConfigError(f"search_factor must be >= 1, got {self.search_factor}")
+        if self.speed_along not in ("tcp", "surface"):
+            raise ConfigError(f"speed_along must be tcp or surface, got {self.speed_along!r}")
+        if int(self.occlusion_pixels) < 4 or int(self.batch) < 1:
+            raise ConfigError("occlusion_pixels must be >= 4 and batch >= 1")
+
+
+@dataclass(frozen=True)
+class CoatingResult:
+    """Film thickness on the surface samples, and the paint each stroke used.
+
+    Attributes
+    ----------
+    points, normals, area_mm2, faces
+        The surface samples (see :class:`SurfaceSamples`).
+    thickness_mm : (n,) float, mm
+        Dry film thickness at each sample.
+    stroke_time_s : (s,) float
+        Duration of each stroke of the plan at its speed (transfers included).
+    stroke_flow_ml_min : (s,) float
+        Wet paint flow of each stroke (0 for transfers and strokes turned off).
+    stroke_paint_ml : (s,) float
+        Wet paint each stroke sprayed, mL.
+    stroke_deposit_mm3 : (s,) float
+        Dry film volume each stroke left on the samples (sum of thickness x area), mm^3.
+    process : Process
+    name : str
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    area_mm2: np.ndarray
+    faces: np.ndarray
+    thickness_mm: np.ndarray
+    stroke_time_s: np.ndarray
+    stroke_flow_ml_min: np.ndarray
+    stroke_paint_ml: np.ndarray
+    stroke_deposit_mm3: np.ndarray
+    process: Process
+    name: str = ""
+
+    @property
+    def thickness_um(self) -> np.ndarray:
+        """(n,) float: the dry film thickness in um."""
+        return self.thickness_mm * 1000.0
+
+
+# ---------------------------------------------------------------------------------------- deposit
+
+
+def film_rate(points, normals, position, axis, along, pattern: SprayPattern, volume_rate_mm3_s) -> np.ndarray:
+    """Film growth rate at surface points from gun positions (the formula of the module docstring).
+
+    Parameters
+    ----------
+    points, normals : (p, 3) float
+        Surface points (mm) and unit outward normals.
+    position, axis, along : (p, 3) or (3,) float
+        Gun tip (mm), unit axis towards the surface, unit travel direction (perpendicular to the axis).
+    pattern : SprayPattern
+    volume_rate_mm3_s : float or (p,) float
+
+    Returns
+    -------
+    (p,) float, mm/s
+        Without occlusion.
+    """
+    v = np.asarray(points, float) - position
+    axis = np.broadcast_to(np.asarray(axis, float), v.shape)
+    along = np.broadcast_to(np.asarray(along, float), v.shape)
+    z = np.einsum("ij,ij->i", v, axis)
+    zs = np.where(z > 1e-9, z, 1.0)
+    h = pattern.standoff_mm
+    x = np.einsum("ij,ij->i", v, along) * h / zs
+    y = np.einsum("ij,ij->i", v, np.cross(axis, along)) * h / zs
+    cos_term = -np.einsum("ij,ij->i", v, normals)
+    rate = volume_rate_mm3_s * pattern.density(x, y) * h * h * cos_term / zs**3
+    return np.where((z > 1e-9) & (cos_term > 0), rate, 0.0)
+
+
+def shot_thickness(
+    points, normals, position, axis, pattern: SprayPattern, volume_rate_mm3_s: float, duration_s: float, along=None
+) -> np.ndarray:
+    """Film left by a stationary gun held for ``duration_s`` (no occlusion): (n,) float, mm.
+
+    ``along`` (the pattern's x direction) defaults to any unit vector perpendicular to the axis.
+    """
+    axis = nm.unit(np.asarray(axis, float).reshape(1, 3))[0]
+    if along is None:
+        along = np.cross(axis, [1.0, 0, 0] if abs(axis[0]) < 0.9 else [0, 1.0, 0])
+    along = nm.unit(np.asarray(along, float).reshape(1, 3))[0]
+    return film_rate(points, normals, position, axis, along, pattern, volume_rate_mm3_s) * duration_s
+
+
+def simulate(
+    part: Part,
+    paths: Paths,
+    process: Process,
+    *,
+    overrides: Mapping[int, StrokeOverride] | Sequence[StrokeOverride | None] | None = None,
+    config: CoatingConfig | None = None,
+    targets: Targets | None = None,
+) -> CoatingResult:
+    """Dry film thickness left on a part by a plan.
+
+    Parameters
+    ----------
+    part : Part
+        The part painted (mm); its mesh also hides points from the gun (occlusion).
+    paths : Paths
+        The plan: ``tcp`` is the gun tip, ``-normals`` the gun axis, ``points`` the aim points.
+    process : Process
+        Pattern, flow, speed, solids, efficiency; the pattern's standoff is the plane it is defined on.
+    overrides : mapping or sequence of StrokeOverride, optional
+        Per-stroke flow, speed, on/off.
+    config : CoatingConfig, optional
+    targets : Targets, optional
+        Compute at these points instead of the mesh vertices.
+
+    Returns
+    -------
+    CoatingResult
+    """
+    config = CoatingConfig() if config is None else config
+    samples = surface_samples(part, targets)
+    guns, times, flows = gun_samples(paths, process, overrides, config.max_step_mm, config.speed_along)
+    pattern = process.pattern
+    n = len(samples.points)
+    thickness = np.zeros(n)
+    deposit = np.zeros(len(paths.strokes))
+    if len(guns.position) and n:
+        tree = cKDTree(samples.points)
+        depth = np.einsum("ij,ij->i", guns.aim - guns.position, guns.axis)
+        reach = pattern.support_radius_mm * np.maximum(depth, 1.0) / pattern.standoff_mm * config.search_factor + 1.0
+        occ_step = pattern.radius_mm / 2.5 if config.occlusion_step_mm is None else config.occlusion_step_mm
+        views = make_views(guns, occ_step, reach)
+        half = pattern.support_radius_mm * config.search_factor + 0.5 * occ_step * pattern.standoff_mm / max(
+            float(np.median(depth)), 1.0
+        )
+        workers = config.workers if config.workers is not None else min(os.cpu_count() or 1, 4)
+        occlusion = compute_occlusion(
+            config.occlusion if part.is_mesh else "none",
+            samples,
+            part.vertices,
+            part.faces,
+            views,
+            pattern.standoff_mm,
+            half,
+            pixels=int(config.occlusion_pixels),
+            sample_tree=tree,
+            workers=workers,
+            samples_are_vertices=targets is None and part.is_mesh,
+        )
+        thickness, deposit = _accumulate(
+            samples, guns, pattern, reach, occlusion, tree, len(paths.strokes), int(config.batch), workers
+        )
+    paint = flows * times / 60.0
+    return CoatingResult(
+        samples.points,
+        samples.normals,
+        samples.area_mm2,
+        samples.faces,
+        thickness,
+        times,
+        flows,
+        paint,
+        deposit,
+        process,
+        paths.name or part.name,
+    )
+
+
+def _accumulate(samples, guns, pattern, reach, occlusion, tree, n_strokes, batch, workers=2):
+    """Sum the film of every (sample, gun sample) pair within reach: (n,) thickness, (s,) deposit.
+
+    Pairs come from a k-d tree ball query per batch of gun samples (``sparse_distance_matrix``, all in C);
+    the formula is evaluated in float32 on coordinates relative to the samples' centroid, summed in float64
+    with ``bincount``. Batches run on ``workers`` threads (numpy releases the GIL in its array loops).
+    """
+    n = len(samples.points)
+    origin = samples.points.mean(axis=0)
+    vt = np.vstack([(samples.points - origin).T, samples.normals.T]).astype(np.float32)
+    pos = guns.position - origin
+    round_pattern = pattern.kind != "double_beta"
+    rows = [pos[:, 0], pos[:, 1], pos[:, 2], guns.volume_rate_mm3_s * guns.dt_s]
+    rows += [guns.axis[:, 0], guns.axis[:, 1], guns.axis[:, 2]]
+    if not round_pattern:
+        across = np.cross(guns.axis, guns.along)
+        rows += [guns.along[:, 0], guns.along[:, 1], guns.along[:, 2], across[:, 0], across[:, 1], across[:, 2]]
+    gt = np.array(rows, dtype=np.float32)
+    h = np.float32(pattern.standoff_mm)
+
+    def one(start):
+        sl = slice(start, min(start + batch, len(guns.position)))
+        found = cKDTree(guns.aim[sl]).sparse_distance_matrix(tree, float(reach[sl].max()), output_type="ndarray")
+        gun = found["i"].astype(np.int64) + start
+        sample = found["j"].astype(np.int64)
+        keep = found["v"] <= reach[gun]
+        gun, sample = gun[keep], sample[keep]
+        px, py, pz, nx, ny, nz = np.take(vt, sample, axis=1)
+        g = np.take(gt, gun, axis=1)
+        vx, vy, vz = px - g[0], py - g[1], pz - g[2]  # gun tip -> sample
+        z = vx * g[4] + vy * g[5] + vz * g[6]
+        zs = np.where(z > 1e-6, z, np.float32(1.0))
+        scale = h / zs
+        cos_term = -(vx * nx + vy * ny + vz * nz)
+        if round_pattern:  # the density depends on r^2 = (|v|^2 - z^2) (h / z)^2 only
+            r2 = (vx * vx + vy * vy + vz * vz - z * z) * (scale * scale)
+            flux = pattern.radial_density(r2)
+        else:
+            x = (vx * g[7] + vy * g[8] + vz * g[9]) * scale
+            y = (vx * g[10] + vy * g[11] + vz * g[12]) * scale
+            flux = pattern.density(x, y)
+        value = flux.astype(np.float32) * (scale * scale) * cos_term / zs * g[3]
+        ok = (z > 1e-6) & (cos_term > 0) & occlusion.visible(sample, gun)
+        value = np.where(ok, value, np.float32(0.0)).astype(np.float64)
+        return (
+            np.bincount(sample, value, n),
+            np.bincount(guns.stroke[gun], value * samples.area_mm2[sample], n_strokes),
+            len(gun),
+        )
+
+    starts = range(0, len(guns.position), batch)
+    if workers > 1 and len(starts) > 1:
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            parts = list(pool.map(one, starts))
+    else:
+        parts = [one(start) for start in starts]
+    thickness = np.sum([p[0] for p in parts], axis=0) if parts else np.zeros(n)
+    deposit = np.sum([p[1] for p in parts], axis=0) if parts else np.zeros(n_strokes)
+    log.debug("coating: %d gun samples, %d surface samples, %d pairs", len(guns.position), n, sum(p[2] for p in parts))
+    return thickness, deposit
