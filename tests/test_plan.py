@@ -145,3 +145,14 @@ def test_points_mode_visits_every_target(tmp_path):
     assert len(visited) + len(result.unassigned) == len(targets)
     # a permutation of the targets: each one exactly once
     assert len(np.unique(np.round(visited, 6), axis=0)) == len(visited)
+
+
+def test_a_plan_repeats_exactly(testdata):
+    part = load_part(testdata / "meshes" / "reach_curved_part.ply", units="m")
+    job = JobConfig(paths=PathConfig(spacing_mm=100.0, step_mm=40.0))
+    first, second = plan(part, job), plan(part, job)
+    assert len(first.stations) == len(second.stations)
+    for a, b in zip(first.stations, second.stations):
+        np.testing.assert_array_equal(a.platform_mm, b.platform_mm)
+        np.testing.assert_array_equal(np.nan_to_num(a.q9), np.nan_to_num(b.q9))
+        assert len(a.strokes) == len(b.strokes)

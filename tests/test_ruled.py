@@ -24,26 +24,14 @@ from sprayplan.paths.ruled import (
     ruled_paths,
     write_table_csv,
 )
+from sprayplan.robots.r5150 import table4_joints, table4_points
 from sprayplan.surface.coverage import spacing_for_overlap
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "ruled"
 
-# Seed 001, table 4, as printed: columns X, Y, Z, q5, q4, q3, q2, q1 (headers shuffled in the extraction).
-TABLE4_PRINTED = np.array(
-    [
-        [150, 58.6357, -123.2727, 64.6370, 33.6901, 150, 100, 90],
-        [150, 26.3787, -55.9851, 29.6064, 63.4349, 150, 300, 90],
-        [180, 22.6238, -51.7705, 29.1467, 58.1726, 160, 290, 90],
-        [180, 50.8499, -112.2357, 61.3857, 31.4296, 160, 110, 90],
-        [210, 43.1768, -100.2380, 57.0612, 29.7449, 170, 120, 90],
-        [210, 17.6261, -44.8717, 27.2456, 53.1301, 170, 280, 90],
-        [240, 10.7679, -34.0003, 23.2324, 48.3665, 180, 270, 90],
-        [240, 35.2449, -86.9383, 51.6934, 28.4429, 180, 130, 90],
-        [270, 26.5837, -71.6373, 45.0536, 27.4076, 190, 140, 90],
-        [270, -1.7549, -11.5209, 13.2758, 43.9191, 190, 260, 90],
-    ]
-)
-TABLE4_XYZ = TABLE4_PRINTED[:, [0, 6, 5]]  # x = "X", y = "q2", z = "q3"
+# Seed 001, table 4 (its columns re-read as docs/seed-notes.md says), from the R5150 module
+TABLE4_XYZ = table4_points()
+TABLE4_THETA_DEG = table4_joints()  # theta1..theta5
 TABLE5_LISTED = {1: (172, 162, 300), 2: (300, 162, 300), 3: (192, 182, 300), 10: (300, 255.4, 300)}
 
 
@@ -98,10 +86,10 @@ def test_case1_reproduces_table4_in_order():
 def test_case1_points_are_the_table4_joint_rows_under_r5150_kinematics():
     """The column reading in the module docstring: the printed joint columns give our points by eq. 3."""
     table = cartesian_table(ruled_paths(load_ruled(EXAMPLES / "case1_table4.toml")))
-    rows = TABLE4_PRINTED
-    fk = r5150_position(rows[:, 4], rows[:, 3], rows[:, 2], rows[:, 1])  # q4, q5, Z, Y
+    theta = TABLE4_THETA_DEG
+    fk = r5150_position(theta[:, 0], theta[:, 1], theta[:, 2], theta[:, 3])
     np.testing.assert_allclose(fk, table, atol=1e-3)
-    np.testing.assert_allclose(rows[:, 3] + rows[:, 2] + rows[:, 1], 0.0, atol=2e-4)  # tool straight down
+    np.testing.assert_allclose(theta[:, 1] + theta[:, 2] + theta[:, 3], 0.0, atol=2e-4)  # tool straight down
 
 
 def test_case2_reproduces_the_listed_rows_of_table5():

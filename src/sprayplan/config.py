@@ -252,7 +252,8 @@ class PlanConfig:
         ``paths``: slicing strokes (the default); ``points``: the seed's target points visited in a tour.
     tour : {"auto", "ga", "exact", "keep"}
         Ordering inside a station: of the strokes (``keep``: zig-zag order as sliced) or, in points mode, of
-        the targets (``ga``: the seed's genetic algorithm).
+        the targets (``ga``: the seed's genetic algorithm). ``auto`` is a deterministic descent (nearest
+        neighbour, 2-opt, Or-opt), so that a plan repeats exactly on any machine.
     robot : str
         ``gantry-ur5`` (seed 000's nine axes).
     tool : str

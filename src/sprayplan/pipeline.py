@@ -29,6 +29,11 @@ from sprayplan.types import Part, Plan, StationPlan, Stroke
 
 log = logging.getLogger(__name__)
 
+#: Tour method of the plan's "auto": the deterministic nearest neighbour + 2-opt + Or-opt descent, so that the
+#: same part and settings give the same plan on any machine (the time-bounded solvers' results depend on the
+#: machine's speed). Order strokes with ``tour="exact"`` (up to 6) for the optimum.
+REPRODUCIBLE = "2opt"
+
 HOME_JOINTS = np.array([0.0, -math.pi / 2, 0.0, -math.pi / 2, 0.0, 0.0])
 
 
@@ -120,7 +125,7 @@ def plan(part: Part, job: JobConfig | None = None) -> Plan:
     platforms = np.column_stack([centres, np.full(len(centres), platform_z)])
     # platform tour: home -> stations -> home, exact for few stations, Manhattan (the axes move separately)
     nodes = np.vstack([home, platforms])
-    method = "exact" if len(nodes) <= 12 else "auto"
+    method = "exact" if len(nodes) <= 12 else "2opt"
     tour = solve_tour(nodes, method=method, closed=True, start=0, metric="manhattan", seed=settings.seed)
     visit = [int(i) - 1 for i in tour.order if i != 0]
     assignment = assign_greedy(work.flange_xy, centres, np.array(visit), space.radius_mm, space.core_diameter_mm / 2)
@@ -174,9 +179,9 @@ def _order_station(pieces, settings, platform, order_strokes, solve_tour) -> lis
             return pieces
         from sprayplan.ordering import EXACT_MAX_N
 
-        method = {"keep": "auto"}.get(settings.tour, settings.tour)
+        method = {"keep": REPRODUCIBLE, "auto": REPRODUCIBLE}.get(settings.tour, settings.tour)
         if method == "exact" and len(tcp) > EXACT_MAX_N:
-            method = "auto"
+            method = REPRODUCIBLE
         order = solve_tour(tcp, method=method, closed=False, seed=settings.seed).order
         points = np.concatenate([p.points for p in pieces])[order]
         normals = np.concatenate([p.normals for p in pieces])[order]
@@ -185,7 +190,7 @@ def _order_station(pieces, settings, platform, order_strokes, solve_tour) -> lis
         return pieces
     starts = np.array([p.tcp[0] for p in pieces])
     ends = np.array([p.tcp[-1] for p in pieces])
-    method = "exact" if settings.tour == "exact" and len(pieces) <= 6 else "ga" if settings.tour == "ga" else "auto"
+    method = "exact" if settings.tour == "exact" and len(pieces) <= 6 else "ga" if settings.tour == "ga" else REPRODUCIBLE
     order, reverse, _ = order_strokes(starts, ends, start_point=None, method=method, seed=settings.seed)
     return [pieces[i].reversed() if r else pieces[i] for i, r in zip(order, reverse)]
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from sprayplan import __version__
 from sprayplan.errors import PartFileError
-from sprayplan.io.writers import atomic_output
+from sprayplan.io.writers import atomic_output, read_json_file
 from sprayplan.types import Paths, Stroke
 
 FORMAT = "sprayplan.paths"
@@ -84,15 +84,7 @@ def read_paths_json(path: str | os.PathLike) -> Paths:
         When the file is missing, not JSON, or not a sprayplan paths file.
     """
     name = os.fspath(path)
-    try:
-        with open(path, encoding="utf-8") as handle:
-            data = json.load(handle)
-    except FileNotFoundError:
-        raise PartFileError(name, "no such file") from None
-    except (OSError, ValueError) as exc:
-        raise PartFileError(name, f"not a readable JSON file ({exc})") from None
-    if not isinstance(data, dict) or data.get("format") != FORMAT:
-        raise PartFileError(name, f'not a sprayplan paths file (expected "format": "{FORMAT}")')
+    data = read_json_file(path, FORMAT, "paths")
     try:
         strokes = tuple(
             Stroke(

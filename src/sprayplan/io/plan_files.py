@@ -9,8 +9,7 @@ import os
 import numpy as np
 
 from sprayplan import __version__
-from sprayplan.errors import PartFileError
-from sprayplan.io.writers import atomic_output
+from sprayplan.io.writers import atomic_output, read_json_file
 
 FORMAT = "sprayplan.plan"
 VERSION = 1
@@ -135,17 +134,7 @@ def write_plan(outdir, plan, job, totals: dict, part_file: str | None = None) ->
 
 def read_plan(path) -> dict:
     """Read a plan.json (as a dict), checking its format."""
-    name = os.fspath(path)
-    try:
-        with open(path, encoding="utf-8") as handle:
-            data = json.load(handle)
-    except FileNotFoundError:
-        raise PartFileError(name, "no such file") from None
-    except (OSError, ValueError) as exc:
-        raise PartFileError(name, f"not a readable JSON file ({exc})") from None
-    if not isinstance(data, dict) or data.get("format") != FORMAT:
-        raise PartFileError(name, f'not a sprayplan plan file (expected "format": "{FORMAT}")')
-    return data
+    return read_json_file(path, FORMAT, "plan")
 
 
 def plan_from_dict(data: dict):

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sprayplan.errors import PartFileError
 from sprayplan.types import Targets
 
 
@@ -43,3 +44,26 @@ def read_targets_csv(path: str | os.PathLike) -> Targets:
     """Read a CSV written by :func:`write_targets_csv`."""
     table = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
     return Targets(table[:, :3], table[:, 3:6])
+
+
+def read_json_file(path: str | os.PathLike, fmt: str, what: str) -> dict:
+    """Read a sprayplan JSON file and check its ``"format"``.
+
+    Raises
+    ------
+    PartFileError
+        When the file is missing, not JSON, or not of that format (``what`` names it in the message).
+    """
+    import json
+
+    name = os.fspath(path)
+    try:
+        with open(path, encoding="utf-8") as handle:
+            data = json.load(handle)
+    except FileNotFoundError:
+        raise PartFileError(name, "no such file") from None
+    except (OSError, ValueError) as exc:
+        raise PartFileError(name, f"not a readable JSON file ({exc})") from None
+    if not isinstance(data, dict) or data.get("format") != fmt:
+        raise PartFileError(name, f'not a sprayplan {what} file (expected "format": "{fmt}")')
+    return data
