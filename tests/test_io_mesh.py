@@ -242,7 +242,8 @@ def _parse_or_error(data: bytes):
 @settings(max_examples=300, deadline=2000)
 @given(st.binary(max_size=400))
 def test_fuzz_stl_random_bytes(data):
-    _parse_or_error(data)
+    result = _parse_or_error(data)
+    assert result is None or result.shape[1:] == (3, 3)
 
 
 @settings(max_examples=300, deadline=2000)
@@ -263,4 +264,5 @@ def test_fuzz_stl_mutated_files(cut, flips, binary):
     for pos, value in flips:
         if data:
             data[pos % len(data)] = value
-    _parse_or_error(bytes(data))
+    result = _parse_or_error(bytes(data))
+    assert result is None or np.isfinite(result).all()
