@@ -126,7 +126,7 @@ def cmd_targets(args) -> int:
 
 
 def cmd_demo(args) -> int:
-    from sprayplan.config import JobConfig, LoadConfig, TargetsConfig
+    from sprayplan.config import JobConfig, LoadConfig, PlanConfig, TargetsConfig
     from sprayplan.demo import DEMO_REGION, car_roof
     from sprayplan.io.stl import write_stl_binary
     from sprayplan.io.writers import atomic_output
@@ -139,7 +139,8 @@ def cmd_demo(args) -> int:
     print(f"demo part: {part_file} ({len(roof.faces)} triangles, 2635 x 1959 mm above z = 1000 mm)")
     load_args = argparse.Namespace(units="mm", up="z", region=DEMO_REGION)
     print(_run_targets(str(part_file), out / "targets.csv", load_args, TargetsConfig()))
-    job = JobConfig(load=LoadConfig(region=DEMO_REGION))
+    # seed 003's film spec, 50 +- 5 um: the plan picks the stroke spacing and gun speed for it
+    job = JobConfig(load=LoadConfig(region=DEMO_REGION), plan=PlanConfig(thickness_um=50.0))
     print(_run_plan(str(part_file), out, job, simulate=True, samples=420))
     return 0
 
