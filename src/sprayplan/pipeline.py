@@ -18,9 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sprayplan.config import JobConfig, PathConfig
+from sprayplan.config import JobConfig
 from sprayplan.errors import InputError
-from sprayplan.paths.planner import plan_paths, transfer
+from sprayplan.paths.planner import plan_paths, with_transfers
 from sprayplan.robots.gantry import Gantry, load_gun, solve_gantry_path
 from sprayplan.robots.model import load_robot
 from sprayplan.stations import assign_greedy, circle_cover
@@ -144,7 +144,7 @@ def plan(part: Part, job: JobConfig | None = None) -> Plan:
         if not pieces:
             continue
         ordered = _order_station(pieces, settings, platforms[k], order_strokes, solve_tour)
-        strokes = _with_transfers(ordered, paths_config)
+        strokes = with_transfers(ordered, paths_config)
         poses = np.concatenate([gun_poses(s) for s in strokes])
         result = solve_gantry_path(
             gantry,
@@ -193,15 +193,6 @@ def _order_station(pieces, settings, platform, order_strokes, solve_tour) -> lis
     method = "exact" if settings.tour == "exact" and len(pieces) <= 6 else "ga" if settings.tour == "ga" else REPRODUCIBLE
     order, reverse, _ = order_strokes(starts, ends, start_point=None, method=method, seed=settings.seed)
     return [pieces[i].reversed() if r else pieces[i] for i, r in zip(order, reverse)]
-
-
-def _with_transfers(strokes: list[Stroke], config: PathConfig) -> list[Stroke]:
-    out: list[Stroke] = []
-    for stroke in strokes:
-        if out:
-            out.append(transfer(out[-1], stroke, config))
-        out.append(stroke)
-    return out
 
 
 def plan_totals(plan_: Plan, job: JobConfig) -> dict:

@@ -356,8 +356,13 @@ def order_strokes(layers: list[list[Piece]], config: PathConfig) -> list[Stroke]
                 strokes = backward
         for stroke in strokes:
             spray.append(Stroke(stroke.points, stroke.normals, stroke.tcp, True, stroke.on_part, k))
+    return with_transfers(spray, config)
+
+
+def with_transfers(strokes: list[Stroke], config: PathConfig) -> list[Stroke]:
+    """Spray strokes in order with a spray-off transfer (:func:`transfer`) between each two."""
     out: list[Stroke] = []
-    for stroke in spray:
+    for stroke in strokes:
         if out:
             out.append(transfer(out[-1], stroke, config))
         out.append(stroke)
