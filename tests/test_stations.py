@@ -74,3 +74,12 @@ def test_greedy_assignment_prefers_the_annulus_and_reports_the_unreachable():
     # the first point is in station 0's core but in station 1's annulus: station 1 takes it
     assert result.station.tolist() == [1, 0, 0, -1]
     assert result.recommended.tolist() == [True, True, True, False]
+
+
+def test_a_square_outline_gets_its_own_rectangle_not_a_diagonal_one():
+    # the central moments of a square are equal: eq. 28's direction is arbitrary there; the least-area
+    # rectangle over the hull's edge directions is the square itself, turned as it is
+    xy = roof_points(length=4000.0, width=4000.0, angle=0.5, n=20000)
+    rect = envelope_rectangle(xy)
+    assert rect.length_mm == pytest.approx(4000, rel=0.005) and rect.width_mm == pytest.approx(4000, rel=0.005)
+    assert abs(math.remainder(rect.angle - 0.5, math.pi / 2)) < 0.01

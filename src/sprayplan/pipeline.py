@@ -120,8 +120,7 @@ def plan(part: Part, job: JobConfig | None = None) -> Plan:
     if settings.platform_z_mm is not None:
         platform_z = float(settings.platform_z_mm)
     else:  # the flange positions' mean height at the middle of the working cylinder
-        middle = (space.wall_mm + space.reach_mm * math.sin(space.theta)) / 2
-        platform_z = float(work.flange_z.mean() - middle + gantry.robot.d[0])
+        platform_z = gantry.platform_z_for(float(work.flange_z.mean()))
     platforms = np.column_stack([centres, np.full(len(centres), platform_z)])
     # platform tour: home -> stations -> home, exact for few stations, Manhattan (the axes move separately)
     nodes = np.vstack([home, platforms])
@@ -190,7 +189,9 @@ def _order_station(pieces, settings, platform, order_strokes, solve_tour) -> lis
         return pieces
     starts = np.array([p.tcp[0] for p in pieces])
     ends = np.array([p.tcp[-1] for p in pieces])
-    method = "exact" if settings.tour == "exact" and len(pieces) <= 6 else "ga" if settings.tour == "ga" else REPRODUCIBLE
+    method = (
+        "exact" if settings.tour == "exact" and len(pieces) <= 6 else "ga" if settings.tour == "ga" else REPRODUCIBLE
+    )
     order, reverse, _ = order_strokes(starts, ends, start_point=None, method=method, seed=settings.seed)
     return [pieces[i].reversed() if r else pieces[i] for i, r in zip(order, reverse)]
 

@@ -11,7 +11,7 @@ from sprayplan.config import PathConfig
 from sprayplan.paths import cloudprep
 from sprayplan.paths import polyline as pl
 from sprayplan.paths.cloud_slicing import neighbour_triangle_normals, plane_fit_normals, slice_cloud
-from sprayplan.paths.planner import Piece, _section_pieces, covariance, march_offsets, slicing_frame
+from sprayplan.paths.planner import Piece, _section_pieces, covariance, layer_offsets, slicing_frame
 from sprayplan.surface import normals as nm
 from sprayplan.types import Part
 
@@ -66,14 +66,7 @@ def cloud_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
         found = slab_points(offset)
         return float(np.median(cKDTree(found).query(query)[0])) if len(found) else np.inf
 
-    d = config.spacing
-    if config.layers is not None:
-        offsets = list(lo + (hi - lo) / config.layers * (np.arange(config.layers) + 0.5))
-    elif config.spacing_mode == "uniform" or hi - lo <= d:
-        count = max(1, int(np.ceil((hi - lo) / d)))
-        offsets = list((lo + hi) / 2 - (count - 1) * d / 2 + d * np.arange(count))
-    else:
-        offsets = march_offsets(lo, hi, d, samples, distance)
+    offsets = layer_offsets(lo, hi, config, samples, distance)
     sections = slice_cloud(points, plane_normal, offsets, slab, gap_mm=5.0 * spacing, travel=travel)
     thresholds = np.radians(config.streamline_deg or CLOUD_STREAMLINE_DEG)
     layers = []

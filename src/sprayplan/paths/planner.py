@@ -181,18 +181,27 @@ def mesh_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
 def plane_offsets(slicer: MeshSlicer, config: PathConfig) -> list[float]:
     """Offsets of the slicing planes along the slicer's normal."""
     lo, hi = slicer.range
+    d = config.spacing
+    return layer_offsets(
+        lo, hi, config, lambda o: _section_samples(slicer, o, d / 10), lambda q, o: _median_distance(q, slicer, o)
+    )
+
+
+def layer_offsets(lo: float, hi: float, config: PathConfig, samples, distance) -> list[float]:
+    """Plane offsets over a part spanning [lo, hi] along the planes' normal, as ``config`` asks.
+
+    ``layers``: that many equal slices, a plane in the middle of each. ``uniform`` (or a part thinner than the
+    spacing): planes the spacing apart, centred on the part. ``surface``: :func:`march_offsets` with the
+    ``samples`` and ``distance`` callables of the mesh or cloud at hand.
+    """
     span = hi - lo
     if config.layers is not None:
-        step = span / config.layers
-        return list(lo + step * (np.arange(config.layers) + 0.5))
+        return list(lo + span / config.layers * (np.arange(config.layers) + 0.5))
     d = config.spacing
     if config.spacing_mode == "uniform" or span <= d:
         count = max(1, int(np.ceil(span / d)))
-        start = (lo + hi) / 2 - (count - 1) * d / 2
-        return list(start + d * np.arange(count))
-    return march_offsets(
-        lo, hi, d, lambda o: _section_samples(slicer, o, d / 10), lambda q, o: _median_distance(q, slicer, o)
-    )
+        return list((lo + hi) / 2 - (count - 1) * d / 2 + d * np.arange(count))
+    return march_offsets(lo, hi, d, samples, distance)
 
 
 def march_offsets(lo: float, hi: float, d: float, samples, distance) -> list[float]:

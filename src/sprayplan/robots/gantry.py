@@ -159,30 +159,35 @@ class Gantry:
         base2world = self.base2world(platform)
         return np.linalg.inv(base2world) @ gun2world @ np.linalg.inv(self.gun.gun2flange)
 
-    def region(self, points: np.ndarray, platform: np.ndarray) -> np.ndarray:
-        """Where world points lie for a platform position: 2 recommended, 1 inside the cylinder's
-        non-recommended core, 0 outside the cylinder. (n,) int."""
+    def _cylinder(self, points: np.ndarray, platform: np.ndarray):
+        """Radial distance from the base axis, height, and the cylinder's top and bottom, per world point."""
         points = np.atleast_2d(np.asarray(points, dtype=float))
         platform = np.broadcast_to(np.asarray(platform, dtype=float), points.shape)
         radial = np.hypot(points[:, 0] - platform[:, 0], points[:, 1] - platform[:, 1])
         shoulder_z = platform[:, 2] - self.robot.d[0]  # the robot hangs: its shoulder is d1 below the mount
         top = shoulder_z + self.workspace.wall_mm
         bottom = shoulder_z + self.workspace.reach_mm * math.sin(self.workspace.theta)
-        inside = (radial <= self.workspace.radius_mm) & (points[:, 2] <= top) & (points[:, 2] >= bottom)
+        return radial, points[:, 2], top, bottom
+
+    def region(self, points: np.ndarray, platform: np.ndarray) -> np.ndarray:
+        """Where world points lie for a platform position: 2 recommended, 1 inside the cylinder's
+        non-recommended core, 0 outside the cylinder. (n,) int."""
+        radial, z, top, bottom = self._cylinder(points, platform)
+        inside = (radial <= self.workspace.radius_mm) & (z <= top) & (z >= bottom)
         core = radial < self.workspace.core_diameter_mm / 2.0
         return np.where(inside, np.where(core, 1, 2), 0)
 
     def distance_outside(self, points: np.ndarray, platform: np.ndarray) -> np.ndarray:
         """(n,) float, mm: how far world points lie outside the working cylinder (0 inside)."""
-        points = np.atleast_2d(np.asarray(points, dtype=float))
-        platform = np.broadcast_to(np.asarray(platform, dtype=float), points.shape)
-        radial = np.hypot(points[:, 0] - platform[:, 0], points[:, 1] - platform[:, 1])
-        shoulder_z = platform[:, 2] - self.robot.d[0]
-        top = shoulder_z + self.workspace.wall_mm
-        bottom = shoulder_z + self.workspace.reach_mm * math.sin(self.workspace.theta)
+        radial, z, top, bottom = self._cylinder(points, platform)
         out_r = np.maximum(radial - self.workspace.radius_mm, 0.0)
-        out_z = np.maximum(np.maximum(points[:, 2] - top, bottom - points[:, 2]), 0.0)
+        out_z = np.maximum(np.maximum(z - top, bottom - z), 0.0)
         return np.hypot(out_r, out_z)
+
+    def platform_z_for(self, z_mm: float) -> float:
+        """The gantry height that puts points at height ``z_mm`` in the middle of the working cylinder."""
+        shoulder_to_mid = (self.workspace.wall_mm + self.workspace.reach_mm * math.sin(self.workspace.theta)) / 2
+        return float(z_mm - shoulder_to_mid + self.robot.d[0])
 
     def platform_for(self, points: np.ndarray) -> np.ndarray:
         """A platform position (3,) for painting a group of world points (a stroke) from one place.
@@ -204,8 +209,7 @@ class Gantry:
         if across[np.argmax(np.abs(across))] < 0:
             across = -across
         xy = centre[:2] + across * self.workspace.radius_mm / 2.0
-        shoulder_to_mid = (self.workspace.wall_mm + self.workspace.reach_mm * math.sin(self.workspace.theta)) / 2
-        return np.array([xy[0], xy[1], centre[2] - shoulder_to_mid + self.robot.d[0]])
+        return np.array([xy[0], xy[1], self.platform_z_for(centre[2])])
 
 
 def pose_errors(achieved: np.ndarray, wanted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

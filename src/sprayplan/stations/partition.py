@@ -74,24 +74,43 @@ class EnvelopeRectangle:
 
 
 def envelope_rectangle(xy: np.ndarray) -> EnvelopeRectangle:
-    """The envelope rectangle of projected targets along their principal direction (eqs. 28-29, figure 15).
+    """The targets' envelope rectangle (figure 15).
 
-    The longer side is the length: when the principal direction gives the shorter side (a degenerate
-    distribution), the frame is turned by 90 degrees.
+    Seed 000 takes the rectangle along the principal direction of eqs. 28-29. That direction is arbitrary for
+    a square-ish outline (the two central moments nearly equal), so the rectangle of least area among that
+    direction and the directions of the targets' convex hull edges is kept (the least-area rectangle has a
+    side on a hull edge); for an elongated outline it is the seed's. The longer side is the length.
     """
     xy = np.asarray(xy, dtype=float)
     if len(xy) == 0:
         raise InputError("no targets to partition into stations")
-    angle = principal_angle(xy) if len(xy) > 1 else 0.0
-    for _ in range(2):
+    angles = [principal_angle(xy) if len(xy) > 1 else 0.0]
+    if len(xy) >= 3:
+        from scipy.spatial import ConvexHull, QhullError
+
+        try:
+            hull = xy[ConvexHull(xy).vertices]
+            edges = np.roll(hull, -1, axis=0) - hull
+            angles += list(np.arctan2(edges[:, 1], edges[:, 0]))
+        except QhullError:  # collinear points: the principal direction is exact
+            pass
+    best = None
+    for angle in angles:
         c, s = math.cos(angle), math.sin(angle)
         local = xy @ np.array([[c, -s], [s, c]])
         lo, hi = local.min(axis=0), local.max(axis=0)
-        if hi[0] - lo[0] >= hi[1] - lo[1]:
-            break
+        size = hi - lo
+        area = size[0] * size[1]
+        if best is None or area < best[0] * (1 - 1e-9):
+            best = (area, angle, lo, size)
+    _, angle, lo, size = best
+    if size[1] > size[0]:  # the length is the longer side
         angle += math.pi / 2
+        lo = np.array([lo[1], -(lo[0] + size[0])])
+        size = size[::-1]
+    c, s = math.cos(angle), math.sin(angle)
     origin = lo @ np.array([[c, s], [-s, c]])
-    return EnvelopeRectangle(angle, origin, float(hi[0] - lo[0]), float(hi[1] - lo[1]))
+    return EnvelopeRectangle(angle, origin, float(size[0]), float(size[1]))
 
 
 @dataclass(frozen=True)
@@ -192,7 +211,10 @@ def circle_cover(
     length, width = max(rect.length_mm, 1e-9), max(rect.width_mm, 1e-9)
     best = None
     # fewest circles first: try row counts, and for each the row heights that fit, keep the smallest count
-    for rows in range(1, 1 + math.ceil(width / (diameter * 1e-3))):
+    # a row is at most one diameter high; the search stops once more rows stop paying (below), and looks at
+    # no more than twice the fewest rows (each extra row adds at least ceil(l_max / 2R) circles)
+    fewest_rows = max(1, math.ceil(width / diameter + 1e-9))
+    for rows in range(fewest_rows, 2 * fewest_rows + 2):
         h_min = width / rows
         if h_min >= diameter:
             continue
