@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sprayplan.types import Part
+
 
 def barycentric_inside(points, triangles, tol=1e-9):
     """True where each point lies in its triangle's plane and inside it."""
@@ -43,3 +45,17 @@ def containing_face(points, vertices, faces, tol=1e-9):
         inside = barycentric_inside(points[rows], tri[cols], tol)
         found[rows[inside]] = cols[inside]
     return found
+
+
+def plate(xmin, xmax, ymin, ymax, step, z=0.0, flip=False) -> Part:
+    """A flat rectangular grid mesh at height z, normals +z (or -z with ``flip``)."""
+    xs = np.arange(xmin, xmax + step / 2, step)
+    ys = np.arange(ymin, ymax + step / 2, step)
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")
+    vertices = np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, float(z))], axis=1)
+    nx, ny = len(xs), len(ys)
+    i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1), indexing="ij")
+    a = (i * ny + j).ravel()
+    b, c, d = a + ny, a + ny + 1, a + 1
+    faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    return Part(vertices, faces[:, ::-1] if flip else faces, None, "plate")

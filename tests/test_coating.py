@@ -41,6 +41,7 @@ from sprayplan.errors import ConfigError
 from sprayplan.io.load import load_part
 from sprayplan.paths.planner import plan_paths
 from sprayplan.types import Part, Paths, Stroke, Targets
+from tests.helpers import plate
 
 PATTERNS = {
     "flat": SprayPattern("flat", 50.0, 113.0),
@@ -50,20 +51,6 @@ PATTERNS = {
     "gaussian": SprayPattern("gaussian", 60.0, 113.0, sigma_mm=18.0),
     "double_beta": SprayPattern("double_beta", a_mm=30.0, b_mm=70.0, beta1=2.5, beta2=1.6, standoff_mm=200.0),
 }
-
-
-def plate(xmin, xmax, ymin, ymax, step, z=0.0, flip=False) -> Part:
-    """A flat rectangular grid mesh at height z, normals +z (or -z with ``flip``)."""
-    xs = np.arange(xmin, xmax + step / 2, step)
-    ys = np.arange(ymin, ymax + step / 2, step)
-    gx, gy = np.meshgrid(xs, ys, indexing="ij")
-    vertices = np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, float(z))], axis=1)
-    nx, ny = len(xs), len(ys)
-    i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1), indexing="ij")
-    a = (i * ny + j).ravel()
-    b, c, d = a + ny, a + ny + 1, a + 1
-    faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
-    return Part(vertices, faces[:, ::-1] if flip else faces, None, "plate")
 
 
 def merge(*parts: Part) -> Part:
@@ -216,6 +203,24 @@ def test_parallel_strokes_at_the_chosen_spacing_are_even(preset):
     assert choice.cv <= 0.01
     # seed 000's fixed overlap 0.4 is less even for these patterns
     assert ripple_cv(process.pattern, 49.19) > 3 * choice.cv
+
+
+def test_planned_paths_paint_a_plate_evenly_up_to_its_edges():
+    # the planner's edge passes (past the edges along the strokes) and leads (past the strokes' ends) give a
+    # flat plate the in-panel film everywhere, edges and corners included; without edge passes the film
+    # thins out along the first and last strokes
+    process = load_preset("seed000_circle")
+    choice = choose_spacing_and_speed(process, 50.0)
+    process = process.with_(speed_mm_s=choice.speed_mm_s)
+    part = plate(0.0, 600.0, 0.0, 400.0, 5.0)
+    config = CoatingConfig(occlusion="none")
+    paths = plan_paths(part, PathConfig(spacing_mm=choice.spacing_mm, direction="y"))
+    whole = coating_report(simulate(part, paths, process, config=config))["all"]
+    assert whole["share_in_spec"] == 1.0
+    assert whole["cv"] <= 0.02
+    bare = plan_paths(part, PathConfig(spacing_mm=choice.spacing_mm, direction="y", edge_passes=0))
+    thin = coating_report(simulate(part, bare, process, config=config))["all"]
+    assert thin["share_in_spec"] < 0.95 and thin["min_um"] < 0.6 * 50.0
 
 
 def test_speed_puts_the_mean_on_target_for_any_spacing():

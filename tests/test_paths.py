@@ -18,7 +18,7 @@ from sprayplan.io.paths_json import read_paths_json, write_paths_json
 from sprayplan.paths.planner import plan_paths, point_segment_distance, slicing_frame, surface_covariance
 from sprayplan.surface.filling import sample_uniform
 from sprayplan.surface.region import select_region
-from tests.helpers import containing_face, on_mesh
+from tests.helpers import containing_face, on_mesh, plate
 
 
 @pytest.fixture(scope="module")
@@ -41,7 +41,8 @@ def layer_spacings(paths):
     """Median distance from each layer's on-part points to the next layer's polylines."""
     layers = {}
     for s in paths.spray_strokes:
-        layers.setdefault(s.layer, []).append(s)
+        if s.on_part.any():  # edge passes lie past the part's edge
+            layers.setdefault(s.layer, []).append(s)
     keys = sorted(layers)
     out = []
     for a, b in itertools.pairwise(keys):
@@ -56,7 +57,14 @@ def test_adjacent_strokes_are_the_spacing_apart_on_the_flat_tray(tray_top):
     paths = plan_paths(tray_top, PathConfig(spacing_mm=30.0))
     spacing = layer_spacings(paths)
     assert len(spacing) >= 10
-    # every pair but the last: the last layer closes the far edge when over half a spacing is left there
+    # edge passes past the far edge take the place of a closing layer: every pair is the spacing apart
+    np.testing.assert_allclose(spacing, 30.0, rtol=0.02)
+
+
+def test_without_edge_passes_a_last_layer_closes_the_far_edge(tray_top):
+    paths = plan_paths(tray_top, PathConfig(spacing_mm=30.0, edge_passes=0))
+    assert all(s.on_part.any() for s in paths.spray_strokes)
+    spacing = layer_spacings(paths)
     np.testing.assert_allclose(spacing[:-1], 30.0, rtol=0.02)
     assert spacing[-1] <= 30.0 * 1.02
 
@@ -74,9 +82,11 @@ def test_adjacent_strokes_are_the_spacing_apart_on_the_curved_part(reach_paths):
 
 def test_uniform_planes_are_equally_spaced(reach):
     paths = plan_paths(reach, PathConfig(spacing_mode="uniform", direction="x", spacing_mm=40.0))
-    heights = sorted({round(float(s.points[s.on_part][0, 0]), 6) for s in paths.spray_strokes})
+    heights = sorted({round(float(s.points[s.on_part][0, 0]), 6) for s in paths.spray_strokes if s.on_part.any()})
     np.testing.assert_allclose(np.diff(heights), 40.0, atol=1e-6)
     for stroke in paths.spray_strokes:  # every on-part point of a stroke lies in its plane
+        if not stroke.on_part.any():
+            continue
         assert np.ptp(stroke.points[stroke.on_part, 0]) < 1e-6
 
 
@@ -166,19 +176,76 @@ def test_zig_zag_and_transfers(reach, reach_paths):
 
 
 def test_lead_in_and_lead_out_extend_past_the_edge(reach_paths):
+    exact = 0
     for stroke in reach_paths.spray_strokes:
-        if np.array_equal(stroke.points[0], stroke.points[-1]):
-            continue  # a closed loop has no ends
+        if np.array_equal(stroke.points[0], stroke.points[-1]) or not stroke.on_part.any():
+            continue  # a closed loop has no ends; an edge pass has no on-part point
         inside = np.flatnonzero(stroke.on_part)
         first, last = inside[0], inside[-1]
-        assert np.linalg.norm(stroke.points[0] - stroke.points[first]) == pytest.approx(50.0, abs=1e-6)
-        assert np.linalg.norm(stroke.points[-1] - stroke.points[last]) == pytest.approx(50.0, abs=1e-6)
+        for end, edge in ((stroke.points[0], stroke.points[first]), (stroke.points[-1], stroke.points[last])):
+            # the margin (50 mm), plus how far a cut-off rim (at most 25 mm of arc) reached along the lead
+            lead = np.linalg.norm(end - edge)
+            assert 50.0 - 1e-6 <= lead <= 75.0 + 1e-6
+            exact += lead == pytest.approx(50.0, abs=1e-6)
+    assert exact >= 10
+
+
+def test_a_rolled_edge_is_not_followed(reach_paths, reach):
+    # the reach part's long sides end in a rim turned over by more than 90 degrees within about 17 mm: the
+    # strokes leave the face along its tangent (normals within 45 degrees of the face's) and pass the rim
+    trimmed = 0
+    for stroke in reach_paths.spray_strokes:
+        inside = np.flatnonzero(stroke.on_part)
+        if len(inside) < 10 or np.array_equal(stroke.points[0], stroke.points[-1]):
+            continue
+        for lead, face in ((slice(0, inside[0]), inside[0]), (slice(inside[-1] + 1, None), inside[-1])):
+            assert (stroke.normals[lead] @ stroke.normals[face] > 1 - 1e-9).all()  # the lead keeps the normal
+        ends = stroke.normals[inside[[0, -1]]]
+        mid = stroke.normals[inside[len(inside) // 2]]
+        assert (ends @ mid > np.cos(np.radians(100))).all()
+        trimmed += np.linalg.norm(stroke.points[0] - stroke.points[inside[0]]) > 50.0 + 1e-6
+    assert trimmed >= 10
+    raw = plan_paths(reach, PathConfig(rim_mm=0.0))
+    turned = [s for s in raw.spray_strokes if s.on_part.sum() >= 10]
+    # followed to the end, the same strokes swing the gun round the rim
+    assert sum(s.normals[0] @ s.normals[len(s) // 2] < np.cos(np.radians(60)) for s in turned) >= 10
+
+
+def test_edge_passes_continue_the_spacing_past_the_edge():
+    d = 30.0
+    part = plate(0.0, 400.0, 0.0, 220.0, 5.0)  # strokes run along x, layers across y
+    paths = plan_paths(part, PathConfig(spacing_mm=d, direction="y"))
+    on = [s for s in paths.spray_strokes if s.on_part.any()]
+    edge = [s for s in paths.spray_strokes if not s.on_part.any()]
+    first, last = min(s.layer for s in on), max(s.layer for s in on)
+    ys = sorted(float(np.median(s.points[s.on_part, 1])) for s in on)
+    # the layers keep the spacing up to the far edge (220 = 15 + 6 x 30 + 25: no closing layer at 220)
+    np.testing.assert_allclose(ys, 15.0 + d * np.arange(len(ys)), atol=1e-6)
+    for s in edge:
+        # in the plate's plane extended past its edge, with its normal, whole spacings from the outer layer
+        np.testing.assert_allclose(s.points[:, 2], 0.0, atol=1e-9)
+        np.testing.assert_allclose(s.normals, [[0.0, 0.0, 1.0]] * len(s), atol=1e-9)
+        y = s.points[:, 1]
+        assert np.ptp(y) < 1e-9
+        assert (y[0] < 0.0) if s.layer < first else (y[0] > 220.0)
+        k = s.layer - last if s.layer > last else first - s.layer
+        assert abs(y[0] - (ys[-1] if s.layer > last else ys[0])) == pytest.approx(k * d)
+    # auto: pass j spacings out is j d - s past the edge (s: outer layer to edge) and paints the part while
+    # that is under the spray radius, 50 mm: before, s = 15 gives ceil(65 / 30) - 1 = 2; after, s = 25 also 2
+    assert sorted({s.layer for s in edge}) == [0, 1, last + 1, last + 2]
+    two = plan_paths(part, PathConfig(spacing_mm=d, direction="y", edge_passes=3)).spray_strokes
+    assert sorted({s.layer for s in two if not s.on_part.any()}) == [0, 1, 2, last + 2, last + 3, last + 4]
+    bare = plan_paths(part, PathConfig(spacing_mm=d, direction="y", edge_passes=0)).spray_strokes
+    assert all(s.on_part.any() for s in bare)
+    # without passes the march closes the far edge (25 mm left, over half a spacing) with a layer at the edge
+    assert sorted(float(np.median(s.points[s.on_part, 1])) for s in bare)[-1] == pytest.approx(220.0, abs=1e-3)
 
 
 def test_waypoints_are_the_step_apart(reach_paths):
     for stroke in reach_paths.spray_strokes:
         gaps = np.linalg.norm(np.diff(stroke.points[stroke.on_part], axis=0), axis=1)
-        assert gaps.max() <= 10.0 + 1e-6
+        assert gaps.max(initial=0.0) <= 10.0 + 1e-6
+        assert np.linalg.norm(np.diff(stroke.points, axis=0), axis=1).max() <= 10.0 + 1e-6
 
 
 def test_arc_interpolation_between_section_samples(reach):
@@ -187,8 +254,9 @@ def test_arc_interpolation_between_section_samples(reach):
     single = 0
     for stroke in paths.spray_strokes:
         on = np.flatnonzero(stroke.on_part)
-        if len(on) and not (~stroke.on_part[on[0] : on[-1] + 1]).any():
-            continue  # no interpolated point at all: cannot happen with 20 samples over a long section
+        assert np.linalg.norm(np.diff(stroke.points, axis=0), axis=1).max() <= 5.0 + 1e-6
+        if not len(on) or not (~stroke.on_part[on[0] : on[-1] + 1]).any():
+            continue  # an edge pass, or no interpolated point (cannot happen with 20 samples on a long section)
         inner = stroke.on_part[on[0] : on[-1] + 1]
         runs_of_samples = np.count_nonzero(np.diff(np.r_[0, inner.astype(int)]) == 1)
         if stroke.length_mm > 500 and runs_of_samples == 20:  # one section piece: exactly its 20 samples
@@ -306,6 +374,8 @@ def test_paths_on_real_clouds(testdata, name, normals, smooth):
     for stroke in paths.spray_strokes:
         np.testing.assert_allclose(stroke.tcp, stroke.points + 100.0 * stroke.normals, atol=1e-9)
         np.testing.assert_allclose(np.linalg.norm(stroke.normals, axis=1), 1.0, atol=1e-9)
+        if not stroke.on_part.any():
+            continue  # an edge pass, past the part's edge
         # contact points come from the cloud's slab sections: near the scanned points
         near = tree.query(stroke.points[stroke.on_part])[0]
         assert np.percentile(near, 95) <= 4 * spacing

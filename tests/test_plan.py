@@ -60,14 +60,26 @@ def test_plan_json_reads_back(reach_plan):
     assert data["settings"]["load"]["units"] == "m"
     totals = data["totals"]
     assert totals["stations"] == len(data["stations"]) >= 2
-    spray = transfer = 0.0
+    spray = transfer = spray_time = 0.0
     waypoints = 0
     for station in data["stations"]:
         platform = np.array(station["platform_mm"])
         for stroke in station["strokes"]:
             tcp = np.array(stroke["tcp"])
-            length = float(np.linalg.norm(np.diff(tcp, axis=0), axis=1).sum())
+            seg = np.linalg.norm(np.diff(tcp, axis=0), axis=1)
+            length = float(seg.sum())
             spray, transfer = (spray + length, transfer) if stroke["spray_on"] else (spray, transfer + length)
+            tip_speed = np.array(stroke["tcp_speed_mm_s"])
+            assert len(tip_speed) == len(tcp)
+            if stroke["spray_on"]:
+                spray_time += float((seg / tip_speed[1:]).sum())
+                # the contact point moves at the gun speed wherever the tip's speed is not clipped
+                surface = np.linalg.norm(np.diff(np.array(stroke["points"]), axis=0), axis=1)
+                free = (tip_speed[1:] > 500.0 / 3 + 1e-3) & (tip_speed[1:] < 500.0 * 3 - 1e-3) & (seg > 1e-6)
+                np.testing.assert_allclose(surface[free] / (seg[free] / tip_speed[1:][free]), 500.0, rtol=1e-3)
+                assert tip_speed.min() >= 500.0 / 3 - 1e-3 and tip_speed.max() <= 500.0 * 3 + 1e-3
+            else:
+                np.testing.assert_allclose(tip_speed, 1000.0)
             waypoints += len(tcp)
             for q, ok in zip(stroke["joints"], stroke["reachable"]):
                 if ok:
@@ -80,7 +92,7 @@ def test_plan_json_reads_back(reach_plan):
     assert transfer == pytest.approx(totals["transfer_length_mm"], rel=1e-6)
     assert waypoints == totals["waypoints"]
     # cycle time from its parts
-    expected = spray / 500.0 + transfer / 1000.0 + totals["platform_travel_mm"] / 250.0
+    expected = spray_time + transfer / 1000.0 + totals["platform_travel_mm"] / 250.0
     assert totals["cycle_time_s"] == pytest.approx(expected, rel=1e-4)
     # the gantry tour starts and ends at home and is the Manhattan length of its legs
     stops = np.array([data["home_mm"], *[s["platform_mm"] for s in data["stations"]], data["home_mm"]])

@@ -55,11 +55,12 @@ def plan_paths_in_order(plan: Plan, standoff_mm: float, spacing_mm: float) -> Pa
 
 
 def simulate_plan(part, plan: Plan, job: JobConfig):
-    """The film a plan leaves on the part (``coating.simulate`` with the job's process)."""
-    from sprayplan.coating import simulate
+    """The film a plan leaves on the part (``coating.simulate`` with the job's process and speeds)."""
+    from sprayplan.coating import CoatingConfig, simulate
 
     paths = plan_paths_in_order(plan, job.paths.standoff_mm, job.paths.spacing or 0.0)
-    return simulate(part, paths, process_for(job))
+    config = CoatingConfig(speed_along=job.plan.speed_along, max_speed_ratio=job.plan.max_speed_ratio)
+    return simulate(part, paths, process_for(job), config=config)
 
 
 def write_coating(outdir, result, job: JobConfig, samples: int | None = None, chosen: dict | None = None) -> dict:

@@ -163,6 +163,19 @@ class PathConfig:
     cloud_smooth_mm : float or None
         Point clouds: move each point onto the least-squares plane of its neighbours within this radius before
         slicing (003 section 2.2.3); None: no smoothing.
+    rim_mm : float or None
+        An end of a stroke, at most this long, whose normals turn more than 45 degrees away from the face's (a
+        hemmed or rolled edge, the side of a thin panel) is not followed: the stroke leaves the face along its
+        tangent and the lead-out passes the rim's edge by ``edge_margin_mm``. None: half the spray radius;
+        0: follow every end.
+    edge_passes : "auto" or int
+        Extra spray passes past the first and the last layer, the spacing apart on the surface extended flat
+        beyond the edge (``on_part`` False), so that the film does not thin out along the part's edges that
+        run with the strokes (the ends of the strokes are covered by ``edge_margin_mm``). ``auto``: at each
+        end, as many as still put paint on the part, judged by the spray radius and the measured distance from
+        the outer layer to the part's edge; a number: that many at each end. With passes, the layers keep the
+        spacing up to the far edge; with 0 the march closes the part with a last layer at the far edge (closer
+        than the spacing) when more than half a spacing would be left bare.
     """
 
     direction: str | tuple = "auto"
@@ -182,8 +195,21 @@ class PathConfig:
     slab_mm: float | None = None
     cloud_normals: str = "triangles"
     cloud_smooth_mm: float | None = None
+    rim_mm: float | None = None
+    edge_passes: str | int = "auto"
 
     def __post_init__(self):
+        if self.edge_passes != "auto":
+            value = self.edge_passes
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, float))
+                or not math.isfinite(value)
+                or int(value) != value
+                or value < 0
+            ):
+                raise ConfigError(f"edge_passes must be auto or a whole number >= 0, got {self.edge_passes!r}")
+            object.__setattr__(self, "edge_passes", int(self.edge_passes))
         if self.cloud_normals not in ("triangles", "plane"):
             raise ConfigError(f"cloud_normals must be triangles or plane, got {self.cloud_normals!r}")
         if isinstance(self.direction, str):
@@ -210,6 +236,8 @@ class PathConfig:
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value > 0):
                 raise ConfigError(f"{name} must be a positive number, got {value}")
+        if self.rim_mm is not None and not (math.isfinite(self.rim_mm) and self.rim_mm >= 0):
+            raise ConfigError(f"rim_mm must be a number >= 0, got {self.rim_mm}")
         if self.edge_margin_mm is not None and not (math.isfinite(self.edge_margin_mm) and self.edge_margin_mm >= 0):
             raise ConfigError(f"edge_margin_mm must be a number >= 0, got {self.edge_margin_mm}")
         if not (math.isfinite(self.standoff_mm) and self.standoff_mm >= 0):
@@ -237,6 +265,11 @@ class PathConfig:
         return self.spray_radius_mm if self.edge_margin_mm is None else float(self.edge_margin_mm)
 
     @property
+    def rim(self) -> float:
+        """Longest end stretch treated as a rim, mm."""
+        return self.spray_radius_mm / 2.0 if self.rim_mm is None else float(self.rim_mm)
+
+    @property
     def gap(self) -> float:
         """Widest gap sprayed across, mm."""
         return 2.0 * self.spray_radius_mm if self.split_gap_mm is None else float(self.split_gap_mm)
@@ -260,6 +293,12 @@ class PlanConfig:
         Gun preset (``wa101``).
     gun_speed_mm_s, transfer_speed_mm_s, platform_speed_mm_s : float
         For the cycle time: spraying, spray-off moves of the arm, and the gantry.
+    speed_along : {"surface", "tcp"}
+        What moves at ``gun_speed_mm_s`` while spraying: the paint's contact point on the surface (the gun
+        tip then speeds up over convex bends and slows down in concave ones; plan.json gives the tip's speed
+        per waypoint), or the gun tip itself (one speed per stroke). See ``sprayplan.paths.speed``.
+    max_speed_ratio : float
+        With ``surface``: the gun tip's speed stays within [v / ratio, v ratio].
     home_mm : tuple of 3 float
         Where the gantry starts and ends (the seed's "zero").
     platform_z_mm : float or None
@@ -288,6 +327,8 @@ class PlanConfig:
     gun_speed_mm_s: float = 400.0
     transfer_speed_mm_s: float = 1000.0
     platform_speed_mm_s: float = 250.0
+    speed_along: str = "surface"
+    max_speed_ratio: float = 3.0
     home_mm: tuple = (0.0, 0.0, 0.0)
     platform_z_mm: float | None = None
     position_tol_mm: float = 5.0
@@ -309,6 +350,10 @@ class PlanConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ConfigError(f"{name} must be a positive number, got {value}")
+        if self.speed_along not in ("surface", "tcp"):
+            raise ConfigError(f"speed_along must be surface or tcp, got {self.speed_along!r}")
+        if not (math.isfinite(self.max_speed_ratio) and self.max_speed_ratio >= 1.0):
+            raise ConfigError(f"max_speed_ratio must be a number >= 1, got {self.max_speed_ratio}")
         if self.thickness_um is not None and not (math.isfinite(self.thickness_um) and self.thickness_um > 0):
             raise ConfigError(f"thickness_um must be a positive number, got {self.thickness_um}")
         if not (math.isfinite(self.tolerance_um) and self.tolerance_um >= 0):

@@ -21,6 +21,7 @@ import numpy as np
 from sprayplan.config import JobConfig
 from sprayplan.errors import InputError
 from sprayplan.paths.planner import plan_paths, with_transfers
+from sprayplan.paths.speed import stroke_time
 from sprayplan.robots.gantry import Gantry, load_gun, solve_gantry_path
 from sprayplan.robots.model import load_robot
 from sprayplan.stations import assign_greedy, circle_cover
@@ -200,6 +201,12 @@ def plan_totals(plan_: Plan, job: JobConfig) -> dict:
     """Lengths (mm), counts and the cycle time (s) of a plan."""
     settings = job.plan
     spray = sum(s.length_mm for st in plan_.stations for s in st.strokes if s.spray_on)
+    spray_time = sum(
+        stroke_time(s.tcp, s.points, settings.gun_speed_mm_s, settings.speed_along, settings.max_speed_ratio)
+        for st in plan_.stations
+        for s in st.strokes
+        if s.spray_on
+    )
     moves = sum(s.length_mm for st in plan_.stations for s in st.strokes if not s.spray_on)
     stops = [plan_.home_mm, *[st.platform_mm for st in plan_.stations], plan_.home_mm]
     platform = float(sum(np.abs(np.diff(np.array(stops), axis=0)).sum(axis=1)))
@@ -207,9 +214,7 @@ def plan_totals(plan_: Plan, job: JobConfig) -> dict:
     errors = np.concatenate([st.position_error_mm for st in plan_.stations]) if plan_.stations else np.zeros(0)
     axes = np.concatenate([st.axis_error_deg for st in plan_.stations]) if plan_.stations else np.zeros(0)
     methods = np.concatenate([st.method for st in plan_.stations]) if plan_.stations else np.zeros(0, str)
-    cycle = (
-        spray / settings.gun_speed_mm_s + moves / settings.transfer_speed_mm_s + platform / settings.platform_speed_mm_s
-    )
+    cycle = spray_time + moves / settings.transfer_speed_mm_s + platform / settings.platform_speed_mm_s
     return {
         "stations": len(plan_.stations),
         "strokes": int(sum(1 for st in plan_.stations for s in st.strokes if s.spray_on)),

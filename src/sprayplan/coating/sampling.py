@@ -15,6 +15,7 @@ from scipy.spatial import cKDTree
 
 from sprayplan.coating.process import Process, StrokeOverride
 from sprayplan.errors import ConfigError, InputError
+from sprayplan.paths.speed import segment_speeds
 from sprayplan.surface import normals as nm
 from sprayplan.types import Part, Paths, Targets
 
@@ -121,6 +122,7 @@ def gun_samples(
     overrides: Mapping[int, StrokeOverride] | Sequence[StrokeOverride | None] | None = None,
     max_step_mm: float | None = None,
     speed_along: str = "tcp",
+    max_speed_ratio: float = 3.0,
 ) -> tuple[GunSamples, np.ndarray, np.ndarray]:
     """Time steps of the spray-on path, and each stroke's duration and flow.
 
@@ -134,8 +136,10 @@ def gun_samples(
         Longest travel between two time steps; None: the pattern radius / 10.
     speed_along : {"tcp", "surface"}
         The speed is the gun tip's (``tcp``: a robot moving its tool at a constant speed), or the contact
-        point's on the surface (``surface``: the tip slows down over convex bends and speeds up in concave
-        ones, which the robot program must then do).
+        point's on the surface (``surface``: the tip speeds up over convex bends and slows down in concave
+        ones, as the plan's per-waypoint speeds ask; see ``sprayplan.paths.speed``).
+    max_speed_ratio : float
+        With ``surface``: the tip's speed stays within [v / ratio, v ratio].
 
     Returns
     -------
@@ -146,16 +150,15 @@ def gun_samples(
     step = process.pattern.radius_mm / 10.0 if max_step_mm is None else float(max_step_mm)
     per = _stroke_settings(paths, process, overrides)
     parts, times, flows = [], [], []
-    if speed_along not in ("tcp", "surface"):
-        raise ConfigError(f"speed_along must be tcp or surface, got {speed_along!r}")
     for index, (stroke, (flow, speed, on)) in enumerate(zip(paths.strokes, per)):
-        path = stroke.tcp if speed_along == "tcp" else stroke.points
-        times.append(float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum()) / speed if len(path) > 1 else 0.0)
+        seg_speed = segment_speeds(stroke.tcp, stroke.points, speed, speed_along, max_speed_ratio)
+        seg_len = np.linalg.norm(np.diff(stroke.tcp, axis=0), axis=1)
+        times.append(float((seg_len / seg_speed).sum()))
         flows.append(flow if on else 0.0)
         if not on or flow <= 0 or len(stroke) < 2:
             continue
         q = flow * 1000.0 / 60.0 * process.solids_fraction * process.transfer_efficiency
-        parts.append(_stroke_samples(stroke, step, speed, q, index, speed_along == "surface"))
+        parts.append(_stroke_samples(stroke, step, seg_speed, q, index))
     if parts:
         cols = [np.concatenate([p[c] for p in parts]) for c in range(7)]
     else:
@@ -186,11 +189,10 @@ def _stroke_settings(paths: Paths, process: Process, overrides) -> list[tuple[fl
     return out
 
 
-def _stroke_samples(stroke, step: float, speed: float, q: float, index: int, on_surface: bool):
+def _stroke_samples(stroke, step: float, seg_speed: np.ndarray, q: float, index: int):
     tcp, nrm, pts = stroke.tcp, stroke.normals, stroke.points
     seg = np.linalg.norm(np.diff(tcp, axis=0), axis=1)
     sub = np.maximum(np.ceil(seg / step).astype(np.int64), 1)
-    timed = np.linalg.norm(np.diff(pts, axis=0), axis=1) if on_surface else seg
     seg_of = np.repeat(np.arange(len(seg)), sub)
     frac = (np.arange(sub.sum()) - np.repeat(np.cumsum(sub) - sub, sub)) / np.repeat(sub, sub)
     frac = np.concatenate([frac, [1.0]])
@@ -201,8 +203,8 @@ def _stroke_samples(stroke, step: float, speed: float, q: float, index: int, on_
 
     position, aim = lerp(tcp), lerp(pts)
     axis = -nm.unit(lerp(nrm))
-    lengths = np.repeat(timed / sub, sub)
-    dt = (np.concatenate([lengths, [0.0]]) + np.concatenate([[0.0], lengths])) / (2.0 * speed)
+    steps = np.repeat(seg / sub / seg_speed, sub)  # time on each sub-segment
+    dt = (np.concatenate([steps, [0.0]]) + np.concatenate([[0.0], steps])) / 2.0
     along = np.gradient(position, axis=0) if len(position) > 2 else np.repeat(np.diff(position, axis=0), 2, axis=0)
     along = along - np.einsum("ij,ij->i", along, axis)[:, None] * axis
     norm = np.linalg.norm(along, axis=1)

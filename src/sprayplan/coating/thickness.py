@@ -80,6 +80,8 @@ class CoatingConfig:
         Side of the depth map (``zbuffer``, ``raster``), pixels.
     speed_along : {"tcp", "surface"}
         Whether the process speed is the gun tip's or the contact point's (see :func:`gun_samples`).
+    max_speed_ratio : float
+        With ``surface``: the gun tip's speed stays within [v / ratio, v ratio] (``sprayplan.paths.speed``).
     search_factor : float
         Surface samples are gathered within the pattern radius (scaled to the stroke's standoff) times this
         around each aim point; > 1 leaves room for surfaces that curve away from the gun.
@@ -95,6 +97,7 @@ class CoatingConfig:
     occlusion_step_mm: float | None = None
     occlusion_pixels: int = 16
     speed_along: str = "tcp"
+    max_speed_ratio: float = 3.0
     search_factor: float = 1.15
     batch: int = 4096
     workers: int | None = None
@@ -110,6 +113,8 @@ class CoatingConfig:
             raise ConfigError(f"search_factor must be >= 1, got {self.search_factor}")
         if self.speed_along not in ("tcp", "surface"):
             raise ConfigError(f"speed_along must be tcp or surface, got {self.speed_along!r}")
+        if not (math.isfinite(self.max_speed_ratio) and self.max_speed_ratio >= 1.0):
+            raise ConfigError(f"max_speed_ratio must be >= 1, got {self.max_speed_ratio}")
         if int(self.occlusion_pixels) < 4 or int(self.batch) < 1:
             raise ConfigError("occlusion_pixels must be >= 4 and batch >= 1")
 
@@ -232,7 +237,9 @@ def simulate(
     """
     config = CoatingConfig() if config is None else config
     samples = surface_samples(part, targets)
-    guns, times, flows = gun_samples(paths, process, overrides, config.max_step_mm, config.speed_along)
+    guns, times, flows = gun_samples(
+        paths, process, overrides, config.max_step_mm, config.speed_along, config.max_speed_ratio
+    )
     pattern = process.pattern
     n = len(samples.points)
     thickness = np.zeros(n)

@@ -10,6 +10,7 @@ import numpy as np
 
 from sprayplan import __version__
 from sprayplan.io.writers import atomic_output, read_json_file
+from sprayplan.paths.speed import waypoint_speeds
 
 FORMAT = "sprayplan.plan"
 VERSION = 1
@@ -33,6 +34,16 @@ def _round(array, digits):
     if not missing.any():
         return rounded.tolist()
     return np.where(missing, None, rounded.astype(object)).tolist()
+
+
+def tip_speeds(stroke, job) -> np.ndarray:
+    """(n,) gun-tip speed on the way to each waypoint of a stroke, mm/s (``sprayplan.paths.speed``)."""
+    settings = job.plan
+    if not stroke.spray_on:
+        return np.full(len(stroke), settings.transfer_speed_mm_s)
+    return waypoint_speeds(
+        stroke.tcp, stroke.points, settings.gun_speed_mm_s, settings.speed_along, settings.max_speed_ratio
+    )
 
 
 def plan_to_dict(plan, job, totals: dict, part_file: str | None = None) -> dict:
@@ -64,6 +75,7 @@ def plan_to_dict(plan, job, totals: dict, part_file: str | None = None) -> dict:
                     "branch_change": st.branch_change[sl].tolist(),
                     "flow_ml_min": flow if s.spray_on else 0.0,
                     "speed_mm_s": job.plan.gun_speed_mm_s if s.spray_on else job.plan.transfer_speed_mm_s,
+                    "tcp_speed_mm_s": _round(tip_speeds(s, job), 3),
                 }
             )
         stations.append(
@@ -97,7 +109,7 @@ def write_plan(outdir, plan, job, totals: dict, part_file: str | None = None) ->
         json.dump(data, handle, separators=(",", ":"))
         handle.write("\n")
     csv_path = os.path.join(outdir, "waypoints.csv")
-    header = "station,stroke,waypoint,spray_on,x,y,z,ax,ay,az,q1,q2,q3,q4,q5,q6,tx,ty,tz,reachable,position_error_mm,axis_error_deg\n"
+    header = "station,stroke,waypoint,spray_on,x,y,z,ax,ay,az,q1,q2,q3,q4,q5,q6,tx,ty,tz,reachable,position_error_mm,axis_error_deg,speed_mm_s\n"
     with atomic_output(csv_path, "w", newline="") as handle:
         handle.write(header)
         for place, st in enumerate(plan.stations):
@@ -118,6 +130,7 @@ def write_plan(outdir, plan, job, totals: dict, part_file: str | None = None) ->
                         ok.astype(int),
                         st.position_error_mm[start : start + n],
                         st.axis_error_deg[start : start + n],
+                        tip_speeds(s, job),
                     ]
                 )
                 for row in table:
@@ -125,7 +138,8 @@ def write_plan(outdir, plan, job, totals: dict, part_file: str | None = None) ->
                         [f"{int(v)}" for v in row[:4]]
                         + ["" if not np.isfinite(v) else f"{v:.10g}" for v in row[4:19]]
                         + [f"{int(row[19])}"]
-                        + ["" if not np.isfinite(v) else f"{v:.6g}" for v in row[20:]]
+                        + ["" if not np.isfinite(v) else f"{v:.6g}" for v in row[20:22]]
+                        + [f"{row[22]:.6g}"]
                     )
                     handle.write(",".join(cells) + "\n")
                 start += n

@@ -11,7 +11,16 @@ from sprayplan.config import PathConfig
 from sprayplan.paths import cloudprep
 from sprayplan.paths import polyline as pl
 from sprayplan.paths.cloud_slicing import neighbour_triangle_normals, plane_fit_normals, slice_cloud
-from sprayplan.paths.planner import Piece, _section_pieces, covariance, layer_offsets, slicing_frame
+from sprayplan.paths.planner import (
+    Piece,
+    _section_pieces,
+    covariance,
+    edge_pass_counts,
+    layer_offsets,
+    layer_spacing,
+    slicing_frame,
+    with_edge_passes,
+)
 from sprayplan.surface import normals as nm
 from sprayplan.types import Part
 
@@ -89,8 +98,9 @@ def cloud_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
             line_n = nm.orient_like(fitted, normals[near].mean(axis=1))
             pieces.extend(_section_pieces(line, line_n, closed, travel, config))
         layers.append(pieces)
-    log.info("%s: %d cloud layers, slab +-%.3g mm", part.name, len(layers), slab)
-    return layers
+    counts = edge_pass_counts(lo, hi, offsets, config, samples, distance)
+    log.info("%s: %d cloud layers, slab +-%.3g mm, edge passes %d + %d", part.name, len(layers), slab, *counts)
+    return with_edge_passes(layers, plane_normal, counts, layer_spacing(lo, hi, config), config)
 
 
 def _is_closed(line: np.ndarray, gap: float) -> bool:

@@ -10,6 +10,7 @@ gaps narrower than the spray diameter and split at wider ones -> lead-in / lead-
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from dataclasses import dataclass
 
@@ -35,6 +36,10 @@ MIN_PLANE_STEP = 0.25
 #: With ``direction="auto"``, a part whose two largest principal variances are within this ratio has no clear
 #: longest axis; its strokes then follow the nearest coordinate axis.
 SQUARE_RATIO = 1.1
+
+#: An end of a stroke whose normals turn more than this (degrees) from the face's within ``rim_mm`` is a rim
+#: (a hemmed or rolled edge) and is not followed (:func:`rim_lengths`).
+RIM_ANGLE_DEG = 45.0
 
 #: Section pieces shorter than this (mm) are dropped: a plane grazing a corner.
 MIN_PIECE_MM = 1.0
@@ -167,24 +172,30 @@ def mesh_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
     vertex_n = nm.vertex_normals(part.vertices, faces, face_n)
     normal, travel = slicing_frame(surface_covariance(part.vertices[faces]), config.direction)
     slicer = MeshSlicer(part.vertices, faces, normal, vertex_n, face_n)
-    offsets = plane_offsets(slicer, config)
+    lo, hi = slicer.range
+    d = config.spacing
+
+    def samples(offset):
+        return _section_samples(slicer, offset, d / 10)
+
+    def distance(query, offset):
+        return _median_distance(query, slicer, offset)
+
+    offsets = layer_offsets(lo, hi, config, samples, distance)
     layers = []
     for offset in offsets:
         pieces = []
         for section in slicer.section(offset):
             pieces.extend(_section_pieces(section.points, section.normals, section.closed, travel, config))
         layers.append(pieces)
-    log.info("%s: %d layers along (%.3f, %.3f, %.3f)", part.name, len(layers), *normal)
-    return layers
+    counts = edge_pass_counts(lo, hi, offsets, config, samples, distance)
+    log.info("%s: %d layers along (%.3f, %.3f, %.3f), edge passes %d + %d", part.name, len(layers), *normal, *counts)
+    return with_edge_passes(layers, normal, counts, layer_spacing(lo, hi, config), config)
 
 
-def plane_offsets(slicer: MeshSlicer, config: PathConfig) -> list[float]:
-    """Offsets of the slicing planes along the slicer's normal."""
-    lo, hi = slicer.range
-    d = config.spacing
-    return layer_offsets(
-        lo, hi, config, lambda o: _section_samples(slicer, o, d / 10), lambda q, o: _median_distance(q, slicer, o)
-    )
+def layer_spacing(lo: float, hi: float, config: PathConfig) -> float:
+    """The distance between adjacent layers: the spacing, or the slice width with ``layers``."""
+    return (hi - lo) / config.layers if config.layers is not None else config.spacing
 
 
 def layer_offsets(lo: float, hi: float, config: PathConfig, samples, distance) -> list[float]:
@@ -201,17 +212,20 @@ def layer_offsets(lo: float, hi: float, config: PathConfig, samples, distance) -
     if config.spacing_mode == "uniform" or span <= d:
         count = max(1, int(np.ceil(span / d)))
         return list((lo + hi) / 2 - (count - 1) * d / 2 + d * np.arange(count))
-    return march_offsets(lo, hi, d, samples, distance)
+    return march_offsets(lo, hi, d, samples, distance, close=config.edge_passes == 0)
 
 
-def march_offsets(lo: float, hi: float, d: float, samples, distance) -> list[float]:
+def march_offsets(lo: float, hi: float, d: float, samples, distance, close: bool = True) -> list[float]:
     """Plane offsets such that each section lies ``d`` from the previous one, measured on the part.
 
     The first plane is ``d / 2`` in from the lowest offset; each next offset is found by root finding
-    (Brent's method, to 0.1% of d) on the median distance from the current section's points to the next
-    section, which is at least the planes' distance, so the root lies within one spacing. The planes move by
-    at least ``MIN_PLANE_STEP * d``. The last layer is added only when more than half a spacing of the part
-    would otherwise be left.
+    (Brent's method, to 0.1% of d) on the gap between the current section and the next: the smaller of the
+    median distance from the current section's points to the next section and the median distance back
+    (where the part's outline narrows, the far ends of the longer section would make the one-way distance
+    too large). The gap is at least the planes' distance, so the root lies within one spacing. The planes move by
+    at least ``MIN_PLANE_STEP * d``. With ``close``, a last layer at the far edge (closer than ``d``) is added
+    when more than half a spacing of the part would otherwise be left; without, the march stops at the last
+    layer a whole spacing from the previous one (edge passes then carry on past the edge).
 
     Parameters
     ----------
@@ -228,26 +242,105 @@ def march_offsets(lo: float, hi: float, d: float, samples, distance) -> list[flo
     offsets = [lo + min(d / 2, (hi - lo) / 2)]
     while True:
         current = samples(offsets[-1])
+
+        def gap(o, q=current, here=offsets[-1]):
+            ahead = distance(q, o)
+            there = samples(o)
+            return min(ahead, distance(there, here)) if len(there) else ahead
+
         clamped = offsets[-1] + d > hi - eps
         upper = min(offsets[-1] + d, hi - eps)
         if len(current) == 0 or upper <= offsets[-1] + eps:
             break
-        gap_at_upper = distance(current, upper)
+        gap_at_upper = gap(upper)
         if gap_at_upper <= d * (1.0 + 1e-6):
             if not clamped:  # the surface is square to the planes here: one plane step is one spacing
                 offsets.append(upper)
                 continue
             # the rest of the part is closer than one spacing: one more layer only if over half is left
-            if gap_at_upper > d / 2:
+            if close and gap_at_upper > d / 2:
                 offsets.append(upper)
             break
         lower = min(offsets[-1] + MIN_PLANE_STEP * d, upper)
-        if distance(current, lower) >= d:
+        if gap(lower) >= d:
             # the surface runs nearly parallel to the planes here: do not crawl, take the smallest step
             offsets.append(lower)
             continue
-        offsets.append(float(brentq(lambda o, q=current: distance(q, o) - d, lower, upper, xtol=1e-3 * d)))
+        offsets.append(float(brentq(lambda o: gap(o) - d, lower, upper, xtol=1e-3 * d)))
     return offsets
+
+
+def edge_pass_counts(lo: float, hi: float, offsets, config: PathConfig, samples, distance) -> tuple[int, int]:
+    """How many edge passes go past the first and past the last layer (``config.edge_passes``).
+
+    ``auto``: a pass ``j`` spacings out from an outer layer that lies ``s`` from the part's edge (measured on
+    the part: the median distance from the extreme section, at the part's lowest or highest offset, to the
+    outer layer's section; at least the planes' distance) is ``j d - s`` past the edge, and still paints the
+    part while that is less than the spray radius R: ``ceil((R + s) / d) - 1`` passes.
+    """
+    if not offsets:
+        return 0, 0
+    if config.edge_passes != "auto":
+        return int(config.edge_passes), int(config.edge_passes)
+    d = layer_spacing(lo, hi, config)
+    eps = 1e-6 * max(hi - lo, 1.0)
+    counts = []
+    for outer, edge in ((offsets[0], lo + eps), (offsets[-1], hi - eps)):
+        s = abs(outer - edge)
+        at_edge = samples(edge)
+        if len(at_edge):
+            measured = distance(at_edge, outer)
+            if np.isfinite(measured):
+                s = max(s, float(measured))
+        counts.append(max(0, int(np.ceil((config.spray_radius_mm + s) / d - 1e-9)) - 1))
+    return counts[0], counts[1]
+
+
+def with_edge_passes(
+    layers: list[list[Piece]], plane_normal, counts: tuple[int, int], d: float, config: PathConfig
+) -> list[list[Piece]]:
+    """The layers with ``counts`` edge passes before the first and after the last non-empty layer.
+
+    Edge pass ``j`` of an end is the outer layer moved ``j d`` along the surface extended flat: every point
+    moves within its tangent plane, along the planes' normal (pointing away from the part) projected onto
+    that plane, and keeps its normal; the moved polyline is resampled at the step. Its points are off the
+    part (``on_part`` False).
+    """
+    filled = [k for k, pieces in enumerate(layers) if pieces]
+    if not filled:
+        return layers
+    normal = np.asarray(plane_normal, float)
+    step = dataclasses.replace(config, points_per_section=None, interpolate="none")
+    before = [_moved_layer(layers[filled[0]], -normal, j * d, step) for j in range(counts[0], 0, -1)]
+    after = [_moved_layer(layers[filled[-1]], normal, j * d, step) for j in range(1, counts[1] + 1)]
+    return before + layers + after
+
+
+def _moved_layer(pieces: list[Piece], outward: np.ndarray, distance: float, config: PathConfig) -> list[Piece]:
+    out = []
+    for piece in pieces:
+        n = piece.normals
+        direction = outward - (n @ outward)[:, None] * n
+        length = np.linalg.norm(direction, axis=1)
+        # where the surface faces along the planes' normal (the outer layer runs over a cap), move across the
+        # stroke within the tangent plane instead
+        tangent = np.gradient(piece.points, axis=0) if len(piece.points) > 1 else np.zeros_like(n)
+        across = np.cross(n, tangent)
+        across *= np.where(across @ outward < 0, -1.0, 1.0)[:, None]
+        across_len = np.linalg.norm(across, axis=1)
+        use_across = (length < 0.3) & (across_len > 1e-9)
+        direction = np.where(
+            use_across[:, None],
+            across / np.maximum(across_len, 1e-12)[:, None],
+            direction / np.maximum(length, 1e-12)[:, None],
+        )
+        direction = np.where(((length < 1e-9) & ~use_across)[:, None], outward, direction)
+        points = piece.points + distance * direction
+        if len(points) < 2 or pl.polyline_length(points, closed=piece.closed) < MIN_PIECE_MM:
+            continue
+        moved = resample_piece(points, n, piece.closed, config)
+        out.append(Piece(moved.points, moved.normals, np.zeros(len(moved.points), bool), piece.closed))
+    return out
 
 
 def _section_samples(slicer: MeshSlicer, offset: float, step: float) -> np.ndarray:
@@ -338,7 +431,11 @@ def resample_piece(points, normals, closed, config: PathConfig) -> Piece:
             dense, dense_n = dense[:-1], dense_n[:-1]
         on_part = cKDTree(new).query(dense)[0] == 0.0
         new, n = dense, dense_n
-    return Piece(new, n, on_part, closed)
+    # a plane through a mesh vertex gives repeated section points: keep one of each run
+    keep = np.concatenate([[True], np.linalg.norm(np.diff(new, axis=0), axis=1) > 1e-9])
+    if closed and len(new) > 1 and keep.sum() > 1 and np.linalg.norm(new[-1] - new[0]) <= 1e-9:
+        keep[-1] = False
+    return Piece(new[keep], n[keep], on_part[keep], closed)
 
 
 # ----------------------------------------------------------------------------------------------- strokes
@@ -401,24 +498,74 @@ def _join_gaps(pieces: list[Piece], config: PathConfig) -> list[Piece]:
 
 
 def _with_margins(piece: Piece, config: PathConfig) -> Stroke:
-    """A stroke from a piece: lead-in and lead-out along the end tangents (open pieces), and the tcp."""
+    """A stroke from a piece: lead-in and lead-out along the end tangents (open pieces), and the tcp.
+
+    An end that turns over (a rim: see :func:`rim_lengths`) is not followed: the stroke leaves the face
+    along its tangent and the lead goes on past the rim's edge by the margin, so that the face is painted up
+    to its edge as a flat panel would be, instead of the gun swinging round the rim.
+    """
     points, normals, on_part = piece.points, piece.normals, piece.on_part
     if piece.closed:
         points = np.vstack([points, points[:1]])
         normals = np.vstack([normals, normals[:1]])
         on_part = np.concatenate([on_part, on_part[:1]])
-    elif config.margin > 0 and len(points) >= 2:
-        count = max(1, int(np.ceil(config.margin / config.step_mm)))
-        s = config.margin * np.arange(count, 0, -1) / count
-        t0 = nm.unit((points[0] - points[1])[None])[0]
-        t1 = nm.unit((points[-1] - points[-2])[None])[0]
-        lead_in = points[0] + s[:, None] * t0
-        lead_out = points[-1] + s[::-1, None] * t1
+    else:
+        # pieces split at a feature point and joined again share that point: keep one of each repeat
+        keep = np.concatenate([[True], np.linalg.norm(np.diff(points, axis=0), axis=1) > 1e-9])
+        points, normals, on_part = points[keep], normals[keep], on_part[keep]
+    if not piece.closed and len(points) >= 2:
+        head, tail = rim_lengths(points, normals, config.rim)
+        keep = slice(head, len(points) - tail)
+        inner = points[keep]
+        t0 = nm.unit((inner[0] - inner[1])[None])[0]
+        t1 = nm.unit((inner[-1] - inner[-2])[None])[0]
+        # how far the cut-off rims reach along the leads
+        past0 = max(0.0, float(((points[:head] - inner[0]) @ t0).max())) if head else 0.0
+        past1 = max(0.0, float(((points[len(points) - tail :] - inner[-1]) @ t1).max())) if tail else 0.0
+        normals, on_part, points = normals[keep], on_part[keep], inner
+        lead_in = _lead(points[0], t0, config.margin + past0 if config.margin > 0 else past0, config.step_mm)[::-1]
+        lead_out = _lead(points[-1], t1, config.margin + past1 if config.margin > 0 else past1, config.step_mm)
         points = np.vstack([lead_in, points, lead_out])
-        normals = np.vstack([np.repeat(normals[:1], count, 0), normals, np.repeat(normals[-1:], count, 0)])
-        on_part = np.concatenate([np.zeros(count, bool), on_part, np.zeros(count, bool)])
+        normals = np.vstack(
+            [np.repeat(normals[:1], len(lead_in), 0), normals, np.repeat(normals[-1:], len(lead_out), 0)]
+        )
+        on_part = np.concatenate([np.zeros(len(lead_in), bool), on_part, np.zeros(len(lead_out), bool)])
     tcp = points + config.standoff_mm * normals
     return Stroke(points, normals, tcp, True, on_part)
+
+
+def _lead(start: np.ndarray, direction: np.ndarray, length: float, step: float) -> np.ndarray:
+    """Points from (not including) ``start`` out to ``length`` along ``direction``, about ``step`` apart."""
+    if length <= 0:
+        return np.zeros((0, 3))
+    count = max(1, int(np.ceil(length / step)))
+    return start + (length * np.arange(1, count + 1) / count)[:, None] * direction
+
+
+def rim_lengths(points: np.ndarray, normals: np.ndarray, rim_mm: float) -> tuple[int, int]:
+    """How many points at the start and at the end of a piece belong to a rim.
+
+    A rim is an end stretch, at most ``rim_mm`` long, whose normals turn more than ``RIM_ANGLE_DEG`` away
+    from the normal ``rim_mm`` in from the end: a hemmed or rolled edge, or the side of a thin panel. The
+    reference point must lie on the piece, and at least two points are always kept.
+    """
+    n = len(points)
+    if rim_mm <= 0 or n < 4:
+        return 0, 0
+    cos_max = np.cos(np.radians(RIM_ANGLE_DEG))
+    out = []
+    for pts, nrm in ((points, normals), (points[::-1], normals[::-1])):
+        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+        ref = int(np.searchsorted(arc, rim_mm))
+        if ref >= n - 2:
+            out.append(0)
+            continue
+        turned = np.flatnonzero(nrm[:ref] @ nrm[ref] < cos_max)
+        out.append(int(turned[-1]) + 1 if len(turned) else 0)
+    head, tail = out
+    if head + tail > n - 2:
+        return 0, 0
+    return head, tail
 
 
 def transfer(a: Stroke, b: Stroke, config: PathConfig) -> Stroke:
