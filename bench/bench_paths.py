@@ -82,7 +82,9 @@ def main(argv=None) -> int:
     print("|---|---|---|---|---|---|")
     for name, results in rows.items():
         med = {k: statistics.median(r[k] for r in results) for k in results[0]}
-        print(f"| {name} | {med['size']:.0f} | {med['time_s']:.2f} | {med['peak_mb']:.0f} | {med['strokes']:.0f} | {med['spray_m']:.1f} |")
+        print(
+            f"| {name} | {med['size']:.0f} | {med['time_s']:.2f} | {med['peak_mb']:.0f} | {med['strokes']:.0f} | {med['spray_m']:.1f} |"
+        )
     mesh = statistics.median(r["time_s"] for r in rows["reach part mesh, 4k faces, 50 mm"])
     cloud = statistics.median(r["time_s"] for r in rows["reach part as a 3 mm cloud, 50 mm"])
     print(f"\ncloud slicing / mesh slicing on the reach part: {cloud / mesh:.1f}x the time")

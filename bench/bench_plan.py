@@ -46,7 +46,9 @@ def end_to_end(repeat: int) -> None:
                 start = time.perf_counter()
                 out = subprocess.run(
                     [sys.executable, "-m", "sprayplan", "plan", *args, "-o", f"{tmp}/out"],
-                    check=True, capture_output=True, text=True,
+                    check=True,
+                    capture_output=True,
+                    text=True,
                 )
                 times.append(time.perf_counter() - start)
                 summary = out.stdout.strip().split(" -> ")[0]
@@ -66,7 +68,9 @@ def station_tours() -> None:
     job = JobConfig(load=LoadConfig(region=DEMO_REGION), plan=PlanConfig(mode="points", tour="keep"))
     result = plan(roof, job)
     params = GAParams(population=200, generations=2000)
-    print("| station | targets | GA length mm | default length mm | GA / default length | GA s | default s | GA / default time |")
+    print(
+        "| station | targets | GA length mm | default length mm | GA / default length | GA s | default s | GA / default time |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     for st in result.stations:
         tcp = np.vstack([s.tcp for s in st.strokes if s.spray_on])
@@ -76,8 +80,10 @@ def station_tours() -> None:
         start = time.perf_counter()
         default = solve_tour(tcp, method="auto", closed=False, seed=0)
         auto_s = time.perf_counter() - start
-        print(f"| {st.index} | {len(tcp)} | {ga.length:.0f} | {default.length:.0f} | {ga.length / default.length:.3f} | "
-              f"{ga_s:.2f} | {auto_s:.2f} | {ga_s / auto_s:.1f} |")
+        print(
+            f"| {st.index} | {len(tcp)} | {ga.length:.0f} | {default.length:.0f} | {ga.length / default.length:.3f} | "
+            f"{ga_s:.2f} | {auto_s:.2f} | {ga_s / auto_s:.1f} |"
+        )
 
 
 def main(argv=None) -> int:

@@ -80,21 +80,35 @@ def main(argv=None) -> int:
     rows = {}
     for _ in range(args.repeat):  # interleave the methods so machine load affects all alike
         for method in METHODS:
-            cmd = [sys.executable, __file__, "--part", args.part, "--units", args.units,
-                   "--spacing-mm", str(args.spacing_mm), "--one", method]
+            cmd = [
+                sys.executable,
+                __file__,
+                "--part",
+                args.part,
+                "--units",
+                args.units,
+                "--spacing-mm",
+                str(args.spacing_mm),
+                "--one",
+                method,
+            ]
             result = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
             rows.setdefault(method, []).append(result)
     first = next(iter(rows.values()))[0]
-    print(f"part {Path(args.part).name}: {first['area_m2']:.3f} m^2, spacing {args.spacing_mm} mm, "
-          f"{args.repeat} runs each, medians; load {statistics.median(r['load_s'] for v in rows.values() for r in v):.2f} s")
+    print(
+        f"part {Path(args.part).name}: {first['area_m2']:.3f} m^2, spacing {args.spacing_mm} mm, "
+        f"{args.repeat} runs each, medians; load {statistics.median(r['load_s'] for v in rows.values() for r in v):.2f} s"
+    )
     base = statistics.median(r["time_s"] for r in rows["even + face normals"])
     print("| method | points | time s | time / even | peak MB | NN mean / d | NN CV | gap p99 / d |")
     print("|---|---|---|---|---|---|---|---|")
     for method, results in rows.items():
         med = {k: statistics.median(r[k] for r in results) for k in results[0]}
-        print(f"| {method} | {med['points']:.0f} | {med['time_s']:.2f} | {med['time_s'] / base:.2f} | "
-              f"{med['peak_mb']:.0f} | {med['nn_mean_over_spacing']:.2f} | {med['nn_cv']:.3f} | "
-              f"{med['gap_p99_over_spacing']:.2f} |")
+        print(
+            f"| {method} | {med['points']:.0f} | {med['time_s']:.2f} | {med['time_s'] / base:.2f} | "
+            f"{med['peak_mb']:.0f} | {med['nn_mean_over_spacing']:.2f} | {med['nn_cv']:.3f} | "
+            f"{med['gap_p99_over_spacing']:.2f} |"
+        )
     return 0
 
 
