@@ -11,16 +11,9 @@ from sprayplan.config import PathConfig
 from sprayplan.paths import cloudprep
 from sprayplan.paths import polyline as pl
 from sprayplan.paths.cloud_slicing import neighbour_triangle_normals, plane_fit_normals, slice_cloud
-from sprayplan.paths.planner import (
-    Piece,
-    _section_pieces,
-    covariance,
-    edge_pass_counts,
-    layer_offsets,
-    layer_spacing,
-    slicing_frame,
-    with_edge_passes,
-)
+from sprayplan.paths.edges import edge_pass_counts, layer_spacing, with_edge_passes
+from sprayplan.paths.pieces import Piece
+from sprayplan.paths.planner import _section_pieces, covariance, layer_offsets, slicing_frame
 from sprayplan.surface import normals as nm
 from sprayplan.types import Part
 

@@ -10,9 +10,7 @@ gaps narrower than the spray diameter and split at wider ones -> lead-in / lead-
 
 from __future__ import annotations
 
-import dataclasses
 import logging
-from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import brentq
@@ -21,7 +19,8 @@ from scipy.spatial import cKDTree
 from sprayplan.config import PathConfig
 from sprayplan.errors import InputError
 from sprayplan.paths import polyline as pl
-from sprayplan.paths.interpolation import interpolate_with_normals
+from sprayplan.paths.edges import edge_pass_counts, layer_spacing, rim_lengths, with_edge_passes
+from sprayplan.paths.pieces import MIN_PIECE_MM, Piece, resample_piece
 from sprayplan.paths.slicing import MeshSlicer
 from sprayplan.surface import normals as nm
 from sprayplan.types import Part, Paths, Stroke
@@ -37,24 +36,7 @@ MIN_PLANE_STEP = 0.25
 #: longest axis; its strokes then follow the nearest coordinate axis.
 SQUARE_RATIO = 1.1
 
-#: An end of a stroke whose normals turn more than this (degrees) from the face's within ``rim_mm`` is a rim
-#: (a hemmed or rolled edge) and is not followed (:func:`rim_lengths`).
-RIM_ANGLE_DEG = 45.0
-
-#: Section pieces shorter than this (mm) are dropped: a plane grazing a corner.
-MIN_PIECE_MM = 1.0
-
 AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
-
-
-@dataclass(frozen=True)
-class Piece:
-    """A stretch of one section, resampled: the raw material of a stroke."""
-
-    points: np.ndarray
-    normals: np.ndarray
-    on_part: np.ndarray
-    closed: bool
 
 
 def covariance(points: np.ndarray) -> np.ndarray:
@@ -193,11 +175,6 @@ def mesh_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
     return with_edge_passes(layers, normal, counts, layer_spacing(lo, hi, config), config)
 
 
-def layer_spacing(lo: float, hi: float, config: PathConfig) -> float:
-    """The distance between adjacent layers: the spacing, or the slice width with ``layers``."""
-    return (hi - lo) / config.layers if config.layers is not None else config.spacing
-
-
 def layer_offsets(lo: float, hi: float, config: PathConfig, samples, distance) -> list[float]:
     """Plane offsets over a part spanning [lo, hi] along the planes' normal, as ``config`` asks.
 
@@ -270,79 +247,6 @@ def march_offsets(lo: float, hi: float, d: float, samples, distance, close: bool
     return offsets
 
 
-def edge_pass_counts(lo: float, hi: float, offsets, config: PathConfig, samples, distance) -> tuple[int, int]:
-    """How many edge passes go past the first and past the last layer (``config.edge_passes``).
-
-    ``auto``: a pass ``j`` spacings out from an outer layer that lies ``s`` from the part's edge (measured on
-    the part: the median distance from the extreme section, at the part's lowest or highest offset, to the
-    outer layer's section; at least the planes' distance) is ``j d - s`` past the edge, and still paints the
-    part while that is less than the spray radius R: ``ceil((R + s) / d) - 1`` passes.
-    """
-    if not offsets:
-        return 0, 0
-    if config.edge_passes != "auto":
-        return int(config.edge_passes), int(config.edge_passes)
-    d = layer_spacing(lo, hi, config)
-    eps = 1e-6 * max(hi - lo, 1.0)
-    counts = []
-    for outer, edge in ((offsets[0], lo + eps), (offsets[-1], hi - eps)):
-        s = abs(outer - edge)
-        at_edge = samples(edge)
-        if len(at_edge):
-            measured = distance(at_edge, outer)
-            if np.isfinite(measured):
-                s = max(s, float(measured))
-        counts.append(max(0, int(np.ceil((config.spray_radius_mm + s) / d - 1e-9)) - 1))
-    return counts[0], counts[1]
-
-
-def with_edge_passes(
-    layers: list[list[Piece]], plane_normal, counts: tuple[int, int], d: float, config: PathConfig
-) -> list[list[Piece]]:
-    """The layers with ``counts`` edge passes before the first and after the last non-empty layer.
-
-    Edge pass ``j`` of an end is the outer layer moved ``j d`` along the surface extended flat: every point
-    moves within its tangent plane, along the planes' normal (pointing away from the part) projected onto
-    that plane, and keeps its normal; the moved polyline is resampled at the step. Its points are off the
-    part (``on_part`` False).
-    """
-    filled = [k for k, pieces in enumerate(layers) if pieces]
-    if not filled:
-        return layers
-    normal = np.asarray(plane_normal, float)
-    step = dataclasses.replace(config, points_per_section=None, interpolate="none")
-    before = [_moved_layer(layers[filled[0]], -normal, j * d, step) for j in range(counts[0], 0, -1)]
-    after = [_moved_layer(layers[filled[-1]], normal, j * d, step) for j in range(1, counts[1] + 1)]
-    return before + layers + after
-
-
-def _moved_layer(pieces: list[Piece], outward: np.ndarray, distance: float, config: PathConfig) -> list[Piece]:
-    out = []
-    for piece in pieces:
-        n = piece.normals
-        direction = outward - (n @ outward)[:, None] * n
-        length = np.linalg.norm(direction, axis=1)
-        # where the surface faces along the planes' normal (the outer layer runs over a cap), move across the
-        # stroke within the tangent plane instead
-        tangent = np.gradient(piece.points, axis=0) if len(piece.points) > 1 else np.zeros_like(n)
-        across = np.cross(n, tangent)
-        across *= np.where(across @ outward < 0, -1.0, 1.0)[:, None]
-        across_len = np.linalg.norm(across, axis=1)
-        use_across = (length < 0.3) & (across_len > 1e-9)
-        direction = np.where(
-            use_across[:, None],
-            across / np.maximum(across_len, 1e-12)[:, None],
-            direction / np.maximum(length, 1e-12)[:, None],
-        )
-        direction = np.where(((length < 1e-9) & ~use_across)[:, None], outward, direction)
-        points = piece.points + distance * direction
-        if len(points) < 2 or pl.polyline_length(points, closed=piece.closed) < MIN_PIECE_MM:
-            continue
-        moved = resample_piece(points, n, piece.closed, config)
-        out.append(Piece(moved.points, moved.normals, np.zeros(len(moved.points), bool), piece.closed))
-    return out
-
-
 def _section_samples(slicer: MeshSlicer, offset: float, step: float) -> np.ndarray:
     """Points along the section at one offset, about ``step`` apart (at most 400), for distance estimates."""
     _, seg, _, points, _ = slicer.crossing(offset)
@@ -406,36 +310,6 @@ def _section_pieces(points, normals, closed, travel, config: PathConfig) -> list
             continue
         out.append(resample_piece(p, n, is_closed, config))
     return out
-
-
-def resample_piece(points, normals, closed, config: PathConfig) -> Piece:
-    """Arc-length resampling (003 eq. 13), then optional line / arc interpolation (003 section 3.2.3).
-
-    Resampled points lie on the section (so on the surface for a mesh) and take the normals interpolated
-    along their segment. Interpolated points between them (``config.interpolate``) follow a straight line or
-    the circle through three consecutive samples; they are marked ``on_part = False`` because a chord or an
-    arc leaves the surface between samples.
-    """
-    if config.points_per_section is not None:
-        new, seg, t = pl.resample(points, count=config.points_per_section, closed=closed)
-    else:
-        new, seg, t = pl.resample(points, step_mm=config.step_mm, closed=closed)
-    nxt = (seg + 1) % len(points)
-    n = nm.unit((1 - t)[:, None] * normals[seg] + t[:, None] * normals[nxt])
-    on_part = np.ones(len(new), dtype=bool)
-    if config.interpolate != "none" and len(new) >= 2:
-        loop_p = np.vstack([new, new[:1]]) if closed else new
-        loop_n = np.vstack([n, n[:1]]) if closed else n
-        dense, dense_n = interpolate_with_normals(loop_p, loop_n, config.step_mm, config.interpolate)
-        if closed:
-            dense, dense_n = dense[:-1], dense_n[:-1]
-        on_part = cKDTree(new).query(dense)[0] == 0.0
-        new, n = dense, dense_n
-    # a plane through a mesh vertex gives repeated section points: keep one of each run
-    keep = np.concatenate([[True], np.linalg.norm(np.diff(new, axis=0), axis=1) > 1e-9])
-    if closed and len(new) > 1 and keep.sum() > 1 and np.linalg.norm(new[-1] - new[0]) <= 1e-9:
-        keep[-1] = False
-    return Piece(new[keep], n[keep], on_part[keep], closed)
 
 
 # ----------------------------------------------------------------------------------------------- strokes
@@ -540,32 +414,6 @@ def _lead(start: np.ndarray, direction: np.ndarray, length: float, step: float) 
         return np.zeros((0, 3))
     count = max(1, int(np.ceil(length / step)))
     return start + (length * np.arange(1, count + 1) / count)[:, None] * direction
-
-
-def rim_lengths(points: np.ndarray, normals: np.ndarray, rim_mm: float) -> tuple[int, int]:
-    """How many points at the start and at the end of a piece belong to a rim.
-
-    A rim is an end stretch, at most ``rim_mm`` long, whose normals turn more than ``RIM_ANGLE_DEG`` away
-    from the normal ``rim_mm`` in from the end: a hemmed or rolled edge, or the side of a thin panel. The
-    reference point must lie on the piece, and at least two points are always kept.
-    """
-    n = len(points)
-    if rim_mm <= 0 or n < 4:
-        return 0, 0
-    cos_max = np.cos(np.radians(RIM_ANGLE_DEG))
-    out = []
-    for pts, nrm in ((points, normals), (points[::-1], normals[::-1])):
-        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
-        ref = int(np.searchsorted(arc, rim_mm))
-        if ref >= n - 2:
-            out.append(0)
-            continue
-        turned = np.flatnonzero(nrm[:ref] @ nrm[ref] < cos_max)
-        out.append(int(turned[-1]) + 1 if len(turned) else 0)
-    head, tail = out
-    if head + tail > n - 2:
-        return 0, 0
-    return head, tail
 
 
 def transfer(a: Stroke, b: Stroke, config: PathConfig) -> Stroke:

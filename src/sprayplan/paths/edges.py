@@ -1,0 +1,125 @@
+"""The part's edges: extra passes past the edges that run with the strokes, and rims the strokes do not follow.
+
+A film tapers where the spray stops: along the first and the last layer (half the neighbouring strokes are
+missing) and where a stroke swings round a rolled edge. Edge passes carry the layers on past the part, the
+spacing apart on the surface extended flat; rims are cut from the strokes' ends, which then leave the face
+along its tangent (``planner._with_margins``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from sprayplan.config import PathConfig
+from sprayplan.paths import polyline as pl
+from sprayplan.paths.pieces import MIN_PIECE_MM, Piece, resample_piece
+
+#: An end of a stroke whose normals turn more than this (degrees) from the face's within ``rim_mm`` is a rim
+#: (a hemmed or rolled edge) and is not followed (:func:`rim_lengths`).
+RIM_ANGLE_DEG = 45.0
+
+
+def layer_spacing(lo: float, hi: float, config: PathConfig) -> float:
+    """The distance between adjacent layers: the spacing, or the slice width with ``layers``."""
+    return (hi - lo) / config.layers if config.layers is not None else config.spacing
+
+
+def edge_pass_counts(lo: float, hi: float, offsets, config: PathConfig, samples, distance) -> tuple[int, int]:
+    """How many edge passes go past the first and past the last layer (``config.edge_passes``).
+
+    ``auto``: a pass ``j`` spacings out from an outer layer that lies ``s`` from the part's edge (measured on
+    the part: the median distance from the extreme section, at the part's lowest or highest offset, to the
+    outer layer's section; at least the planes' distance) is ``j d - s`` past the edge, and still paints the
+    part while that is less than the spray radius R: ``ceil((R + s) / d) - 1`` passes.
+    """
+    if not offsets:
+        return 0, 0
+    if config.edge_passes != "auto":
+        return int(config.edge_passes), int(config.edge_passes)
+    d = layer_spacing(lo, hi, config)
+    eps = 1e-6 * max(hi - lo, 1.0)
+    counts = []
+    for outer, edge in ((offsets[0], lo + eps), (offsets[-1], hi - eps)):
+        s = abs(outer - edge)
+        at_edge = samples(edge)
+        if len(at_edge):
+            measured = distance(at_edge, outer)
+            if np.isfinite(measured):
+                s = max(s, float(measured))
+        counts.append(max(0, int(np.ceil((config.spray_radius_mm + s) / d - 1e-9)) - 1))
+    return counts[0], counts[1]
+
+
+def with_edge_passes(
+    layers: list[list[Piece]], plane_normal, counts: tuple[int, int], d: float, config: PathConfig
+) -> list[list[Piece]]:
+    """The layers with ``counts`` edge passes before the first and after the last non-empty layer.
+
+    Edge pass ``j`` of an end is the outer layer moved ``j d`` along the surface extended flat: every point
+    moves within its tangent plane, along the planes' normal (pointing away from the part) projected onto
+    that plane, and keeps its normal; the moved polyline is resampled at the step. Its points are off the
+    part (``on_part`` False).
+    """
+    filled = [k for k, pieces in enumerate(layers) if pieces]
+    if not filled:
+        return layers
+    normal = np.asarray(plane_normal, float)
+    step = dataclasses.replace(config, points_per_section=None, interpolate="none")
+    before = [_moved_layer(layers[filled[0]], -normal, j * d, step) for j in range(counts[0], 0, -1)]
+    after = [_moved_layer(layers[filled[-1]], normal, j * d, step) for j in range(1, counts[1] + 1)]
+    return before + layers + after
+
+
+def _moved_layer(pieces: list[Piece], outward: np.ndarray, distance: float, config: PathConfig) -> list[Piece]:
+    out = []
+    for piece in pieces:
+        n = piece.normals
+        direction = outward - (n @ outward)[:, None] * n
+        length = np.linalg.norm(direction, axis=1)
+        # where the surface faces along the planes' normal (the outer layer runs over a cap), move across the
+        # stroke within the tangent plane instead
+        tangent = np.gradient(piece.points, axis=0) if len(piece.points) > 1 else np.zeros_like(n)
+        across = np.cross(n, tangent)
+        across *= np.where(across @ outward < 0, -1.0, 1.0)[:, None]
+        across_len = np.linalg.norm(across, axis=1)
+        use_across = (length < 0.3) & (across_len > 1e-9)
+        direction = np.where(
+            use_across[:, None],
+            across / np.maximum(across_len, 1e-12)[:, None],
+            direction / np.maximum(length, 1e-12)[:, None],
+        )
+        direction = np.where(((length < 1e-9) & ~use_across)[:, None], outward, direction)
+        points = piece.points + distance * direction
+        if len(points) < 2 or pl.polyline_length(points, closed=piece.closed) < MIN_PIECE_MM:
+            continue
+        moved = resample_piece(points, n, piece.closed, config)
+        out.append(Piece(moved.points, moved.normals, np.zeros(len(moved.points), bool), piece.closed))
+    return out
+
+
+def rim_lengths(points: np.ndarray, normals: np.ndarray, rim_mm: float) -> tuple[int, int]:
+    """How many points at the start and at the end of a piece belong to a rim.
+
+    A rim is an end stretch, at most ``rim_mm`` long, whose normals turn more than ``RIM_ANGLE_DEG`` away
+    from the normal ``rim_mm`` in from the end: a hemmed or rolled edge, or the side of a thin panel. The
+    reference point must lie on the piece, and at least two points are always kept.
+    """
+    n = len(points)
+    if rim_mm <= 0 or n < 4:
+        return 0, 0
+    cos_max = np.cos(np.radians(RIM_ANGLE_DEG))
+    out = []
+    for pts, nrm in ((points, normals), (points[::-1], normals[::-1])):
+        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+        ref = int(np.searchsorted(arc, rim_mm))
+        if ref >= n - 2:
+            out.append(0)
+            continue
+        turned = np.flatnonzero(nrm[:ref] @ nrm[ref] < cos_max)
+        out.append(int(turned[-1]) + 1 if len(turned) else 0)
+    head, tail = out
+    if head + tail > n - 2:
+        return 0, 0
+    return head, tail

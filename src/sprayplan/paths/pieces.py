@@ -1,0 +1,56 @@
+"""Pieces of sections: stretches of one slicing layer, resampled, the raw material of strokes."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from sprayplan.config import PathConfig
+from sprayplan.paths import polyline as pl
+from sprayplan.paths.interpolation import interpolate_with_normals
+from sprayplan.surface import normals as nm
+
+#: Section pieces shorter than this (mm) are dropped: a plane grazing a corner.
+MIN_PIECE_MM = 1.0
+
+
+@dataclass(frozen=True)
+class Piece:
+    """A stretch of one section, resampled: the raw material of a stroke."""
+
+    points: np.ndarray
+    normals: np.ndarray
+    on_part: np.ndarray
+    closed: bool
+
+
+def resample_piece(points, normals, closed, config: PathConfig) -> Piece:
+    """Arc-length resampling (003 eq. 13), then optional line / arc interpolation (003 section 3.2.3).
+
+    Resampled points lie on the section (so on the surface for a mesh) and take the normals interpolated
+    along their segment. Interpolated points between them (``config.interpolate``) follow a straight line or
+    the circle through three consecutive samples; they are marked ``on_part = False`` because a chord or an
+    arc leaves the surface between samples.
+    """
+    if config.points_per_section is not None:
+        new, seg, t = pl.resample(points, count=config.points_per_section, closed=closed)
+    else:
+        new, seg, t = pl.resample(points, step_mm=config.step_mm, closed=closed)
+    nxt = (seg + 1) % len(points)
+    n = nm.unit((1 - t)[:, None] * normals[seg] + t[:, None] * normals[nxt])
+    on_part = np.ones(len(new), dtype=bool)
+    if config.interpolate != "none" and len(new) >= 2:
+        loop_p = np.vstack([new, new[:1]]) if closed else new
+        loop_n = np.vstack([n, n[:1]]) if closed else n
+        dense, dense_n = interpolate_with_normals(loop_p, loop_n, config.step_mm, config.interpolate)
+        if closed:
+            dense, dense_n = dense[:-1], dense_n[:-1]
+        on_part = cKDTree(new).query(dense)[0] == 0.0
+        new, n = dense, dense_n
+    # a plane through a mesh vertex gives repeated section points: keep one of each run
+    keep = np.concatenate([[True], np.linalg.norm(np.diff(new, axis=0), axis=1) > 1e-9])
+    if closed and len(new) > 1 and keep.sum() > 1 and np.linalg.norm(new[-1] - new[0]) <= 1e-9:
+        keep[-1] = False
+    return Piece(new[keep], n[keep], on_part[keep], closed)
