@@ -246,7 +246,7 @@ def test_occluded_points_get_nothing(method):
     result = simulate(
         part, Paths(tuple(strokes), 113.0, 40.0), Process(PATTERNS["parabolic"]), config=CoatingConfig(occlusion=method)
     )
-    v = part.vertices
+    v = result.points
     low = v[:, 2] == 0.0
     shadow = low & (v[:, 0] < -20) & (v[:, 0] > -160) & (np.abs(v[:, 1]) < 40)  # seen from no gun position
     lit = low & (v[:, 0] > 20) & (np.abs(v[:, 1]) < 40)
@@ -507,3 +507,53 @@ def test_targets_instead_of_vertices_are_hidden_too():
     targets = Targets(pts, np.tile([0.0, 0.0, 1.0], (3, 1)))
     result = simulate(part, Paths(strokes, 113.0, 40.0), Process(PATTERNS["parabolic"]), targets=targets)
     assert result.thickness_mm[0] == 0.0 and result.thickness_mm[1] > 0 and result.thickness_mm[2] > 0
+
+
+# ----------------------------------------------------------------------------------------- surface samples
+
+
+def test_a_coarse_mesh_is_split_finely_enough_for_the_film():
+    from sprayplan.coating.sampling import surface_samples
+
+    # a 400 x 300 panel of two triangles: its four corners alone cannot say how much of it is in spec
+    panel = Part(np.array([[0, 0, 0], [400, 0, 0], [400, 300, 0], [0, 300, 0.0]]), np.array([[0, 1, 2], [0, 2, 3]]))
+    samples = surface_samples(panel, max_edge_mm=10.0)
+    edges = samples.points[samples.faces] - samples.points[np.roll(samples.faces, 1, axis=1)]
+    assert np.linalg.norm(edges, axis=2).max() <= 10.0 + 1e-9
+    assert samples.area_mm2.sum() == pytest.approx(400 * 300)
+    assert len(np.unique(samples.points.round(6), axis=0)) == len(samples.points)  # shared vertices merged
+    np.testing.assert_allclose(samples.normals, [[0, 0, 1.0]] * len(samples.points), atol=1e-12)
+    # on a coarse curved mesh the new vertices take the original vertex normals, interpolated: a cylinder of
+    # radius 200 in 12 facets keeps normals within the facets' span and of unit length
+    angle = np.linspace(0, np.pi / 2, 13)
+    ring = np.stack([200 * np.sin(angle), np.zeros(13), 200 * np.cos(angle)], 1)
+    vertices = np.vstack([ring, ring + [0, 300, 0]])
+    faces = np.array([[i, i + 13, i + 1] for i in range(12)] + [[i + 1, i + 13, i + 14] for i in range(12)])
+    cylinder = Part(vertices, faces)
+    curved = surface_samples(cylinder, max_edge_mm=10.0)
+    original = surface_samples(cylinder, max_edge_mm=0.0).normals
+    np.testing.assert_allclose(np.linalg.norm(curved.normals, axis=1), 1.0)
+    # along the first ring's chords the normal is the linear blend of the two end vertices' normals
+    edge = np.flatnonzero(np.abs(curved.points[:, 1]) < 1e-9)
+    assert len(edge) > 12 * 4
+    for k in edge:
+        p = curved.points[k]
+        i = min(int(np.searchsorted(angle, np.arctan2(p[0], p[2]), side="right")) - 1, 11)
+        t = np.linalg.norm(p - ring[i]) / np.linalg.norm(ring[i + 1] - ring[i])
+        blend = (1 - t) * original[i] + t * original[i + 1]
+        np.testing.assert_allclose(curved.normals[k], blend / np.linalg.norm(blend), atol=1e-9)
+    assert surface_samples(panel, max_edge_mm=0.0).points.shape == (4, 3)
+
+
+def test_film_statistics_on_a_coarse_panel_match_a_fine_one():
+    process = load_preset("seed000_circle")
+    choice = choose_spacing_and_speed(process, 50.0)
+    process = process.with_(speed_mm_s=choice.speed_mm_s)
+    coarse = Part(np.array([[0, 0, 0], [600, 0, 0], [600, 400, 0], [0, 400, 0.0]]), np.array([[0, 1, 2], [0, 2, 3]]))
+    fine = plate(0.0, 600.0, 0.0, 400.0, 5.0)
+    config = PathConfig(spacing_mm=choice.spacing_mm, direction="y", edge_passes=0)
+    paths = plan_paths(fine, config)
+    a = coating_report(simulate(coarse, paths, process, config=CoatingConfig(occlusion="none", sample_edge_mm=5.0)))
+    b = coating_report(simulate(fine, paths, process, config=CoatingConfig(occlusion="none", sample_edge_mm=0.0)))
+    for key in ("mean_um", "share_in_spec", "cv"):
+        assert a["all"][key] == pytest.approx(b["all"][key], rel=0.02, abs=0.005)

@@ -71,7 +71,7 @@ class GunSamples:
     stroke: np.ndarray
 
 
-def surface_samples(part: Part, targets: Targets | None = None) -> SurfaceSamples:
+def surface_samples(part: Part, targets: Targets | None = None, max_edge_mm: float = 0.0) -> SurfaceSamples:
     """Surface samples of a part: its mesh vertices (or cloud points), or the given targets.
 
     Parameters
@@ -80,6 +80,10 @@ def surface_samples(part: Part, targets: Targets | None = None) -> SurfaceSample
     targets : Targets, optional
         A sampling of the part to use instead of its vertices; each point stands for ``part.area / n``
         (clouds: the area estimated from the point spacing).
+    max_edge_mm : float
+        Meshes: split triangles until no edge is longer than this (0: never), so that a coarse mesh (a CAD
+        export with long thin triangles, a panel of two triangles) is sampled finely enough for the film's
+        statistics; the new vertices take the normals interpolated from the original vertices.
 
     Raises
     ------
@@ -100,11 +104,52 @@ def surface_samples(part: Part, targets: Targets | None = None) -> SurfaceSample
         )
     if part.is_mesh:
         normals = nm.vertex_normals(part.vertices, faces, face_n)
-        area = np.bincount(faces.ravel(), np.repeat(part.face_areas / 3.0, 3), len(part.vertices))
-        return SurfaceSamples(part.vertices, normals, area, faces)
+        vertices = part.vertices
+        if max_edge_mm > 0:
+            vertices, faces, normals = _subdivided(vertices, faces, normals, float(max_edge_mm))
+        tri = vertices[faces]
+        face_area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        area = np.bincount(faces.ravel(), np.repeat(face_area / 3.0, 3), len(vertices))
+        return SurfaceSamples(vertices, normals, area, faces)
     if part.vertex_normals is None:
         raise InputError(f"{part.name}: a point cloud needs normals for a coating simulation")
     return SurfaceSamples(part.vertices, part.vertex_normals, _cloud_area(part.vertices), faces)
+
+
+def _subdivided(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray, max_edge: float):
+    """A mesh split until no edge is longer than ``max_edge``, with vertex normals interpolated linearly over
+    each original triangle (shared vertices merged)."""
+    edges = vertices[faces] - vertices[np.roll(faces, 1, axis=1)]
+    if len(faces) == 0 or np.linalg.norm(edges, axis=2).max() <= max_edge:
+        return vertices, faces, normals
+    from trimesh import remesh
+
+    new_v, new_f, index = remesh.subdivide_to_size(vertices, faces, max_edge, max_iter=30, return_index=True)
+    scale = max(float(np.abs(vertices).max()), 1.0) * 1e-9
+    _, first, inverse = np.unique(
+        np.round(new_v / scale).astype(np.int64), axis=0, return_index=True, return_inverse=True
+    )
+    new_f = inverse.reshape(-1)[new_f]
+    new_v = new_v[first]
+    # barycentric coordinates of every new face corner in its original triangle
+    a, b, c = (vertices[faces[index, k]] for k in range(3))
+    out = np.zeros((len(new_v), 3))
+    for corner in range(3):
+        p = new_v[new_f[:, corner]]
+        v0, v1, v2 = b - a, c - a, p - a
+        d00, d01, d11 = (v0 * v0).sum(1), (v0 * v1).sum(1), (v1 * v1).sum(1)
+        d20, d21 = (v2 * v0).sum(1), (v2 * v1).sum(1)
+        den = np.where(np.abs(d00 * d11 - d01 * d01) > 0, d00 * d11 - d01 * d01, 1.0)
+        w1 = (d11 * d20 - d01 * d21) / den
+        w2 = (d00 * d21 - d01 * d20) / den
+        w0 = 1.0 - w1 - w2
+        n = (
+            w0[:, None] * normals[faces[index, 0]]
+            + w1[:, None] * normals[faces[index, 1]]
+            + w2[:, None] * normals[faces[index, 2]]
+        )
+        out[new_f[:, corner]] = n  # the same value from every face a vertex lies on (linear along edges)
+    return new_v, new_f, nm.unit(out)
 
 
 def _cloud_area(points: np.ndarray, k: int = 8) -> np.ndarray:

@@ -82,6 +82,9 @@ class CoatingConfig:
         Whether the process speed is the gun tip's or the contact point's (see :func:`gun_samples`).
     max_speed_ratio : float
         With ``surface``: the gun tip's speed stays within [v / ratio, v ratio] (``sprayplan.paths.speed``).
+    sample_edge_mm : float or None
+        The film is computed at the mesh's vertices after splitting its triangles until no edge is longer
+        than this (``surface_samples``); None: the pattern radius / 5; 0: the vertices as they are.
     search_factor : float
         Surface samples are gathered within the pattern radius (scaled to the stroke's standoff) times this
         around each aim point; > 1 leaves room for surfaces that curve away from the gun.
@@ -98,6 +101,7 @@ class CoatingConfig:
     occlusion_pixels: int = 16
     speed_along: str = "tcp"
     max_speed_ratio: float = 3.0
+    sample_edge_mm: float | None = None
     search_factor: float = 1.15
     batch: int = 4096
     workers: int | None = None
@@ -113,6 +117,8 @@ class CoatingConfig:
             raise ConfigError(f"search_factor must be >= 1, got {self.search_factor}")
         if self.speed_along not in ("tcp", "surface"):
             raise ConfigError(f"speed_along must be tcp or surface, got {self.speed_along!r}")
+        if self.sample_edge_mm is not None and not (math.isfinite(self.sample_edge_mm) and self.sample_edge_mm >= 0):
+            raise ConfigError(f"sample_edge_mm must be a number >= 0, got {self.sample_edge_mm}")
         if not (math.isfinite(self.max_speed_ratio) and self.max_speed_ratio >= 1.0):
             raise ConfigError(f"max_speed_ratio must be >= 1, got {self.max_speed_ratio}")
         if int(self.occlusion_pixels) < 4 or int(self.batch) < 1:
@@ -236,7 +242,8 @@ def simulate(
     CoatingResult
     """
     config = CoatingConfig() if config is None else config
-    samples = surface_samples(part, targets)
+    edge = process.pattern.radius_mm / 5.0 if config.sample_edge_mm is None else config.sample_edge_mm
+    samples = surface_samples(part, targets, edge)
     guns, times, flows = gun_samples(
         paths, process, overrides, config.max_step_mm, config.speed_along, config.max_speed_ratio
     )
@@ -254,18 +261,20 @@ def simulate(
             float(np.median(depth)), 1.0
         )
         workers = config.workers if config.workers is not None else min(os.cpu_count() or 1, 4)
+        on_vertices = targets is None and part.is_mesh
         occlusion = compute_occlusion(
             config.occlusion if part.is_mesh else "none",
             samples,
-            part.vertices,
-            part.faces,
+            # the film's own mesh (the part's, split finer when coarse) hides points: its vertices are the samples
+            samples.points if on_vertices else part.vertices,
+            samples.faces if on_vertices else part.faces,
             views,
             pattern.standoff_mm,
             half,
             pixels=int(config.occlusion_pixels),
             sample_tree=tree,
             workers=workers,
-            samples_are_vertices=targets is None and part.is_mesh,
+            samples_are_vertices=on_vertices,
         )
         thickness, deposit = _accumulate(
             samples, guns, pattern, reach, occlusion, tree, len(paths.strokes), int(config.batch), workers

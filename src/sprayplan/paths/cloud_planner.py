@@ -11,8 +11,8 @@ from sprayplan.config import PathConfig
 from sprayplan.paths import cloudprep
 from sprayplan.paths import polyline as pl
 from sprayplan.paths.cloud_slicing import neighbour_triangle_normals, plane_fit_normals, slice_cloud
-from sprayplan.paths.edges import edge_pass_counts, layer_spacing, with_edge_passes
-from sprayplan.paths.pieces import Piece
+from sprayplan.paths.edges import edge_pass_counts, layer_spacing, with_edge_passes, with_inner_edge_passes
+from sprayplan.paths.pieces import Piece, in_travel_order
 from sprayplan.paths.planner import _section_pieces, covariance, layer_offsets, slicing_frame
 from sprayplan.surface import normals as nm
 from sprayplan.types import Part
@@ -73,7 +73,7 @@ def cloud_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
     thresholds = np.radians(config.streamline_deg or CLOUD_STREAMLINE_DEG)
     layers = []
     for polylines in sections:
-        pieces = []
+        sections = []
         for line in polylines:
             closed = _is_closed(line, 5.0 * spacing)
             if len(line) >= 3:
@@ -89,11 +89,13 @@ def cloud_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
                 else plane_fit_normals(line, points, k=12)
             )
             line_n = nm.orient_like(fitted, normals[near].mean(axis=1))
-            pieces.extend(_section_pieces(line, line_n, closed, travel, config))
-        layers.append(pieces)
+            sections.append(_section_pieces(line, line_n, closed, travel, config))
+        layers.append(in_travel_order(sections, travel))
     counts = edge_pass_counts(lo, hi, offsets, config, samples, distance)
     log.info("%s: %d cloud layers, slab +-%.3g mm, edge passes %d + %d", part.name, len(layers), slab, *counts)
-    return with_edge_passes(layers, plane_normal, counts, layer_spacing(lo, hi, config), config)
+    d = layer_spacing(lo, hi, config)
+    layers = with_inner_edge_passes(layers, plane_normal, travel, d, config)
+    return with_edge_passes(layers, plane_normal, counts, d, config)
 
 
 def _is_closed(line: np.ndarray, gap: float) -> bool:

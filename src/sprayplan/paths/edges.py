@@ -9,16 +9,24 @@ along its tangent (``planner._with_margins``).
 from __future__ import annotations
 
 import dataclasses
+import logging
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from sprayplan.config import PathConfig
 from sprayplan.paths import polyline as pl
-from sprayplan.paths.pieces import MIN_PIECE_MM, Piece, resample_piece
+from sprayplan.paths.pieces import MIN_PIECE_MM, Piece, insert_in_travel_order, resample_piece
+
+log = logging.getLogger(__name__)
 
 #: An end of a stroke whose normals turn more than this (degrees) from the face's within ``rim_mm`` is a rim
 #: (a hemmed or rolled edge) and is not followed (:func:`rim_lengths`).
 RIM_ANGLE_DEG = 45.0
+
+#: A point of a layer with no point of the neighbouring layer within this many spacings lies on an edge of
+#: the part that runs between the two layers (:func:`with_inner_edge_passes`).
+NEIGHBOUR_REACH = 1.5
 
 
 def layer_spacing(lo: float, hi: float, config: PathConfig) -> float:
@@ -62,14 +70,82 @@ def with_edge_passes(
     that plane, and keeps its normal; the moved polyline is resampled at the step. Its points are off the
     part (``on_part`` False).
     """
-    filled = [k for k, pieces in enumerate(layers) if pieces]
+    real = [[p for p in pieces if p.on_part.any()] for pieces in layers]
+    filled = [k for k, pieces in enumerate(real) if pieces]
     if not filled:
         return layers
     normal = np.asarray(plane_normal, float)
     step = dataclasses.replace(config, points_per_section=None, interpolate="none")
-    before = [_moved_layer(layers[filled[0]], -normal, j * d, step) for j in range(counts[0], 0, -1)]
-    after = [_moved_layer(layers[filled[-1]], normal, j * d, step) for j in range(1, counts[1] + 1)]
+    before = [_moved_layer(real[filled[0]], -normal, j * d, step) for j in range(counts[0], 0, -1)]
+    after = [_moved_layer(real[filled[-1]], normal, j * d, step) for j in range(1, counts[1] + 1)]
     return before + layers + after
+
+
+def with_inner_edge_passes(
+    layers: list[list[Piece]], plane_normal, travel, d: float, config: PathConfig
+) -> list[list[Piece]]:
+    """The layers with edge passes along the edges that run between two layers.
+
+    Where the part's outline is not square to the layers (a notch, a curved or slanted end, a hole wider
+    than the gaps sprayed across), a stretch of a layer has no neighbour on one side: no point of the
+    neighbouring layer within ``NEIGHBOUR_REACH`` spacings. That stretch, moved one spacing towards the
+    neighbour (as :func:`with_edge_passes` moves an outer layer), becomes a piece of the neighbouring layer,
+    off the part; it joins that layer's own pieces when the gap between them is one that is sprayed across.
+    The first and the last layer's outer sides are left to :func:`with_edge_passes`. Off with
+    ``edge_passes = 0``.
+    """
+    if config.edge_passes == 0 or len(layers) < 2:
+        return layers
+    normal = np.asarray(plane_normal, float)
+    travel = np.asarray(travel, float)
+    step = dataclasses.replace(config, points_per_section=None, interpolate="none")
+    trees = []
+    for pieces in layers:
+        on = [p.points[p.on_part] for p in pieces]
+        trees.append(cKDTree(np.vstack(on)) if on and sum(map(len, on)) else None)
+    added: list[list[Piece]] = [[] for _ in layers]
+    for k, pieces in enumerate(layers):
+        for side, near in ((-1.0, k - 1), (1.0, k + 1)):
+            if not 0 <= near < len(layers):
+                continue
+            for piece in pieces:
+                far = piece.on_part.copy()
+                if not piece.closed:  # a rim is not followed by the stroke: it has no edge pass either
+                    head, tail = rim_lengths(piece.points, piece.normals, config.rim)
+                    far[:head] = False
+                    far[len(far) - tail :] = False
+                if trees[near] is not None:
+                    far &= trees[near].query(piece.points)[0] > NEIGHBOUR_REACH * d
+                for a, b in _runs(far):
+                    if pl.polyline_length(piece.points[a:b]) < d:
+                        continue  # the corner of an outline slanting across the layers: the leads cover it
+                    if not _plain(piece.points[a:b], piece.normals[a:b], travel):
+                        continue  # a folded or rolled edge: moved flat, it would not paint the part evenly
+                    run = Piece(piece.points[a:b], piece.normals[a:b], piece.on_part[a:b], False)
+                    added[near].extend(_moved_layer([run], side * normal, d, step))
+    out = []
+    for pieces, extra in zip(layers, added):
+        out.append(insert_in_travel_order(pieces, extra, travel) if extra else pieces)
+    if any(added):
+        log.info("inner edge passes: %d pieces", sum(map(len, added)))
+    return out
+
+
+def _plain(points: np.ndarray, normals: np.ndarray, travel: np.ndarray) -> bool:
+    """Whether a stretch runs one way along the travel direction and its normals stay within
+    ``RIM_ANGLE_DEG`` of their mean (no fold, no rim)."""
+    ahead = np.diff(points, axis=0) @ travel
+    if (ahead > 0).any() and (ahead < 0).any():
+        return False
+    mean = normals.mean(axis=0)
+    mean /= max(float(np.linalg.norm(mean)), 1e-12)
+    return bool((normals @ mean >= np.cos(np.radians(RIM_ANGLE_DEG))).all())
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) index ranges of the runs of True in a boolean array."""
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
 
 
 def _moved_layer(pieces: list[Piece], outward: np.ndarray, distance: float, config: PathConfig) -> list[Piece]:

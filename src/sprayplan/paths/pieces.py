@@ -54,3 +54,25 @@ def resample_piece(points, normals, closed, config: PathConfig) -> Piece:
     if closed and len(new) > 1 and keep.sum() > 1 and np.linalg.norm(new[-1] - new[0]) <= 1e-9:
         keep[-1] = False
     return Piece(new[keep], n[keep], on_part[keep], closed)
+
+
+def in_travel_order(sections: list[list[Piece]], travel) -> list[Piece]:
+    """The pieces of a layer's sections, section after section by where each starts along the travel
+    direction (what joining across gaps expects: the slicer gives sections in no particular order), keeping
+    the order of the pieces within a section (the order along its polyline)."""
+    travel = np.asarray(travel, float)
+    filled = [group for group in sections if group]
+    filled.sort(key=lambda group: float(group[0].points[0] @ travel))
+    return [piece for group in filled for piece in group]
+
+
+def insert_in_travel_order(pieces: list[Piece], extra: list[Piece], travel) -> list[Piece]:
+    """``pieces`` with each of ``extra`` put before the first open piece that starts farther along the travel
+    direction (the rest keep their order)."""
+    travel = np.asarray(travel, float)
+    out = list(pieces)
+    for piece in extra:
+        key = float(piece.points[0] @ travel)
+        at = next((i for i, p in enumerate(out) if not p.closed and float(p.points[0] @ travel) > key), len(out))
+        out.insert(at, piece)
+    return out

@@ -19,8 +19,14 @@ from scipy.spatial import cKDTree
 from sprayplan.config import PathConfig
 from sprayplan.errors import InputError
 from sprayplan.paths import polyline as pl
-from sprayplan.paths.edges import edge_pass_counts, layer_spacing, rim_lengths, with_edge_passes
-from sprayplan.paths.pieces import MIN_PIECE_MM, Piece, resample_piece
+from sprayplan.paths.edges import (
+    edge_pass_counts,
+    layer_spacing,
+    rim_lengths,
+    with_edge_passes,
+    with_inner_edge_passes,
+)
+from sprayplan.paths.pieces import MIN_PIECE_MM, Piece, in_travel_order, resample_piece
 from sprayplan.paths.slicing import MeshSlicer
 from sprayplan.surface import normals as nm
 from sprayplan.types import Part, Paths, Stroke
@@ -166,13 +172,16 @@ def mesh_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
     offsets = layer_offsets(lo, hi, config, samples, distance)
     layers = []
     for offset in offsets:
-        pieces = []
-        for section in slicer.section(offset):
-            pieces.extend(_section_pieces(section.points, section.normals, section.closed, travel, config))
-        layers.append(pieces)
+        sections = [
+            _section_pieces(section.points, section.normals, section.closed, travel, config)
+            for section in slicer.section(offset)
+        ]
+        layers.append(in_travel_order(sections, travel))
     counts = edge_pass_counts(lo, hi, offsets, config, samples, distance)
     log.info("%s: %d layers along (%.3f, %.3f, %.3f), edge passes %d + %d", part.name, len(layers), *normal, *counts)
-    return with_edge_passes(layers, normal, counts, layer_spacing(lo, hi, config), config)
+    d = layer_spacing(lo, hi, config)
+    layers = with_inner_edge_passes(layers, normal, travel, d, config)
+    return with_edge_passes(layers, normal, counts, d, config)
 
 
 def layer_offsets(lo: float, hi: float, config: PathConfig, samples, distance) -> list[float]:
