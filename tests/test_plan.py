@@ -130,12 +130,17 @@ def test_every_hull_point_is_assigned_or_reported(testdata):
     job = JobConfig(paths=PathConfig(spacing_mm=150.0, step_mm=60.0))
     result = plan(hull, job)
     totals = plan_totals(result, job)
-    planned = sum(len(s) for st in result.stations for s in st.strokes if s.spray_on)
-    # every waypoint of the sliced strokes is either in a station's strokes or listed as unassigned
+    # every waypoint of the sliced strokes is either in a station's strokes or listed as unassigned (a stroke
+    # handed from one station to the next repeats the hand-over waypoint, so compare sets)
     from sprayplan.paths.planner import plan_paths
 
-    sliced = sum(len(s) for s in plan_paths(hull, job.paths).spray_strokes)
-    assert planned + len(result.unassigned) == sliced
+    def rows(arrays):
+        return {tuple(r) for r in np.round(np.vstack(arrays), 6)} if arrays else set()
+
+    planned = rows([s.points for st in result.stations for s in st.strokes if s.spray_on])
+    unassigned = rows([result.unassigned]) if len(result.unassigned) else set()
+    sliced = rows([s.points for s in plan_paths(hull, job.paths).spray_strokes])
+    assert planned | unassigned == sliced and not planned & unassigned
     assert totals["stations"] >= 4
     # the hull's underside faces down: the hanging robot cannot paint it, and says so waypoint by waypoint
     assert 0 < totals["unreachable_waypoints"] < totals["waypoints"]
@@ -168,3 +173,21 @@ def test_a_plan_repeats_exactly(testdata):
         np.testing.assert_array_equal(a.platform_mm, b.platform_mm)
         np.testing.assert_array_equal(np.nan_to_num(a.q9), np.nan_to_num(b.q9))
         assert len(a.strokes) == len(b.strokes)
+
+
+def test_a_stroke_split_between_stations_is_sprayed_whole():
+    from sprayplan.pipeline import _split_by_station
+    from sprayplan.types import Stroke
+
+    x = np.arange(0.0, 101.0, 10.0)
+    points = np.column_stack([x, np.zeros_like(x), np.zeros_like(x)])
+    stroke = Stroke(points, np.tile([0.0, 0.0, 1.0], (len(x), 1)), points + [0, 0, 113.0], True, None, 3)
+    station = np.array([2, 2, 2, 2, 5, 5, 5, -1, -1, 5, 5])
+    pieces = _split_by_station(stroke, station)
+    assert [k for k, _ in pieces] == [2, 5, 5]
+    # the hand-over segment 30 -> 40 belongs to the first station's piece; a run ending at waypoints no station
+    # takes stops there; every piece keeps the stroke's layer
+    assert [p.points[[0, -1], 0].tolist() for _, p in pieces] == [[0.0, 40.0], [40.0, 60.0], [90.0, 100.0]]
+    assert all(p.layer == 3 and p.spray_on for _, p in pieces)
+    sprayed = sum(p.length_mm for _, p in pieces)
+    assert sprayed == pytest.approx(100.0 - 30.0)  # all but the 60 -> 90 stretch through unassigned waypoints

@@ -54,14 +54,20 @@ def gun_poses(stroke: Stroke) -> np.ndarray:
 
 
 def _split_by_station(stroke: Stroke, station: np.ndarray) -> list[tuple[int, Stroke]]:
-    """Contiguous runs of a stroke's waypoints that belong to the same station (-1 runs dropped)."""
+    """Contiguous runs of a stroke's waypoints that belong to the same station (-1 runs dropped).
+
+    A run handed over to another station goes on to that station's first waypoint, so that the segment
+    between the two is sprayed too (by the first station); without it every hand-over would leave a stripe
+    one step wide with less paint.
+    """
     out = []
     edges = np.flatnonzero(np.diff(station)) + 1
     for start, stop in zip(np.r_[0, edges], np.r_[edges, len(station)]):
         k = int(station[start])
         if k < 0:
             continue
-        sl = slice(start, stop)
+        handed_over = stop < len(station) and station[stop] >= 0
+        sl = slice(start, stop + 1 if handed_over else stop)
         out.append(
             (k, Stroke(stroke.points[sl], stroke.normals[sl], stroke.tcp[sl], True, stroke.on_part[sl], stroke.layer))
         )
