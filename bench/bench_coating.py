@@ -8,15 +8,16 @@ Sections (all in one process; times are wall-clock medians over ``--repeat`` run
 2. Occlusion accuracy on reach_curved_part.ply: samples whose film each method changes, and the largest
    difference from exact rays at every time step (needs ``embreex``; skipped without it).
 3. Film uniformity (std / mean, share of the painted area within 50 +- 5 um) on reach_curved_part.ply
-   (--units m) and on the demo roof, planned with ``plan_paths`` at the spacing the chooser picks and at seed
-   000's 49.19 mm, the speed taken as the tool tip's (``tcp``) or the contact point's (``surface``); also away
-   from the edges and at 420 random points.
+   (--units m), the demo roof, noether_raw_scan_mesh.ply and the tray's top, planned with ``plan_paths`` at the
+   spacing the chooser picks (and at seed 000's 49.19 mm), with and without the edge handling, the speed taken
+   as the tool tip's (``tcp``) or the contact point's (``surface``); also away from the edges and at 420
+   random points; then the whole main job with a 50 um target on the demo roof and the reach part.
 4. Spacing chooser vs seed 000's fixed overlap 0.4 (spacing 49.19 mm for r = 50 mm), per pattern model.
 5. Droplet model (bell003 settings): transfer efficiency, pattern radius, fits of the analytic models.
 
 Usage::
 
-    python bench/bench_coating.py [--repeat 3] [--skip-droplets]
+    python bench/bench_coating.py [--repeat 3] [--skip-droplets] [--only SECTION]
 """
 
 from __future__ import annotations
@@ -139,34 +140,72 @@ def section_uniformity() -> None:
     fixed_speed = speed_for_target(process.volume_rate_mm3_s, 49.19, 50.0)
     print(f"seed000_circle (parabolic, R = 50 mm at 113 mm). Chosen: spacing {choice.spacing_mm:.2f} mm, speed")
     print(f"{choice.speed_mm_s:.1f} mm/s (flat-panel ripple {100 * choice.cv:.2f} %); seed 000's overlap 0.4: spacing")
+    print(f"49.19 mm, speed {fixed_speed:.1f} mm/s (ripple {100 * ripple_cv(process.pattern, 49.19):.2f} %). 'edges':")
+    print("'on' = edge passes (outer and inner) and rims not followed (the defaults), 'off' = edge_passes 0 and")
+    print("rim_mm 0. 'speed of': the process speed held by the tool tip (tcp) or by the contact point (surface).")
+    print("'interior': painted samples more than one pattern radius (50 mm) from the part's open boundary. 420:")
+    print("seed 003's check at 420 random painted points (seed 0). Film on the mesh split to 10 mm edges.\n")
     print(
-        f"49.19 mm, speed {fixed_speed:.1f} mm/s (ripple {100 * ripple_cv(process.pattern, 49.19):.2f} %). 'speed of':"
+        "| part | spacing | edges | speed of | strokes | painted std/mean | painted in spec | min-max um | "
+        "interior std/mean | interior in spec | interior area share | 420 std/mean | 420 in spec |"
     )
-    print("the process speed held by the tool tip (tcp) or by the contact point (surface). 'interior': painted")
-    print("samples more than one pattern radius (50 mm) from the part's open boundary. 420: seed 003's check at")
-    print("420 random painted points (seed 0).\n")
-    print(
-        "| part | spacing | speed of | painted std/mean | painted in spec | min-max um | interior std/mean | "
-        "interior in spec | interior area share | 420 std/mean | 420 in spec |"
-    )
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     parts = {
-        "reach_curved_part": load_part(DATA / "reach_curved_part.ply", units="m"),
-        "demo roof z > 1000": select_region(car_roof(), "z > 1000"),
+        "reach_curved_part": (load_part(DATA / "reach_curved_part.ply", units="m"), "auto"),
+        "demo roof z > 1000": (select_region(car_roof(), "z > 1000"), "auto"),
+        "noether_raw_scan_mesh": (load_part(DATA / "noether_raw_scan_mesh.ply", units="m"), "auto"),
+        "noether_raw_scan_mesh, direction x": (load_part(DATA / "noether_raw_scan_mesh.ply", units="m"), "x"),
+        "tray top (z > 3.1)": (
+            select_region(load_part(DATA / "tray_bottom_mm_ascii.stl", up="y"), "z > 3.1"),
+            "auto",
+        ),
     }
-    for name, part in parts.items():
-        for label, spacing, speed in (("chosen", choice.spacing_mm, choice.speed_mm_s), ("49.19", 49.19, fixed_speed)):
-            paths = plan_paths(part, PathConfig(spacing_mm=spacing))
-            for along in ("tcp", "surface"):
-                config = CoatingConfig(speed_along=along)
-                result = simulate(part, paths, process.with_(speed_mm_s=speed), config=config)
-                rep = coating_report(result, samples=420, edge_band_mm=50.0)
-                p, i, m = rep["painted"], rep["interior"], rep["measuring_points"]
-                print(
-                    f"| {name} | {label} | {along} | {p['cv']:.4f} | {p['share_in_spec']:.4f} | "
-                    f"{p['min_um']:.1f}-{p['max_um']:.1f} | {i['cv']:.4f} | {i['share_in_spec']:.4f} | "
-                    f"{i['share_of_area']:.3f} | {m['cv']:.4f} | {m['share_in_spec']:.4f} |"
-                )
+    cases = [
+        ("chosen", choice.spacing_mm, choice.speed_mm_s, "on", "surface"),
+        ("chosen", choice.spacing_mm, choice.speed_mm_s, "on", "tcp"),
+        ("chosen", choice.spacing_mm, choice.speed_mm_s, "off", "surface"),
+        ("chosen", choice.spacing_mm, choice.speed_mm_s, "off", "tcp"),
+        ("49.19", 49.19, fixed_speed, "on", "surface"),
+    ]
+    for name, (part, direction) in parts.items():
+        for label, spacing, speed, edges, along in cases:
+            extra = {} if edges == "on" else {"edge_passes": 0, "rim_mm": 0.0}
+            paths = plan_paths(part, PathConfig(spacing_mm=spacing, direction=direction, **extra))
+            result = simulate(part, paths, process.with_(speed_mm_s=speed), config=CoatingConfig(speed_along=along))
+            rep = coating_report(result, samples=420, edge_band_mm=50.0)
+            p, i, m = rep["painted"], rep["interior"], rep["measuring_points"]
+            print(
+                f"| {name} | {label} | {edges} | {along} | {len(paths.spray_strokes)} | {p['cv']:.4f} | "
+                f"{p['share_in_spec']:.4f} | {p['min_um']:.1f}-{p['max_um']:.1f} | {i['cv']:.4f} | "
+                f"{i['share_in_spec']:.4f} | {i['share_of_area']:.3f} | {m['cv']:.4f} | {m['share_in_spec']:.4f} |"
+            )
+    print()
+    section_plan_film()
+
+
+def section_plan_film() -> None:
+    """The film of the whole main job (``sprayplan plan PART --thickness-um 50 --simulate``), stations and all."""
+    from sprayplan.coating_stage import meet_thickness, simulate_plan
+    from sprayplan.config import JobConfig, PlanConfig
+    from sprayplan.pipeline import plan
+
+    print("### 3b. The main job: `sprayplan plan PART --thickness-um 50 --simulate` (defaults otherwise)\n")
+    print("| part | stations | strokes | waypoints | unreachable | painted std/mean | painted in spec | min-max um |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name, part in (
+        ("demo roof z > 1000", select_region(car_roof(), "z > 1000")),
+        ("reach_curved_part", load_part(DATA / "reach_curved_part.ply", units="m")),
+    ):
+        job, _ = meet_thickness(JobConfig(plan=PlanConfig(thickness_um=50.0)))
+        result = plan(part, job)
+        film = coating_report(simulate_plan(part, result, job))["painted"]
+        strokes = sum(1 for st in result.stations for s in st.strokes if s.spray_on)
+        waypoints = sum(len(st.reachable) for st in result.stations)
+        unreachable = sum(int((~st.reachable).sum()) for st in result.stations)
+        print(
+            f"| {name} | {len(result.stations)} | {strokes} | {waypoints} | {unreachable} | {film['cv']:.4f} | "
+            f"{film['share_in_spec']:.4f} | {film['min_um']:.1f}-{film['max_um']:.1f} |"
+        )
     print()
 
 
@@ -229,14 +268,19 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--skip-droplets", action="store_true")
+    parser.add_argument("--only", choices=["speed", "occlusion", "uniformity", "spacing", "droplets"])
     args = parser.parse_args(argv)
     print(f"embreex available: {has_embree()}\n")
-    section_speed(args.repeat)
-    section_occlusion(args.repeat)
-    section_uniformity()
-    section_spacing()
-    if not args.skip_droplets:
-        section_droplets()
+    sections = {
+        "speed": lambda: section_speed(args.repeat),
+        "occlusion": lambda: section_occlusion(args.repeat),
+        "uniformity": section_uniformity,
+        "spacing": section_spacing,
+        "droplets": section_droplets,
+    }
+    for name, run in sections.items():
+        if args.only in (None, name) and not (name == "droplets" and args.skip_droplets and args.only is None):
+            run()
     return 0
 
 

@@ -557,3 +557,39 @@ def test_film_statistics_on_a_coarse_panel_match_a_fine_one():
     b = coating_report(simulate(fine, paths, process, config=CoatingConfig(occlusion="none", sample_edge_mm=0.0)))
     for key in ("mean_um", "share_in_spec", "cv"):
         assert a["all"][key] == pytest.approx(b["all"][key], rel=0.02, abs=0.005)
+
+
+def test_a_notched_plate_is_painted_evenly_round_the_notch():
+    # a 600 x 400 plate with a 240 x 150 notch cut into its top edge: the layers across the notch stop at its
+    # sides, and the edge along the notch's bottom runs with the strokes, between two layers
+    process = load_preset("seed000_circle")
+    choice = choose_spacing_and_speed(process, 50.0)
+    process = process.with_(speed_mm_s=choice.speed_mm_s)
+    full = plate(0.0, 600.0, 0.0, 400.0, 5.0)
+    centre = full.vertices[full.faces].mean(axis=1)
+    keep = ~((centre[:, 0] > 180) & (centre[:, 0] < 420) & (centre[:, 1] > 250))
+    part = Part(full.vertices, full.faces[keep])
+    paths = plan_paths(part, PathConfig(spacing_mm=choice.spacing_mm, direction="y"))
+    # an inner edge pass runs through the notch, off the part, a spacing above the last layer below it
+    below = max(
+        float(np.median(s.points[s.on_part, 1]))
+        for s in paths.spray_strokes
+        if s.on_part.any() and np.median(s.points[s.on_part, 1]) < 250 and np.ptp(s.points[s.on_part, 0]) > 500
+    )
+    in_notch = [
+        s
+        for s in paths.spray_strokes
+        if np.any(
+            ~s.on_part
+            & (s.points[:, 0] > 250)
+            & (s.points[:, 0] < 350)
+            & (np.abs(s.points[:, 1] - below - choice.spacing_mm) < 1e-6)
+        )
+    ]
+    assert in_notch
+    film = coating_report(simulate(part, paths, process, config=CoatingConfig(occlusion="none")))["all"]
+    # the notch's bottom edge too: without the inner pass it falls to about 33 um
+    assert film["share_in_spec"] == 1.0 and film["cv"] <= 0.02 and film["min_um"] >= 45.0
+    bare = plan_paths(part, PathConfig(spacing_mm=choice.spacing_mm, direction="y", edge_passes=0))
+    thin = coating_report(simulate(part, bare, process, config=CoatingConfig(occlusion="none")))["all"]
+    assert thin["share_in_spec"] < 0.95

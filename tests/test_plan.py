@@ -19,6 +19,11 @@ from tests.conftest import REPO
 
 def test_process_toml_documents_every_default():
     assert job_from_toml(REPO / "examples" / "process.toml") == JobConfig()
+    # every setting is there, set or (when its default is computed) commented out
+    text = (REPO / "examples" / "process.toml").read_text()
+    for table in dataclasses.fields(JobConfig):
+        for field in dataclasses.fields(table.type if isinstance(table.type, type) else type(table.default)):
+            assert f"\n{field.name} = " in text or f"\n# {field.name} = " in text, (table.name, field.name)
 
 
 def test_bad_process_toml(tmp_path):

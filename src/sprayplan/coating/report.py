@@ -84,7 +84,8 @@ def coating_report(
     t = result.thickness_um
     w = result.area_mm2
     lo, hi = target_um - tolerance_um, target_um + tolerance_um
-    painted = t >= painted_fraction * target_um
+    surface = w > 0  # a vertex no triangle uses stands for no surface
+    painted = surface & (t >= painted_fraction * target_um)
     out = {
         "spec": {
             "target_um": float(target_um),
@@ -92,7 +93,7 @@ def coating_report(
             "painted_fraction": float(painted_fraction),
         },
         "painted": _weighted_stats(t[painted], w[painted], lo, hi),
-        "all": _weighted_stats(t, w, lo, hi),
+        "all": _weighted_stats(t[surface], w[surface], lo, hi),
     }
     out["painted"]["share_of_area"] = float(w[painted].sum() / max(w.sum(), 1e-300))
     if edge_band_mm is not None:
