@@ -18,6 +18,7 @@ from sprayplan.io.paths_json import read_paths_json, write_paths_json
 from sprayplan.paths.planner import plan_paths, point_segment_distance, slicing_frame, surface_covariance
 from sprayplan.surface.filling import sample_uniform
 from sprayplan.surface.region import select_region
+from sprayplan.types import Part
 from tests.helpers import containing_face, on_mesh, plate
 
 
@@ -429,3 +430,42 @@ def test_stroke_frames_and_rpy(reach_paths):
     ry = np.array([[np.cos(b), 0, np.sin(b)], [0, 1, 0], [-np.sin(b), 0, np.cos(b)]])
     rz = np.array([[np.cos(c), -np.sin(c), 0], [np.sin(c), np.cos(c), 0], [0, 0, 1]])
     np.testing.assert_allclose(rpy_from_matrix((rx @ ry @ rz)[None])[0], [a, b, c], atol=1e-12)
+
+
+def test_closed_surfaces_have_no_edge_to_pass():
+    sphere = trimesh.creation.icosphere(subdivisions=4, radius=300.0)
+    part = Part(sphere.vertices, sphere.faces, None, "sphere")
+    paths = plan_paths(part, PathConfig(spacing_mm=40.0))
+    assert all(s.on_part.any() for s in paths.spray_strokes)
+    # the same sphere cut open at its equator: passes past the cut, none past the closed pole
+    half = select_region(part, "z > 0")
+    open_paths = plan_paths(half, PathConfig(spacing_mm=40.0, direction="z"))
+    edge = [s for s in open_paths.spray_strokes if not s.on_part.any()]
+    assert edge and all(s.points[:, 2].max() < 1.0 for s in edge)
+
+
+def test_boundaries_of_meshes_and_clouds():
+    from sprayplan.paths.cloud_planner import cloud_boundary
+    from sprayplan.paths.edges import mesh_boundary
+
+    part = plate(0.0, 200.0, 0.0, 100.0, 10.0)
+    ring = mesh_boundary(part.vertices, part.faces, 2.0)
+    on_edge = np.minimum.reduce([ring[:, 0], 200.0 - ring[:, 0], ring[:, 1], 100.0 - ring[:, 1]])
+    np.testing.assert_allclose(on_edge, 0.0, atol=1e-9)
+    assert (
+        np.max(cKDTree(ring).query(np.column_stack([np.linspace(0, 200, 101), np.zeros(101), np.zeros(101)]))[0]) <= 1.0
+    )
+    assert len(mesh_boundary(*_sphere(), 2.0)) == 0
+    # a cloud sampled from the plate: its edge points are at the plate's edges, few inside
+    rng = np.random.default_rng(0)
+    points = np.column_stack([rng.uniform(0, 200, 8000), rng.uniform(0, 100, 8000), np.zeros(8000)])
+    normals = np.tile([0.0, 0.0, 1.0], (len(points), 1))
+    edge = cloud_boundary(points, normals, cKDTree(points))
+    margin = np.minimum.reduce([points[:, 0], 200 - points[:, 0], points[:, 1], 100 - points[:, 1]])
+    assert np.percentile(margin[edge], 95) < 4.0  # within about two point spacings (1.6 mm) of the edge
+    assert edge[margin < 0.5].mean() > 0.8 and edge[margin > 5.0].mean() < 0.01
+
+
+def _sphere():
+    sphere = trimesh.creation.icosphere(subdivisions=2, radius=100.0)
+    return np.asarray(sphere.vertices), np.asarray(sphere.faces)

@@ -28,6 +28,9 @@ RIM_ANGLE_DEG = 45.0
 #: the part that runs between the two layers (:func:`with_inner_edge_passes`).
 NEIGHBOUR_REACH = 1.5
 
+#: Edge passes go only where the layer passes within this many spacings of the part's open edge.
+EDGE_REACH = 2.0
+
 
 def layer_spacing(lo: float, hi: float, config: PathConfig) -> float:
     """The distance between adjacent layers: the spacing, or the slice width with ``layers``."""
@@ -60,15 +63,36 @@ def edge_pass_counts(lo: float, hi: float, offsets, config: PathConfig, samples,
     return counts[0], counts[1]
 
 
+def mesh_boundary(vertices: np.ndarray, faces: np.ndarray, step: float) -> np.ndarray:
+    """(k, 3) points along a mesh's open boundary (edges that one triangle alone uses), at most ``step``
+    apart; empty for a closed mesh."""
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    unique, count = np.unique(edges, axis=0, return_counts=True)
+    open_ = unique[count == 1]
+    if len(open_) == 0:
+        return np.zeros((0, 3))
+    a, b = vertices[open_[:, 0]], vertices[open_[:, 1]]
+    parts = max(1, int(np.ceil(np.linalg.norm(b - a, axis=1).max() / step)))
+    t = np.linspace(0.0, 1.0, parts + 1)
+    return (a[:, None, :] + t[None, :, None] * (b - a)[:, None, :]).reshape(-1, 3)
+
+
 def with_edge_passes(
-    layers: list[list[Piece]], plane_normal, counts: tuple[int, int], d: float, config: PathConfig
+    layers: list[list[Piece]],
+    plane_normal,
+    counts: tuple[int, int],
+    d: float,
+    config: PathConfig,
+    boundary: np.ndarray | None = None,
 ) -> list[list[Piece]]:
     """The layers with ``counts`` edge passes before the first and after the last non-empty layer.
 
     Edge pass ``j`` of an end is the outer layer moved ``j d`` along the surface extended flat: every point
     moves within its tangent plane, along the planes' normal (pointing away from the part) projected onto
     that plane, and keeps its normal; the moved polyline is resampled at the step. Its points are off the
-    part (``on_part`` False).
+    part (``on_part`` False). With ``boundary`` (points along the part's open edges; a mesh's from
+    :func:`mesh_boundary`), only the stretches of the outer layer within ``EDGE_REACH`` spacings of an edge get
+    passes: a closed surface (a hull sliced across its beam) has no edge to pass.
     """
     real = [[p for p in pieces if p.on_part.any()] for pieces in layers]
     filled = [k for k, pieces in enumerate(real) if pieces]
@@ -76,13 +100,41 @@ def with_edge_passes(
         return layers
     normal = np.asarray(plane_normal, float)
     step = dataclasses.replace(config, points_per_section=None, interpolate="none")
-    before = [_moved_layer(real[filled[0]], -normal, j * d, step) for j in range(counts[0], 0, -1)]
-    after = [_moved_layer(real[filled[-1]], normal, j * d, step) for j in range(1, counts[1] + 1)]
-    return before + layers + after
+    near = _EdgeFilter(boundary, d)
+    first = [q for p in real[filled[0]] for q in near.stretches(p)]
+    last = [q for p in real[filled[-1]] for q in near.stretches(p)]
+    before = [_moved_layer(first, -normal, j * d, step) for j in range(counts[0], 0, -1)]
+    after = [_moved_layer(last, normal, j * d, step) for j in range(1, counts[1] + 1)]
+    return [b for b in before if b] + layers + [a for a in after if a]
+
+
+class _EdgeFilter:
+    """Which stretches of a piece lie near the part's open edges (all of it when the edges are unknown)."""
+
+    def __init__(self, boundary: np.ndarray | None, d: float):
+        self.tree = None if boundary is None else (cKDTree(boundary) if len(boundary) else False)
+        self.d = d
+
+    def mask(self, piece: Piece) -> np.ndarray:
+        if self.tree is None:
+            return np.ones(len(piece.points), bool)
+        if self.tree is False:
+            return np.zeros(len(piece.points), bool)
+        return self.tree.query(piece.points)[0] <= EDGE_REACH * self.d
+
+    def stretches(self, piece: Piece) -> list[Piece]:
+        near = self.mask(piece)
+        if near.all():
+            return [piece]
+        out = []
+        for a, b in _runs(near):
+            if b - a >= 2 and pl.polyline_length(piece.points[a:b]) >= self.d:
+                out.append(Piece(piece.points[a:b], piece.normals[a:b], piece.on_part[a:b], False))
+        return out
 
 
 def with_inner_edge_passes(
-    layers: list[list[Piece]], plane_normal, travel, d: float, config: PathConfig
+    layers: list[list[Piece]], plane_normal, travel, d: float, config: PathConfig, boundary: np.ndarray | None = None
 ) -> list[list[Piece]]:
     """The layers with edge passes along the edges that run between two layers.
 
@@ -91,7 +143,9 @@ def with_inner_edge_passes(
     neighbouring layer within ``NEIGHBOUR_REACH`` spacings. That stretch, moved one spacing towards the
     neighbour (as :func:`with_edge_passes` moves an outer layer), becomes a piece of the neighbouring layer,
     off the part; it joins that layer's own pieces when the gap between them is one that is sprayed across.
-    The first and the last layer's outer sides are left to :func:`with_edge_passes`. Off with
+    The first and the last layer's outer sides are left to :func:`with_edge_passes`. With ``boundary``,
+    only stretches within ``EDGE_REACH`` spacings of the part's open edges count (elsewhere a missing neighbour
+    is the march's widest step where the surface runs along the planes, not an edge). Off with
     ``edge_passes = 0``.
     """
     if config.edge_passes == 0 or len(layers) < 2:
@@ -103,6 +157,7 @@ def with_inner_edge_passes(
     for pieces in layers:
         on = [p.points[p.on_part] for p in pieces]
         trees.append(cKDTree(np.vstack(on)) if on and sum(map(len, on)) else None)
+    edge = _EdgeFilter(boundary, d)
     added: list[list[Piece]] = [[] for _ in layers]
     for k, pieces in enumerate(layers):
         for side, near in ((-1.0, k - 1), (1.0, k + 1)):
@@ -116,6 +171,8 @@ def with_inner_edge_passes(
                     far[len(far) - tail :] = False
                 if trees[near] is not None:
                     far &= trees[near].query(piece.points)[0] > NEIGHBOUR_REACH * d
+                if far.any():
+                    far &= edge.mask(piece)
                 for a, b in _runs(far):
                     if pl.polyline_length(piece.points[a:b]) < d:
                         continue  # the corner of an outline slanting across the layers: the leads cover it

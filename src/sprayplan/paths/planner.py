@@ -22,6 +22,7 @@ from sprayplan.paths import polyline as pl
 from sprayplan.paths.edges import (
     edge_pass_counts,
     layer_spacing,
+    mesh_boundary,
     rim_lengths,
     with_edge_passes,
     with_inner_edge_passes,
@@ -180,8 +181,9 @@ def mesh_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
     counts = edge_pass_counts(lo, hi, offsets, config, samples, distance)
     log.info("%s: %d layers along (%.3f, %.3f, %.3f), edge passes %d + %d", part.name, len(layers), *normal, *counts)
     d = layer_spacing(lo, hi, config)
-    layers = with_inner_edge_passes(layers, normal, travel, d, config)
-    return with_edge_passes(layers, normal, counts, d, config)
+    boundary = mesh_boundary(part.vertices, faces, d / 4)
+    layers = with_inner_edge_passes(layers, normal, travel, d, config, boundary)
+    return with_edge_passes(layers, normal, counts, d, config, boundary)
 
 
 def layer_offsets(lo: float, hi: float, config: PathConfig, samples, distance) -> list[float]:
