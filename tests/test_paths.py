@@ -435,8 +435,22 @@ def test_stroke_frames_and_rpy(reach_paths):
 def test_closed_surfaces_have_no_edge_to_pass():
     sphere = trimesh.creation.icosphere(subdivisions=4, radius=300.0)
     part = Part(sphere.vertices, sphere.faces, None, "sphere")
-    paths = plan_paths(part, PathConfig(spacing_mm=40.0))
+    paths = plan_paths(part, PathConfig(spacing_mm=40.0, direction="z"))
     assert all(s.on_part.any() for s in paths.spray_strokes)
+    # with no edge pass to take over, the march closes the far end with a last layer (here at the pole)
+    from sprayplan.paths.planner import layer_offsets
+
+    def samples(offset):  # a flat strip across the planes: sections are lines at y = offset
+        return np.column_stack([np.linspace(0, 100, 11), np.full(11, offset), np.zeros(11)])
+
+    def distance(query, offset):
+        return float(np.median(np.abs(query[:, 1] - offset)))
+
+    config = PathConfig(spacing_mm=30.0)
+    open_ = layer_offsets(0.0, 220.0, config, samples, distance)
+    closed = layer_offsets(0.0, 220.0, config, samples, distance, closed_part=True)
+    np.testing.assert_allclose(open_, 15.0 + 30.0 * np.arange(7), atol=1e-6)
+    np.testing.assert_allclose(closed, [*open_, 220.0], atol=1e-3)
     # the same sphere cut open at its equator: passes past the cut, none past the closed pole
     half = select_region(part, "z > 0")
     open_paths = plan_paths(half, PathConfig(spacing_mm=40.0, direction="z"))

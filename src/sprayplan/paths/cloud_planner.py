@@ -68,7 +68,8 @@ def cloud_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
         found = slab_points(offset)
         return float(np.median(cKDTree(found).query(query)[0])) if len(found) else np.inf
 
-    offsets = layer_offsets(lo, hi, config, samples, distance)
+    boundary = points[cloud_boundary(points, normals, tree)]
+    offsets = layer_offsets(lo, hi, config, samples, distance, closed_part=len(boundary) == 0)
     sections = slice_cloud(points, plane_normal, offsets, slab, gap_mm=5.0 * spacing, travel=travel)
     thresholds = np.radians(config.streamline_deg or CLOUD_STREAMLINE_DEG)
     layers = []
@@ -94,7 +95,6 @@ def cloud_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
     counts = edge_pass_counts(lo, hi, offsets, config, samples, distance)
     log.info("%s: %d cloud layers, slab +-%.3g mm, edge passes %d + %d", part.name, len(layers), slab, *counts)
     d = layer_spacing(lo, hi, config)
-    boundary = points[cloud_boundary(points, normals, tree)]
     layers = with_inner_edge_passes(layers, plane_normal, travel, d, config, boundary)
     return with_edge_passes(layers, plane_normal, counts, d, config, boundary)
 

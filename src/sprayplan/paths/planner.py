@@ -162,15 +162,16 @@ def mesh_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
     normal, travel = slicing_frame(surface_covariance(part.vertices[faces]), config.direction)
     slicer = MeshSlicer(part.vertices, faces, normal, vertex_n, face_n)
     lo, hi = slicer.range
-    d = config.spacing
+    d = layer_spacing(lo, hi, config)
 
     def samples(offset):
-        return _section_samples(slicer, offset, d / 10)
+        return _section_samples(slicer, offset, config.spacing / 10)
 
     def distance(query, offset):
         return _median_distance(query, slicer, offset)
 
-    offsets = layer_offsets(lo, hi, config, samples, distance)
+    boundary = mesh_boundary(part.vertices, faces, d / 4)
+    offsets = layer_offsets(lo, hi, config, samples, distance, closed_part=len(boundary) == 0)
     layers = []
     for offset in offsets:
         sections = [
@@ -180,18 +181,19 @@ def mesh_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
         layers.append(in_travel_order(sections, travel))
     counts = edge_pass_counts(lo, hi, offsets, config, samples, distance)
     log.info("%s: %d layers along (%.3f, %.3f, %.3f), edge passes %d + %d", part.name, len(layers), *normal, *counts)
-    d = layer_spacing(lo, hi, config)
-    boundary = mesh_boundary(part.vertices, faces, d / 4)
     layers = with_inner_edge_passes(layers, normal, travel, d, config, boundary)
     return with_edge_passes(layers, normal, counts, d, config, boundary)
 
 
-def layer_offsets(lo: float, hi: float, config: PathConfig, samples, distance) -> list[float]:
+def layer_offsets(
+    lo: float, hi: float, config: PathConfig, samples, distance, closed_part: bool = False
+) -> list[float]:
     """Plane offsets over a part spanning [lo, hi] along the planes' normal, as ``config`` asks.
 
     ``layers``: that many equal slices, a plane in the middle of each. ``uniform`` (or a part thinner than the
     spacing): planes the spacing apart, centred on the part. ``surface``: :func:`march_offsets` with the
-    ``samples`` and ``distance`` callables of the mesh or cloud at hand.
+    ``samples`` and ``distance`` callables of the mesh or cloud at hand; it closes the far end with a last
+    layer when no edge pass will (``edge_passes = 0``, or a ``closed_part`` with no edge to pass).
     """
     span = hi - lo
     if config.layers is not None:
@@ -200,7 +202,7 @@ def layer_offsets(lo: float, hi: float, config: PathConfig, samples, distance) -
     if config.spacing_mode == "uniform" or span <= d:
         count = max(1, int(np.ceil(span / d)))
         return list((lo + hi) / 2 - (count - 1) * d / 2 + d * np.arange(count))
-    return march_offsets(lo, hi, d, samples, distance, close=config.edge_passes == 0)
+    return march_offsets(lo, hi, d, samples, distance, close=config.edge_passes == 0 or closed_part)
 
 
 def march_offsets(lo: float, hi: float, d: float, samples, distance, close: bool = True) -> list[float]:
