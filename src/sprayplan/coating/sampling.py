@@ -166,7 +166,7 @@ def gun_samples(
     process: Process,
     overrides: Mapping[int, StrokeOverride] | Sequence[StrokeOverride | None] | None = None,
     max_step_mm: float | None = None,
-    speed_along: str = "tcp",
+    speed_along: str = "surface",
     max_speed_ratio: float = 3.0,
 ) -> tuple[GunSamples, np.ndarray, np.ndarray]:
     """Time steps of the spray-on path, and each stroke's duration and flow.

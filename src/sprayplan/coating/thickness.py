@@ -79,7 +79,8 @@ class CoatingConfig:
     occlusion_pixels : int
         Side of the depth map (``zbuffer``, ``raster``), pixels.
     speed_along : {"tcp", "surface"}
-        Whether the process speed is the gun tip's or the contact point's (see :func:`gun_samples`).
+        Whether the process speed is the contact point's (the default, as the plan's) or the gun tip's (see
+        :func:`gun_samples`).
     max_speed_ratio : float
         With ``surface``: the gun tip's speed stays within [v / ratio, v ratio] (``sprayplan.paths.speed``).
     sample_edge_mm : float or None
@@ -99,7 +100,7 @@ class CoatingConfig:
     occlusion: str = "auto"
     occlusion_step_mm: float | None = None
     occlusion_pixels: int = 16
-    speed_along: str = "tcp"
+    speed_along: str = "surface"
     max_speed_ratio: float = 3.0
     sample_edge_mm: float | None = None
     search_factor: float = 1.15
