@@ -67,8 +67,10 @@ def mesh_boundary(vertices: np.ndarray, faces: np.ndarray, step: float) -> np.nd
     """(k, 3) points along a mesh's open boundary (edges that one triangle alone uses), at most ``step``
     apart; empty for a closed mesh."""
     edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
-    unique, count = np.unique(edges, axis=0, return_counts=True)
-    open_ = unique[count == 1]
+    key = edges[:, 0].astype(np.int64) * len(vertices) + edges[:, 1]
+    unique, count = np.unique(key, return_counts=True)
+    single = unique[count == 1]
+    open_ = np.column_stack([single // len(vertices), single % len(vertices)])
     if len(open_) == 0:
         return np.zeros((0, 3))
     a, b = vertices[open_[:, 0]], vertices[open_[:, 1]]

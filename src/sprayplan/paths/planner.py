@@ -10,7 +10,9 @@ gaps narrower than the spray diameter and split at wider ones -> lead-in / lead-
 
 from __future__ import annotations
 
+import functools
 import logging
+from types import SimpleNamespace
 
 import numpy as np
 from scipy.optimize import brentq
@@ -164,11 +166,14 @@ def mesh_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
     lo, hi = slicer.range
     d = layer_spacing(lo, hi, config)
 
+    # the march asks for the same plane's crossing several times (its samples, distances to and from it)
+    cached = SimpleNamespace(crossing=functools.lru_cache(maxsize=16)(slicer.crossing))
+
     def samples(offset):
-        return _section_samples(slicer, offset, config.spacing / 10)
+        return _section_samples(cached, float(offset), config.spacing / 10)
 
     def distance(query, offset):
-        return _median_distance(query, slicer, offset)
+        return _median_distance(query, cached, float(offset))
 
     boundary = mesh_boundary(part.vertices, faces, d / 4)
     offsets = layer_offsets(lo, hi, config, samples, distance, closed_part=len(boundary) == 0)
