@@ -74,11 +74,10 @@ def test_adjacent_strokes_are_the_spacing_apart_on_the_curved_part(reach_paths):
     d = reach_paths.spacing_mm
     assert d == pytest.approx(49.186, abs=1e-3)  # seed 000: r = 50 mm, overlap 0.4
     spacing = layer_spacings(reach_paths)
-    within = np.abs(spacing / d - 1) <= 0.02
-    # the few pairs that miss are at the far end, where the part's flange turns nearly parallel to the planes
-    # and the march takes its smallest plane step (docs/benchmarks.md gives the figures)
-    assert within.mean() >= 0.8
-    assert np.median(spacing) == pytest.approx(d, rel=0.01)
+    # every pair, the far flange too (the march measures the gap both ways, so a narrowing section does not
+    # look farther away than it is; there is no closing layer, edge passes carry on past the edge)
+    assert len(spacing) >= 25
+    np.testing.assert_allclose(spacing, d, rtol=0.01)
 
 
 def test_uniform_planes_are_equally_spaced(reach):
