@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -163,3 +165,37 @@ def test_bad_options_give_one_line_and_exit_2(testdata, tmp_path, capsys, extra,
     code, _, err = run(capsys, "targets", part, "-o", str(out), *extra)
     assert code == 2
     assert len(err.strip().splitlines()) == 1 and words in err and not out.exists()
+
+
+@pytest.mark.parametrize(
+    "command, extra, words",
+    [
+        ("paths", ["--edge-passes", "many"], "--edge-passes"),
+        ("paths", ["--edge-passes", "-1"], "--edge-passes"),
+        ("paths", ["--rim-mm", "-2"], "rim_mm"),
+        ("plan", ["--edge-passes", "1.5"], "--edge-passes"),
+    ],
+)
+def test_bad_edge_options_give_one_line_and_exit_2(testdata, tmp_path, capsys, command, extra, words):
+    out = tmp_path / ("paths.json" if command == "paths" else "plan")
+    part = str(testdata / "meshes" / "tray_bottom_mm_ascii.stl")
+    code, _, err = run(capsys, command, part, "--up", "y", "-o", str(out), *extra)
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1 and words in err and not out.exists()
+
+
+def test_edge_and_speed_options_reach_the_plan(testdata, tmp_path, capsys):
+    part = str(testdata / "meshes" / "tray_bottom_mm_ascii.stl")
+    args = ["--up", "y", "--region", "z > 3.1", "--spacing-mm", "40", "--step-mm", "20"]
+    code, _, _ = run(capsys, "paths", part, *args, "-o", str(tmp_path / "none.json"), "--edge-passes", "0")
+    assert code == 0
+    data = json.loads((tmp_path / "none.json").read_text())
+    assert data["settings"]["edge_passes"] == 0
+    assert all(any(s["on_part"]) for s in data["strokes"] if s["spray_on"])
+    code, _, _ = run(capsys, "plan", part, *args, "-o", str(tmp_path / "plan"), "--speed-along", "tcp")
+    assert code == 0
+    plan = json.loads((tmp_path / "plan" / "plan.json").read_text())
+    assert plan["settings"]["plan"]["speed_along"] == "tcp" and plan["settings"]["paths"]["edge_passes"] == "auto"
+    for station in plan["stations"]:
+        for stroke in station["strokes"]:
+            assert set(stroke["tcp_speed_mm_s"]) == {stroke["speed_mm_s"]}  # one tip speed per stroke

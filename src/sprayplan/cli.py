@@ -157,6 +157,19 @@ def _direction(text: str):
     return values
 
 
+def _edge_passes(text):
+    """``--edge-passes``: auto or a whole number >= 0."""
+    if text is None or text == "auto":
+        return text
+    try:
+        value = int(text)
+    except ValueError:
+        raise ConfigError(f"--edge-passes must be auto or a whole number >= 0, got {text!r}") from None
+    if value < 0:
+        raise ConfigError(f"--edge-passes must be auto or a whole number >= 0, got {text!r}")
+    return value
+
+
 def _path_config(args):
     from sprayplan.config import PathConfig
 
@@ -177,7 +190,10 @@ def _path_config(args):
         slab_mm=args.slab_mm,
         cloud_normals=args.cloud_normals,
         cloud_smooth_mm=args.cloud_smooth_mm,
+        rim_mm=args.rim_mm,
     )
+    if args.edge_passes is not None:
+        options["edge_passes"] = _edge_passes(args.edge_passes)
     for name in ("spray_radius_mm", "overlap", "standoff_mm", "step_mm"):
         if getattr(args, name) is not None:
             options[name] = getattr(args, name)
@@ -243,7 +259,7 @@ def _job_config(args):
     load = {k: getattr(args, k) for k in ("units", "up", "region") if getattr(args, k) is not None}
     plan = {
         k: getattr(args, k)
-        for k in ("mode", "tour", "process", "thickness_um", "tolerance_um")
+        for k in ("mode", "tour", "process", "thickness_um", "tolerance_um", "speed_along")
         if getattr(args, k, None) is not None
     }
     paths = {}
@@ -252,6 +268,8 @@ def _job_config(args):
             paths[key] = getattr(args, key)
     if args.direction is not None:
         paths["direction"] = _direction(args.direction)
+    if args.edge_passes is not None:
+        paths["edge_passes"] = _edge_passes(args.edge_passes)
     if "spacing_mm" in paths and "overlap" in paths:
         raise ConfigError("give either --spacing-mm or --overlap, not both")
     if args.robot is not None and args.robot != "gantry-ur5":
@@ -361,6 +379,15 @@ def cmd_plan(args) -> int:
 from sprayplan.cli_robots import cmd_fk, cmd_ik  # noqa: E402 - the robot commands live in their own module
 
 
+def _add_edge_options(group) -> None:
+    group.add_argument(
+        "--edge-passes",
+        metavar="N",
+        help="passes past the part's edges along the strokes: auto (default: as many as still paint the part) "
+        "or a number; 0: none",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="sprayplan",
@@ -458,6 +485,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="point clouds: neighbour-triangle (default) or plane-fit normals",
     )
     group.add_argument("--cloud-smooth-mm", type=float, help="point clouds: smoothing radius before slicing")
+    _add_edge_options(group)
+    group.add_argument(
+        "--rim-mm",
+        type=float,
+        help="stroke ends turning over within this are not followed (default: half the spray radius; 0: all)",
+    )
     paths.set_defaults(func=cmd_paths)
 
     robots = "ur5, ur5e, ur5-seed, r5150 or a robot .toml"
@@ -512,6 +545,13 @@ def build_parser() -> argparse.ArgumentParser:
     group.add_argument("--overlap", type=float)
     group.add_argument("--standoff-mm", type=float)
     group.add_argument("--step-mm", type=float)
+    _add_edge_options(group)
+    group.add_argument(
+        "--speed-along",
+        choices=["surface", "tcp"],
+        help="the gun speed is the paint's contact point's (default; the tip's speed varies per waypoint) "
+        "or the gun tip's",
+    )
     group = plan_cmd.add_argument_group("coating")
     group.add_argument(
         "--simulate", action="store_true", help="predict the film: thickness.ply, thickness.csv, coating.json"
