@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 
 from sprayplan import __version__
-from sprayplan.cli_common import stage
+from sprayplan.cli_common import parse_direction, parse_edge_passes, stage
 from sprayplan.errors import ConfigError, InputError
 
 log = logging.getLogger("sprayplan.cli")
@@ -141,33 +141,8 @@ def cmd_demo(args) -> int:
     print(_run_targets(str(part_file), out / "targets.csv", load_args, TargetsConfig()))
     # seed 003's film spec, 50 +- 5 um: the plan picks the stroke spacing and gun speed for it
     job = JobConfig(load=LoadConfig(region=DEMO_REGION), plan=PlanConfig(thickness_um=50.0))
-    print(_run_plan(str(part_file), out, job, simulate=True, samples=420))
+    print(run_plan(str(part_file), out, job, simulate=True, samples=420))
     return 0
-
-
-def _direction(text: str):
-    if text in ("auto", "x", "y", "z"):
-        return text
-    try:
-        values = tuple(float(v) for v in text.replace(" ", "").split(","))
-    except ValueError:
-        values = ()
-    if len(values) != 3:
-        raise ConfigError(f"--direction must be auto, x, y, z or 'dx,dy,dz', got {text!r}")
-    return values
-
-
-def _edge_passes(text):
-    """``--edge-passes``: auto or a whole number >= 0."""
-    if text is None or text == "auto":
-        return text
-    try:
-        value = int(text)
-    except ValueError:
-        raise ConfigError(f"--edge-passes must be auto or a whole number >= 0, got {text!r}") from None
-    if value < 0:
-        raise ConfigError(f"--edge-passes must be auto or a whole number >= 0, got {text!r}")
-    return value
 
 
 def _path_config(args):
@@ -176,7 +151,7 @@ def _path_config(args):
     if args.spacing_mm is not None and args.overlap is not None:
         raise ConfigError("give either --spacing-mm or --overlap, not both")
     options = dict(
-        direction=_direction(args.direction),
+        direction=parse_direction(args.direction),
         spacing_mm=args.spacing_mm,
         layers=args.layers,
         spacing_mode=args.spacing_mode,
@@ -193,7 +168,7 @@ def _path_config(args):
         rim_mm=args.rim_mm,
     )
     if args.edge_passes is not None:
-        options["edge_passes"] = _edge_passes(args.edge_passes)
+        options["edge_passes"] = parse_edge_passes(args.edge_passes)
     for name in ("spray_radius_mm", "overlap", "standoff_mm", "step_mm"):
         if getattr(args, name) is not None:
             options[name] = getattr(args, name)
@@ -251,131 +226,7 @@ def cmd_paths(args) -> int:
     return 0
 
 
-def _job_config(args):
-    """The job's settings: defaults, then the TOML file (-c), then the flags given on the command line."""
-    from sprayplan.config import JobConfig, job_from_toml
-
-    job = job_from_toml(args.config) if args.config else JobConfig()
-    load = {k: getattr(args, k) for k in ("units", "up", "region") if getattr(args, k) is not None}
-    plan = {
-        k: getattr(args, k)
-        for k in ("mode", "tour", "process", "thickness_um", "tolerance_um", "speed_along")
-        if getattr(args, k, None) is not None
-    }
-    paths = {}
-    for key in ("spacing_mm", "spray_radius_mm", "overlap", "standoff_mm", "step_mm"):
-        if getattr(args, key, None) is not None:
-            paths[key] = getattr(args, key)
-    if args.direction is not None:
-        paths["direction"] = _direction(args.direction)
-    if args.edge_passes is not None:
-        paths["edge_passes"] = _edge_passes(args.edge_passes)
-    if "spacing_mm" in paths and "overlap" in paths:
-        raise ConfigError("give either --spacing-mm or --overlap, not both")
-    if args.robot is not None and args.robot != "gantry-ur5":
-        raise ConfigError(f"sprayplan plan drives the gantry-ur5 (seed 000's nine axes), not {args.robot!r}")
-    return dataclasses.replace(
-        job,
-        load=dataclasses.replace(job.load, **load),
-        paths=dataclasses.replace(job.paths, **paths),
-        plan=dataclasses.replace(job.plan, **plan),
-    )
-
-
-def _run_plan(part_path: str, outdir: Path, job, simulate: bool = False, samples: int | None = None) -> str:
-    from sprayplan.coating_stage import meet_thickness, simulate_plan, write_coating
-    from sprayplan.io.load import load_part
-    from sprayplan.io.plan_files import write_plan
-    from sprayplan.pipeline import plan, plan_totals
-    from sprayplan.surface.region import select_region
-
-    start = time.perf_counter()
-    job, chosen = meet_thickness(job)
-    if chosen:
-        log.info(
-            "for %.4g um: spacing %.4g mm, gun speed %.4g mm/s",
-            chosen["target_um"],
-            chosen["spacing_mm"],
-            chosen["gun_speed_mm_s"],
-        )
-    with _stage("load"):
-        part = load_part(part_path, units=job.load.units, up=job.load.up)
-    with _stage("region"):
-        part = select_region(part, job.load.region)
-    with _stage("plan (paths, stations, ordering, kinematics)"):
-        result = plan(part, job)
-    totals = plan_totals(result, job)
-    if chosen:
-        totals["chosen_for_thickness"] = chosen
-    report = None
-    if simulate:
-        with _stage("coating"):
-            film = simulate_plan(part, result, job)
-    elapsed = time.perf_counter() - start
-    totals["planning_time_s"] = round(elapsed, 3)
-    write_plan(outdir, result, job, totals, part_path)
-    if simulate:
-        report = write_coating(outdir, film, job, samples, chosen)
-    line = (
-        f"{totals['stations']} stations, {totals['strokes']} strokes, {totals['waypoints']} waypoints "
-        f"({totals['unreachable_waypoints']} unreachable, {totals['unassigned_points']} unassigned), spray "
-        f"{totals['spray_length_mm'] / 1000:.2f} m, transfer {totals['transfer_length_mm'] / 1000:.2f} m, gantry "
-        f"{totals['platform_travel_mm'] / 1000:.2f} m, cycle {totals['cycle_time_s']:.0f} s, planned in {elapsed:.1f} s "
-        f"-> {outdir}/plan.json"
-    )
-    if report is not None:
-        line += "\n" + _coating_line(report, outdir)
-    return line
-
-
-def _coating_line(report: dict, outdir) -> str:
-    painted = report["painted"]
-    return (
-        f"film: mean {painted['mean_um']:.1f} um, std/mean {painted['cv']:.3f}, min {painted['min_um']:.1f}, "
-        f"max {painted['max_um']:.1f}, {100 * painted['share_in_spec']:.1f}% of the painted area in "
-        f"{report['spec']['target_um']:.0f} +- {report['spec']['tolerance_um']:.0f} um -> {outdir}/coating.json"
-    )
-
-
-def cmd_simulate(args) -> int:
-    import dataclasses as dc
-
-    from sprayplan.coating_stage import simulate_plan, write_coating
-    from sprayplan.io.load import load_part
-    from sprayplan.io.plan_files import plan_from_dict, read_plan
-    from sprayplan.surface.region import select_region
-
-    outdir = Path(args.outdir)
-    data = read_plan(outdir / "plan.json")
-    result, job = plan_from_dict(data)
-    if args.thickness_um is not None or args.tolerance_um is not None:
-        changes = {k: getattr(args, k) for k in ("thickness_um", "tolerance_um") if getattr(args, k) is not None}
-        job = dc.replace(job, plan=dc.replace(job.plan, **changes))
-    part_file = args.part or data.get("part_file")
-    if not part_file:
-        raise ConfigError("plan.json does not name its part file: give it with --part")
-    part = select_region(load_part(part_file, units=job.load.units, up=job.load.up), job.load.region)
-    with _stage("coating"):
-        film = simulate_plan(part, result, job)
-    report = write_coating(outdir, film, job, args.samples)
-    print(_coating_line(report, outdir))
-    return 0
-
-
-def cmd_plan(args) -> int:
-    job = _job_config(args)
-    print(
-        _run_plan(
-            args.part,
-            Path(args.output),
-            job,
-            simulate=args.simulate or job.plan.thickness_um is not None,
-            samples=args.samples,
-        )
-    )
-    return 0
-
-
+from sprayplan.cli_plan import cmd_plan, cmd_simulate, run_plan  # noqa: E402 - the main job's commands
 from sprayplan.cli_robots import cmd_fk, cmd_ik  # noqa: E402 - the robot commands live in their own module
 
 
