@@ -163,6 +163,9 @@ class PathConfig:
     cloud_smooth_mm : float or None
         Point clouds: move each point onto the least-squares plane of its neighbours within this radius before
         slicing (003 section 2.2.3); None: no smoothing.
+    cloud_normal_smooth_mm : float or None
+        Point clouds: average the section normals over this arc length either side (a scan's normals are
+        noisy, and the gun would swing with them); None: half the spray radius; 0: off.
     rim_mm : float or None
         An end of a stroke, at most this long, whose normals turn more than 45 degrees away from the face's (a
         hemmed or rolled edge, the side of a thin panel) is not followed: the stroke leaves the face along its
@@ -195,6 +198,7 @@ class PathConfig:
     slab_mm: float | None = None
     cloud_normals: str = "triangles"
     cloud_smooth_mm: float | None = None
+    cloud_normal_smooth_mm: float | None = None
     rim_mm: float | None = None
     edge_passes: str | int = "auto"
 
@@ -236,6 +240,10 @@ class PathConfig:
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value > 0):
                 raise ConfigError(f"{name} must be a positive number, got {value}")
+        if self.cloud_normal_smooth_mm is not None and not (
+            math.isfinite(self.cloud_normal_smooth_mm) and self.cloud_normal_smooth_mm >= 0
+        ):
+            raise ConfigError(f"cloud_normal_smooth_mm must be a number >= 0, got {self.cloud_normal_smooth_mm}")
         if self.rim_mm is not None and not (math.isfinite(self.rim_mm) and self.rim_mm >= 0):
             raise ConfigError(f"rim_mm must be a number >= 0, got {self.rim_mm}")
         if self.edge_margin_mm is not None and not (math.isfinite(self.edge_margin_mm) and self.edge_margin_mm >= 0):

@@ -71,7 +71,9 @@ class GunSamples:
     stroke: np.ndarray
 
 
-def surface_samples(part: Part, targets: Targets | None = None, max_edge_mm: float = 0.0) -> SurfaceSamples:
+def surface_samples(
+    part: Part, targets: Targets | None = None, max_edge_mm: float = 0.0, facing: Paths | None = None
+) -> SurfaceSamples:
     """Surface samples of a part: its mesh vertices (or cloud points), or the given targets.
 
     Parameters
@@ -84,6 +86,10 @@ def surface_samples(part: Part, targets: Targets | None = None, max_edge_mm: flo
         Meshes: split triangles until no edge is longer than this (0: never), so that a coarse mesh (a CAD
         export with long thin triangles, a panel of two triangles) is sampled finely enough for the film's
         statistics; the new vertices take the normals interpolated from the original vertices.
+    facing : Paths, optional
+        A point cloud without normals gets PCA normals (k-d tree neighbourhoods of four point spacings), each
+        turned to agree with the normal of the nearest contact point of these paths: the side the gun paints
+        is the outside. Without paths such a cloud is an error.
 
     Raises
     ------
@@ -111,9 +117,25 @@ def surface_samples(part: Part, targets: Targets | None = None, max_edge_mm: flo
         face_area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
         area = np.bincount(faces.ravel(), np.repeat(face_area / 3.0, 3), len(vertices))
         return SurfaceSamples(vertices, normals, area, faces)
-    if part.vertex_normals is None:
-        raise InputError(f"{part.name}: a point cloud needs normals for a coating simulation")
-    return SurfaceSamples(part.vertices, part.vertex_normals, _cloud_area(part.vertices), faces)
+    normals = part.vertex_normals
+    if normals is None:
+        points = [s.points for s in facing.strokes if s.spray_on and len(s)] if facing is not None else []
+        if not points or len(part.vertices) < 3:
+            raise InputError(f"{part.name}: a point cloud needs normals for a coating simulation")
+        normals = _cloud_normals(
+            part.vertices, np.vstack(points), np.vstack([s.normals for s in facing.strokes if s.spray_on and len(s)])
+        )
+    return SurfaceSamples(part.vertices, normals, _cloud_area(part.vertices), faces)
+
+
+def _cloud_normals(points: np.ndarray, aim: np.ndarray, aim_normals: np.ndarray) -> np.ndarray:
+    """PCA normals of a cloud, each turned to agree with the normal at the nearest of the ``aim`` points."""
+    tree = cKDTree(points)
+    spacing = float(np.median(tree.query(points, k=2)[0][:, 1]))
+    normals = nm.pca_normals(points, 4.0 * max(spacing, 1e-9), tree=tree, center="mean")
+    nearest = cKDTree(aim).query(points)[1]
+    flip = np.einsum("ij,ij->i", normals, aim_normals[nearest]) < 0
+    return np.where(flip[:, None], -normals, normals)
 
 
 def _subdivided(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray, max_edge: float):

@@ -244,7 +244,7 @@ def simulate(
     """
     config = CoatingConfig() if config is None else config
     edge = process.pattern.radius_mm / 5.0 if config.sample_edge_mm is None else config.sample_edge_mm
-    samples = surface_samples(part, targets, edge)
+    samples = surface_samples(part, targets, edge, facing=paths)
     guns, times, flows = gun_samples(
         paths, process, overrides, config.max_step_mm, config.speed_along, config.max_speed_ratio
     )

@@ -12,7 +12,7 @@ from sprayplan.paths import cloudprep
 from sprayplan.paths import polyline as pl
 from sprayplan.paths.cloud_slicing import neighbour_triangle_normals, plane_fit_normals, slice_cloud
 from sprayplan.paths.edges import edge_pass_counts, layer_spacing, with_edge_passes, with_inner_edge_passes
-from sprayplan.paths.pieces import Piece, in_travel_order
+from sprayplan.paths.pieces import Piece, in_travel_order, smooth_normals
 from sprayplan.paths.planner import _section_pieces, covariance, layer_offsets, slicing_frame
 from sprayplan.surface import normals as nm
 from sprayplan.types import Part
@@ -72,6 +72,7 @@ def cloud_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
     offsets = layer_offsets(lo, hi, config, samples, distance, closed_part=len(boundary) == 0)
     sections = slice_cloud(points, plane_normal, offsets, slab, gap_mm=5.0 * spacing, travel=travel)
     thresholds = np.radians(config.streamline_deg or CLOUD_STREAMLINE_DEG)
+    smooth = config.spray_radius_mm / 2 if config.cloud_normal_smooth_mm is None else config.cloud_normal_smooth_mm
     layers = []
     for polylines in sections:
         sections = []
@@ -90,6 +91,7 @@ def cloud_layers(part: Part, config: PathConfig) -> list[list[Piece]]:
                 else plane_fit_normals(line, points, k=12)
             )
             line_n = nm.orient_like(fitted, normals[near].mean(axis=1))
+            line_n = smooth_normals(line, line_n, smooth, closed=closed)
             sections.append(_section_pieces(line, line_n, closed, travel, config))
         layers.append(in_travel_order(sections, travel))
     counts = edge_pass_counts(lo, hi, offsets, config, samples, distance)

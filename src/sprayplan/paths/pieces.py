@@ -76,3 +76,31 @@ def insert_in_travel_order(pieces: list[Piece], extra: list[Piece], travel) -> l
         at = next((i for i, p in enumerate(out) if not p.closed and float(p.points[0] @ travel) > key), len(out))
         out.insert(at, piece)
     return out
+
+
+def smooth_normals(points: np.ndarray, normals: np.ndarray, half_width_mm: float, closed: bool = False) -> np.ndarray:
+    """Normals along a polyline averaged over ``half_width_mm`` of arc length either side, then made unit.
+
+    A scanned surface's normals turn by several degrees from one section point to the next; the gun, which
+    follows them at the standoff, would then sweep its tip far more than the contact point moves. Averaging
+    over a stretch shorter than the spray radius keeps the turns of the surface and drops the noise.
+    """
+    n = len(points)
+    if half_width_mm <= 0 or n < 3:
+        return normals
+    seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    arc = np.concatenate([[0.0], np.cumsum(seg)])
+    if closed:
+        period = arc[-1] + float(np.linalg.norm(points[0] - points[-1]))
+        arc = np.concatenate([arc - period, arc, arc + period])
+        values = np.vstack([normals, normals, normals])
+        centre = arc[n : 2 * n]
+    else:
+        values = normals
+        centre = arc
+    total = np.vstack([np.zeros((1, 3)), np.cumsum(values, axis=0)])
+    lo = np.searchsorted(arc, centre - half_width_mm, side="left")
+    hi = np.searchsorted(arc, centre + half_width_mm, side="right")
+    mean = (total[hi] - total[lo]) / np.maximum(hi - lo, 1)[:, None]
+    length = np.linalg.norm(mean, axis=1)
+    return np.where(length[:, None] > 1e-9, mean / np.maximum(length, 1e-12)[:, None], normals)
