@@ -37,7 +37,7 @@ from sprayplan.coating import (
 )
 from sprayplan.coating.droplet import acceleration, integrate
 from sprayplan.config import PathConfig
-from sprayplan.errors import ConfigError
+from sprayplan.errors import ConfigError, InputError
 from sprayplan.io.load import load_part
 from sprayplan.paths.planner import plan_paths
 from sprayplan.types import Part, Paths, Stroke, Targets
@@ -593,3 +593,17 @@ def test_a_notched_plate_is_painted_evenly_round_the_notch():
     bare = plan_paths(part, PathConfig(spacing_mm=choice.spacing_mm, direction="y", edge_passes=0))
     thin = coating_report(simulate(part, bare, process, config=CoatingConfig(occlusion="none")))["all"]
     assert thin["share_in_spec"] < 0.95
+
+
+def test_a_cloud_without_normals_is_simulated_with_normals_facing_the_gun():
+    process = load_preset("seed000_circle")
+    choice = choose_spacing_and_speed(process, 50.0)
+    process = process.with_(speed_mm_s=choice.speed_mm_s)
+    mesh = plate(0.0, 400.0, 0.0, 300.0, 5.0, flip=True)  # normals -z: the gun paints from below
+    paths = plan_paths(mesh, PathConfig(spacing_mm=choice.spacing_mm, direction="y"))
+    cloud = Part(mesh.vertices, np.zeros((0, 3)), None, "cloud")
+    film = simulate(cloud, paths, process, config=CoatingConfig(occlusion="none"))
+    inside = (np.abs(film.points[:, 0] - 200) < 150) & (np.abs(film.points[:, 1] - 150) < 100)
+    assert np.all(film.thickness_um[inside] == pytest.approx(50.0, rel=0.03))
+    with pytest.raises(InputError):  # nothing to tell the outside by
+        simulate(cloud, Paths((), 113.0, 37.0), process)
