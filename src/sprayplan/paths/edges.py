@@ -114,13 +114,14 @@ class _EdgeFilter:
     """Which stretches of a piece lie near the part's open edges (all of it when the edges are unknown)."""
 
     def __init__(self, boundary: np.ndarray | None, d: float):
-        self.tree = None if boundary is None else (cKDTree(boundary) if len(boundary) else False)
+        self.known = boundary is not None
+        self.tree = cKDTree(boundary) if self.known and len(boundary) else None
         self.d = d
 
     def mask(self, piece: Piece) -> np.ndarray:
-        if self.tree is None:
+        if not self.known:
             return np.ones(len(piece.points), bool)
-        if self.tree is False:
+        if self.tree is None:  # a closed surface: no edge anywhere
             return np.zeros(len(piece.points), bool)
         return self.tree.query(piece.points)[0] <= EDGE_REACH * self.d
 

@@ -49,11 +49,22 @@ def resample_piece(points, normals, closed, config: PathConfig) -> Piece:
             dense, dense_n = dense[:-1], dense_n[:-1]
         on_part = cKDTree(new).query(dense)[0] == 0.0
         new, n = dense, dense_n
-    # a plane through a mesh vertex gives repeated section points: keep one of each run
-    keep = np.concatenate([[True], np.linalg.norm(np.diff(new, axis=0), axis=1) > 1e-9])
-    if closed and len(new) > 1 and keep.sum() > 1 and np.linalg.norm(new[-1] - new[0]) <= 1e-9:
+    return Piece(new, n, on_part, closed)
+
+
+def without_repeats(piece: Piece) -> Piece:
+    """The piece with one point of each run of repeated points (and, when closed, without a last point equal
+    to the first): a plane through a mesh vertex repeats a section point, and pieces split at a feature point
+    and joined again share it; a repeat would give a lead no direction."""
+    points = piece.points
+    if len(points) < 2:
+        return piece
+    keep = np.concatenate([[True], np.linalg.norm(np.diff(points, axis=0), axis=1) > 1e-9])
+    if piece.closed and keep.sum() > 1 and np.linalg.norm(points[-1] - points[0]) <= 1e-9:
         keep[-1] = False
-    return Piece(new[keep], n[keep], on_part[keep], closed)
+    if keep.all():
+        return piece
+    return Piece(points[keep], piece.normals[keep], piece.on_part[keep], piece.closed)
 
 
 def in_travel_order(sections: list[list[Piece]], travel) -> list[Piece]:

@@ -29,7 +29,7 @@ from sprayplan.paths.edges import (
     with_edge_passes,
     with_inner_edge_passes,
 )
-from sprayplan.paths.pieces import MIN_PIECE_MM, Piece, in_travel_order, resample_piece
+from sprayplan.paths.pieces import MIN_PIECE_MM, Piece, in_travel_order, resample_piece, without_repeats
 from sprayplan.paths.slicing import MeshSlicer
 from sprayplan.surface import normals as nm
 from sprayplan.types import Part, Paths, Stroke
@@ -396,16 +396,13 @@ def _with_margins(piece: Piece, config: PathConfig) -> Stroke:
     along its tangent and the lead goes on past the rim's edge by the margin, so that the face is painted up
     to its edge as a flat panel would be, instead of the gun swinging round the rim.
     """
+    piece = without_repeats(piece)
     points, normals, on_part = piece.points, piece.normals, piece.on_part
     if piece.closed:
         points = np.vstack([points, points[:1]])
         normals = np.vstack([normals, normals[:1]])
         on_part = np.concatenate([on_part, on_part[:1]])
-    else:
-        # pieces split at a feature point and joined again share that point: keep one of each repeat
-        keep = np.concatenate([[True], np.linalg.norm(np.diff(points, axis=0), axis=1) > 1e-9])
-        points, normals, on_part = points[keep], normals[keep], on_part[keep]
-    if not piece.closed and len(points) >= 2:
+    elif len(points) >= 2:
         head, tail = rim_lengths(points, normals, config.rim)
         keep = slice(head, len(points) - tail)
         inner = points[keep]
