@@ -76,3 +76,45 @@ def test_simulate_without_a_plan_fails_cleanly(tmp_path, capsys):
     assert main(["simulate", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "plan.json" in err
+
+
+def test_a_thickness_target_tunes_the_speeds_to_the_film(planned):
+    data = json.loads((planned / "plan.json").read_text())
+    report = json.loads((planned / "coating.json").read_text())
+    tuning = data["totals"]["speed_tuning"]
+    assert tuning["after"]["share_in_spec"] > tuning["before"]["share_in_spec"]
+    assert tuning["after"]["cv"] < tuning["before"]["cv"]
+    # the report is the tuned plan's film: the same figures as predicted (report over painted samples)
+    assert report["painted"]["cv"] == pytest.approx(tuning["after"]["cv"], rel=0.05)
+    speed = data["settings"]["plan"]["gun_speed_mm_s"]
+    factors, checked = [], 0
+    for st in data["stations"]:
+        for s in st["strokes"]:
+            dwell = np.array(s["dwell"])
+            assert len(dwell) == len(s["tcp"])
+            if not s["spray_on"]:
+                assert (dwell == 1.0).all()
+                continue
+            factors.append(dwell)
+            # the tip's speed per waypoint includes the factors: on a straight lead (tip and contact point
+            # moving alike) it is the speed over the mean of the segment's two factors
+            tcp, pts = np.array(s["tcp"]), np.array(s["points"])
+            seg = np.linalg.norm(np.diff(tcp, axis=0), axis=1)
+            same = np.abs(seg - np.linalg.norm(np.diff(pts, axis=0), axis=1)) < 1e-3 * np.maximum(seg, 1e-9)
+            expected = speed / (0.5 * (dwell[:-1] + dwell[1:]))
+            got = np.array(s["tcp_speed_mm_s"][1:])
+            np.testing.assert_allclose(got[same & (seg > 1.0)], expected[same & (seg > 1.0)], rtol=1e-3)
+            checked += int((same & (seg > 1.0)).sum())
+    assert checked > 100
+    factors = np.concatenate(factors)
+    assert factors.min() >= 0.5 - 1e-4 and factors.max() <= 2.0 + 1e-4 and factors.std() > 0
+
+
+def test_no_tune_speed_keeps_the_planned_speeds(testdata, tmp_path):
+    part = str(testdata / "meshes" / "reach_curved_part.ply")
+    args = ["plan", part, "--units", "m", "--region", "x > -250", "-o", str(tmp_path), "--thickness-um", "50"]
+    assert main([*args, "--no-tune-speed"]) == 0
+    data = json.loads((tmp_path / "plan.json").read_text())
+    assert "speed_tuning" not in data["totals"]
+    assert data["settings"]["plan"]["tune_speed"] is False
+    assert all(all(d == 1.0 for d in s["dwell"]) for st in data["stations"] for s in st["strokes"])

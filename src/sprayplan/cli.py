@@ -411,6 +411,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--thickness-um", type=float, help="film target: choose spacing and gun speed to meet it (implies --simulate)"
     )
     group.add_argument("--tolerance-um", type=float, help="film spec: target +- this (default 5)")
+    group.add_argument(
+        "--no-tune-speed",
+        action="store_true",
+        help="with a target, keep the planned speeds (default: tune a time factor per waypoint to the film)",
+    )
     group.add_argument("--process", help="spray process preset (seed000_circle, seed000_flat, bell003) or .toml")
     group.add_argument("--samples", type=int, help="also report the film at this many random points (seed 003: 420)")
     plan_cmd.set_defaults(func=cmd_plan)

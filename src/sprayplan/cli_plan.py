@@ -24,6 +24,8 @@ def _job_config(args):
         for k in ("mode", "tour", "process", "thickness_um", "tolerance_um", "speed_along")
         if getattr(args, k, None) is not None
     }
+    if getattr(args, "no_tune_speed", False):
+        plan["tune_speed"] = False
     paths = {}
     for key in ("spacing_mm", "spray_radius_mm", "overlap", "standoff_mm", "step_mm"):
         if getattr(args, key, None) is not None:
@@ -45,7 +47,7 @@ def _job_config(args):
 
 
 def run_plan(part_path: str, outdir: Path, job, simulate: bool = False, samples: int | None = None) -> str:
-    from sprayplan.coating_stage import meet_thickness, simulate_plan, write_coating
+    from sprayplan.coating_stage import meet_thickness, simulate_plan, tune_plan, write_coating
     from sprayplan.io.load import load_part
     from sprayplan.io.plan_files import write_plan
     from sprayplan.pipeline import plan, plan_totals
@@ -66,9 +68,15 @@ def run_plan(part_path: str, outdir: Path, job, simulate: bool = False, samples:
         part = select_region(part, job.load.region)
     with stage("plan (paths, stations, ordering, kinematics)"):
         result = plan(part, job)
+    tuned = {}
+    if job.plan.thickness_um is not None and job.plan.tune_speed:
+        with stage("speeds tuned to the film"):
+            result, tuned = tune_plan(part, result, job)
     totals = plan_totals(result, job)
     if chosen:
         totals["chosen_for_thickness"] = chosen
+    if tuned:
+        totals["speed_tuning"] = tuned
     report = None
     if simulate:
         with stage("coating"):

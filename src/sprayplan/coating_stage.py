@@ -63,6 +63,31 @@ def simulate_plan(part, plan: Plan, job: JobConfig):
     return simulate(part, paths, process_for(job), config=config)
 
 
+def tune_plan(part, plan: Plan, job: JobConfig) -> tuple[Plan, dict]:
+    """With a film target and ``tune_speed``: the plan with a time factor at every waypoint, chosen from the
+    simulated film (``coating.tune_speeds``), and a summary of the film predicted before and after. The
+    strokes keep their geometry and the joints; only their speeds change. Otherwise the plan unchanged."""
+    settings = job.plan
+    if settings.thickness_um is None or not settings.tune_speed or not plan.stations:
+        return plan, {}
+    from sprayplan.coating import CoatingConfig, TuningConfig, tune_speeds
+
+    paths = plan_paths_in_order(plan, job.paths.standoff_mm, job.paths.spacing or 0.0)
+    tolerance = settings.tolerance_um if settings.tolerance_um > 0 else 0.05 * settings.thickness_um
+    tuning = tune_speeds(
+        part,
+        paths,
+        process_for(job),
+        settings.thickness_um,
+        tolerance,
+        config=TuningConfig(min_dwell=settings.min_dwell, max_dwell=settings.max_dwell),
+        coating=CoatingConfig(speed_along=settings.speed_along, max_speed_ratio=settings.max_speed_ratio),
+    )
+    strokes = iter(tuning.paths.strokes)
+    stations = tuple(dataclasses.replace(st, strokes=tuple(next(strokes) for _ in st.strokes)) for st in plan.stations)
+    return dataclasses.replace(plan, stations=stations), tuning.summary(settings.thickness_um, tolerance)
+
+
 def write_coating(outdir, result, job: JobConfig, samples: int | None = None, chosen: dict | None = None) -> dict:
     """Write OUTDIR/thickness.ply, thickness.csv and coating.json; returns the report."""
     from sprayplan.coating import coating_report, write_thickness_csv, write_thickness_ply

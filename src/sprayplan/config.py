@@ -325,6 +325,13 @@ class PlanConfig:
     tolerance_um : float
         The spec is ``thickness_um +- tolerance_um`` (default 5, seed 003's); without a target the film is
         judged against seed 003's 50 +- 5 um.
+    tune_speed : bool
+        With a target: after planning, give every waypoint a time factor (``Stroke.dwell``) chosen from the
+        simulated film so that it comes closer to the target (``sprayplan.coating.tuning``). No effect without
+        a target.
+    min_dwell, max_dwell : float
+        Bounds of those factors: the gun runs at between 1 / ``max_dwell`` and 1 / ``min_dwell`` times its
+        planned speed.
     seed : int
     """
 
@@ -345,6 +352,9 @@ class PlanConfig:
     process: str = "seed000_circle"
     thickness_um: float | None = None
     tolerance_um: float = 5.0
+    tune_speed: bool = True
+    min_dwell: float = 0.5
+    max_dwell: float = 2.0
     seed: int = 0
 
     def __post_init__(self):
@@ -366,6 +376,9 @@ class PlanConfig:
             raise ConfigError(f"thickness_um must be a positive number, got {self.thickness_um}")
         if not (math.isfinite(self.tolerance_um) and self.tolerance_um >= 0):
             raise ConfigError(f"tolerance_um must be a number >= 0, got {self.tolerance_um}")
+        if not (0 < self.min_dwell <= 1.0 <= self.max_dwell and math.isfinite(self.max_dwell)):
+            raise ConfigError(f"need 0 < min_dwell <= 1 <= max_dwell, got {self.min_dwell}, {self.max_dwell}")
+        object.__setattr__(self, "tune_speed", bool(self.tune_speed))
         home = tuple(float(v) for v in self.home_mm)
         if len(home) != 3 or not all(math.isfinite(v) for v in home):
             raise ConfigError("home_mm must be three numbers")

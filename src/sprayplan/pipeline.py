@@ -68,9 +68,7 @@ def _split_by_station(stroke: Stroke, station: np.ndarray) -> list[tuple[int, St
             continue
         handed_over = stop < len(station) and station[stop] >= 0
         sl = slice(start, stop + 1 if handed_over else stop)
-        out.append(
-            (k, Stroke(stroke.points[sl], stroke.normals[sl], stroke.tcp[sl], True, stroke.on_part[sl], stroke.layer))
-        )
+        out.append((k, stroke.part(sl)))
     return out
 
 
@@ -208,7 +206,7 @@ def plan_totals(plan_: Plan, job: JobConfig) -> dict:
     settings = job.plan
     spray = sum(s.length_mm for st in plan_.stations for s in st.strokes if s.spray_on)
     spray_time = sum(
-        stroke_time(s.tcp, s.points, settings.gun_speed_mm_s, settings.speed_along, settings.max_speed_ratio)
+        stroke_time(s.tcp, s.points, settings.gun_speed_mm_s, settings.speed_along, settings.max_speed_ratio, s.dwell)
         for st in plan_.stations
         for s in st.strokes
         if s.spray_on

@@ -139,6 +139,10 @@ class Stroke:
         bridges across small gaps, and on transfers).
     layer : int
         The slicing layer (section plane) the stroke comes from; -1 for transfers.
+    dwell : (n,) float
+        Time factor at each waypoint (all 1 unless the speeds were tuned to the film,
+        ``sprayplan.coating.tuning``): the gun crosses the segment from waypoint i to i + 1 at the planned
+        speed divided by ``(dwell[i] + dwell[i + 1]) / 2``, so 2 is half speed and twice the paint.
     """
 
     points: np.ndarray
@@ -147,6 +151,7 @@ class Stroke:
     spray_on: bool = True
     on_part: np.ndarray = field(default=None)  # type: ignore[assignment]
     layer: int = -1
+    dwell: np.ndarray = field(default=None)  # type: ignore[assignment]
 
     def __post_init__(self):
         points = _frozen(self.points, np.float64, (3,), "points")
@@ -158,6 +163,13 @@ class Stroke:
         flags = _frozen(np.asarray(flags).reshape(-1), bool, (), "on_part")
         if len(flags) != len(points):
             raise ValueError("on_part must have one entry per point")
+        dwell = np.ones(len(points)) if self.dwell is None else self.dwell
+        dwell = _frozen(np.asarray(dwell, dtype=float).reshape(-1), np.float64, (), "dwell")
+        if len(dwell) != len(points):
+            raise ValueError("dwell must have one entry per point")
+        if not (np.isfinite(dwell).all() and (dwell > 0).all()):
+            raise ValueError("dwell must be positive and finite")
+        object.__setattr__(self, "dwell", dwell)
         object.__setattr__(self, "points", points)
         object.__setattr__(self, "normals", normals)
         object.__setattr__(self, "tcp", tcp)
@@ -176,8 +188,30 @@ class Stroke:
     def reversed(self) -> Stroke:
         """The same stroke run the other way."""
         return Stroke(
-            self.points[::-1], self.normals[::-1], self.tcp[::-1], self.spray_on, self.on_part[::-1], self.layer
+            self.points[::-1],
+            self.normals[::-1],
+            self.tcp[::-1],
+            self.spray_on,
+            self.on_part[::-1],
+            self.layer,
+            self.dwell[::-1],
         )
+
+    def part(self, index) -> Stroke:
+        """The waypoints selected by a slice or an index array, in that order (a stretch of the stroke)."""
+        return Stroke(
+            self.points[index],
+            self.normals[index],
+            self.tcp[index],
+            self.spray_on,
+            self.on_part[index],
+            self.layer,
+            self.dwell[index],
+        )
+
+    def with_dwell(self, dwell) -> Stroke:
+        """The same stroke with other time factors at its waypoints."""
+        return Stroke(self.points, self.normals, self.tcp, self.spray_on, self.on_part, self.layer, dwell)
 
 
 @dataclass(frozen=True)

@@ -42,7 +42,15 @@ from sprayplan.coating.spacing import (
     ripple_cv,
     speed_for_target,
 )
-from sprayplan.coating.thickness import CoatingConfig, CoatingResult, film_rate, shot_thickness, simulate
+from sprayplan.coating.thickness import (
+    CoatingConfig,
+    CoatingResult,
+    deposit_matrix,
+    film_rate,
+    shot_thickness,
+    simulate,
+)
+from sprayplan.coating.tuning import Tuning, TuningConfig, tune_speeds
 
 __all__ = [
     "KINDS",
@@ -58,12 +66,15 @@ __all__ = [
     "SprayPattern",
     "StrokeOverride",
     "SurfaceSamples",
+    "Tuning",
+    "TuningConfig",
     "bell_field",
     "bell_potential",
     "boundary_distance",
     "choose_spacing",
     "choose_spacing_and_speed",
     "coating_report",
+    "deposit_matrix",
     "drag_factor",
     "film_across",
     "film_rate",
@@ -84,6 +95,7 @@ __all__ = [
     "speed_for_target",
     "surface_samples",
     "thickness_colours",
+    "tune_speeds",
     "write_thickness_csv",
     "write_thickness_ply",
 ]

@@ -60,6 +60,12 @@ class GunSamples:
         Dry-film volume rate Q.
     stroke : (k,) int
         Index of the stroke in ``paths.strokes``.
+    node, node_share : (k, 4) int and float, or None
+        With ``gun_samples(..., nodes=True)``: how each time step depends on the waypoints' time factors
+        (``Stroke.dwell``). A step's time is half of each adjacent sub-segment's, and a sub-segment's time is
+        its planned time times the mean of its segment's two waypoints' factors, so
+        ``dt(w) = dt * sum_c node_share[:, c] * w[node[:, c]]`` (``node``: waypoint index counted over all of
+        ``paths.strokes``; the shares add up to 1, and ``dt`` is the step's time with ``w`` = 1).
     """
 
     position: np.ndarray
@@ -69,6 +75,8 @@ class GunSamples:
     dt_s: np.ndarray
     volume_rate_mm3_s: np.ndarray
     stroke: np.ndarray
+    node: np.ndarray | None = None
+    node_share: np.ndarray | None = None
 
 
 def surface_samples(
@@ -190,6 +198,7 @@ def gun_samples(
     max_step_mm: float | None = None,
     speed_along: str = "surface",
     max_speed_ratio: float = 3.0,
+    nodes: bool = False,
 ) -> tuple[GunSamples, np.ndarray, np.ndarray]:
     """Time steps of the spray-on path, and each stroke's duration and flow.
 
@@ -207,6 +216,10 @@ def gun_samples(
         ones, as the plan's per-waypoint speeds ask; see ``sprayplan.paths.speed``).
     max_speed_ratio : float
         With ``surface``: the tip's speed stays within [v / ratio, v ratio].
+    nodes : bool
+        Leave out the strokes' time factors (``Stroke.dwell``: every waypoint's is taken as 1) and return
+        instead how each time step depends on them (``GunSamples.node``, ``node_share``): what
+        :mod:`sprayplan.coating.tuning` needs.
 
     Returns
     -------
@@ -217,19 +230,22 @@ def gun_samples(
     step = process.pattern.radius_mm / 10.0 if max_step_mm is None else float(max_step_mm)
     per = _stroke_settings(paths, process, overrides)
     parts, times, flows = [], [], []
+    first = 0  # index of the stroke's first waypoint over all strokes
     for index, (stroke, (flow, speed, on)) in enumerate(zip(paths.strokes, per)):
-        seg_speed = segment_speeds(stroke.tcp, stroke.points, speed, speed_along, max_speed_ratio)
+        dwell = None if nodes else stroke.dwell
+        seg_speed = segment_speeds(stroke.tcp, stroke.points, speed, speed_along, max_speed_ratio, dwell)
         seg_len = np.linalg.norm(np.diff(stroke.tcp, axis=0), axis=1)
         times.append(float((seg_len / seg_speed).sum()))
         flows.append(flow if on else 0.0)
-        if not on or flow <= 0 or len(stroke) < 2:
-            continue
-        q = flow * 1000.0 / 60.0 * process.solids_fraction * process.transfer_efficiency
-        parts.append(_stroke_samples(stroke, step, seg_speed, q, index))
+        if on and flow > 0 and len(stroke) >= 2:
+            q = flow * 1000.0 / 60.0 * process.solids_fraction * process.transfer_efficiency
+            parts.append(_stroke_samples(stroke, step, seg_speed, q, index, first if nodes else None))
+        first += len(stroke)
     if parts:
-        cols = [np.concatenate([p[c] for p in parts]) for c in range(7)]
+        cols = [np.concatenate([p[c] for p in parts]) for c in range(9 if nodes else 7)]
     else:
         cols = [np.zeros((0, 3))] * 4 + [np.zeros(0), np.zeros(0), np.zeros(0, np.int64)]
+        cols += [np.zeros((0, 4), np.int64), np.zeros((0, 4))] if nodes else []
     return GunSamples(*cols), np.array(times, float), np.array(flows, float)
 
 
@@ -256,7 +272,7 @@ def _stroke_settings(paths: Paths, process: Process, overrides) -> list[tuple[fl
     return out
 
 
-def _stroke_samples(stroke, step: float, seg_speed: np.ndarray, q: float, index: int):
+def _stroke_samples(stroke, step: float, seg_speed: np.ndarray, q: float, index: int, first: int | None = None):
     tcp, nrm, pts = stroke.tcp, stroke.normals, stroke.points
     seg = np.linalg.norm(np.diff(tcp, axis=0), axis=1)
     sub = np.maximum(np.ceil(seg / step).astype(np.int64), 1)
@@ -279,4 +295,14 @@ def _stroke_samples(stroke, step: float, seg_speed: np.ndarray, q: float, index:
     along = np.where(norm[:, None] > 1e-9, along / np.maximum(norm, 1e-12)[:, None], nm.unit(fallback))
     keep = dt > 0
     k = int(keep.sum())
-    return (position[keep], axis[keep], along[keep], aim[keep], dt[keep], np.full(k, q), np.full(k, index))
+    out = (position[keep], axis[keep], along[keep], aim[keep], dt[keep], np.full(k, q), np.full(k, index))
+    if first is None:
+        return out
+    # time step j: half of sub-segment j - 1 (segment seg_of[j - 1]) and half of sub-segment j (seg_of[j]);
+    # a sub-segment's time is shared by its segment's two waypoints
+    before = np.concatenate([[0.0], steps]) / 4.0
+    after = np.concatenate([steps, [0.0]]) / 4.0
+    seg_before = np.concatenate([[0], seg_of[:-1]])
+    node = first + np.column_stack([seg_before, seg_before + 1, seg_of, seg_of + 1])
+    share = np.column_stack([before, before, after, after]) / np.where(dt > 0, dt, 1.0)[:, None]
+    return (*out, node[keep], share[keep])

@@ -49,12 +49,13 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import sparse
 from scipy.spatial import cKDTree
 
 from sprayplan.coating.occlusion import METHODS, compute_occlusion, make_views
 from sprayplan.coating.patterns import SprayPattern
 from sprayplan.coating.process import Process, StrokeOverride
-from sprayplan.coating.sampling import gun_samples, surface_samples
+from sprayplan.coating.sampling import GunSamples, SurfaceSamples, gun_samples, surface_samples
 from sprayplan.errors import ConfigError
 from sprayplan.surface import normals as nm
 from sprayplan.types import Part, Paths, Targets
@@ -243,52 +244,29 @@ def simulate(
     CoatingResult
     """
     config = CoatingConfig() if config is None else config
-    edge = process.pattern.radius_mm / 5.0 if config.sample_edge_mm is None else config.sample_edge_mm
-    samples = surface_samples(part, targets, edge, facing=paths)
-    guns, times, flows = gun_samples(
-        paths, process, overrides, config.max_step_mm, config.speed_along, config.max_speed_ratio
-    )
-    pattern = process.pattern
-    n = len(samples.points)
+    setup = _setup(part, paths, process, overrides, config, targets, nodes=False)
+    samples, n = setup.samples, len(setup.samples.points)
     thickness = np.zeros(n)
     deposit = np.zeros(len(paths.strokes))
-    if len(guns.position) and n:
-        tree = cKDTree(samples.points)
-        depth = np.einsum("ij,ij->i", guns.aim - guns.position, guns.axis)
-        reach = pattern.support_radius_mm * np.maximum(depth, 1.0) / pattern.standoff_mm * config.search_factor + 1.0
-        occ_step = pattern.radius_mm / 2.5 if config.occlusion_step_mm is None else config.occlusion_step_mm
-        views = make_views(guns, occ_step, reach)
-        half = pattern.support_radius_mm * config.search_factor + 0.5 * occ_step * pattern.standoff_mm / max(
-            float(np.median(depth)), 1.0
+    if setup.occlusion is not None:
+        parts = _in_batches(setup, lambda pairs: _summed(pairs, setup, len(paths.strokes)))
+        thickness = np.sum([p[0] for p in parts], axis=0) if parts else np.zeros(n)
+        deposit = np.sum([p[1] for p in parts], axis=0) if parts else np.zeros(len(paths.strokes))
+        log.debug(
+            "coating: %d gun samples, %d surface samples, %d pairs",
+            len(setup.guns.position),
+            n,
+            sum(p[2] for p in parts),
         )
-        workers = config.workers if config.workers is not None else min(os.cpu_count() or 1, 4)
-        on_vertices = targets is None and part.is_mesh
-        occlusion = compute_occlusion(
-            config.occlusion if part.is_mesh else "none",
-            samples,
-            # the film's own mesh (the part's, split finer when coarse) hides points: its vertices are the samples
-            samples.points if on_vertices else part.vertices,
-            samples.faces if on_vertices else part.faces,
-            views,
-            pattern.standoff_mm,
-            half,
-            pixels=int(config.occlusion_pixels),
-            sample_tree=tree,
-            workers=workers,
-            samples_are_vertices=on_vertices,
-        )
-        thickness, deposit = _accumulate(
-            samples, guns, pattern, reach, occlusion, tree, len(paths.strokes), int(config.batch), workers
-        )
-    paint = flows * times / 60.0
+    paint = setup.flows * setup.times / 60.0
     return CoatingResult(
         samples.points,
         samples.normals,
         samples.area_mm2,
         samples.faces,
         thickness,
-        times,
-        flows,
+        setup.times,
+        setup.flows,
         paint,
         deposit,
         process,
@@ -296,63 +274,157 @@ def simulate(
     )
 
 
-def _accumulate(samples, guns, pattern, reach, occlusion, tree, n_strokes, batch, workers=2):
-    """Sum the film of every (sample, gun sample) pair within reach: (n,) thickness, (s,) deposit.
+def deposit_matrix(
+    part: Part,
+    paths: Paths,
+    process: Process,
+    *,
+    overrides: Mapping[int, StrokeOverride] | Sequence[StrokeOverride | None] | None = None,
+    config: CoatingConfig | None = None,
+) -> tuple[SurfaceSamples, sparse.csr_matrix]:
+    """The film as a linear function of the waypoints' time factors (``Stroke.dwell``).
 
-    Pairs come from a k-d tree ball query per batch of gun samples (``sparse_distance_matrix``, all in C);
-    the formula is evaluated in float32 on coordinates relative to the samples' centroid, summed in float64
-    with ``bincount``. Batches run on ``workers`` threads (numpy releases the GIL in its array loops).
+    Returns the surface samples of :func:`simulate` and a sparse (samples x waypoints) matrix ``A``, mm per
+    unit time factor, with the waypoints of all ``paths.strokes`` one after another: the film for time
+    factors ``w`` is ``A @ w`` (exactly :func:`simulate`'s for strokes with ``dwell = w``), because a time
+    step's duration is linear in its segments' factors (``GunSamples.node_share``) and the film is linear in
+    the time steps. The strokes' own ``dwell`` is not used.
     """
-    n = len(samples.points)
+    config = CoatingConfig() if config is None else config
+    setup = _setup(part, paths, process, overrides, config, None, nodes=True)
+    n = len(setup.samples.points)
+    waypoints = int(sum(len(s) for s in paths.strokes))
+    matrix = sparse.csr_matrix((n, waypoints))
+    if setup.occlusion is not None:
+        guns = setup.guns
+
+        def one(pairs):
+            sample, gun, value = pairs
+            rows = np.repeat(sample, 4)
+            cols = guns.node[gun].reshape(-1)
+            vals = (value[:, None] * guns.node_share[gun]).reshape(-1)
+            return sparse.csr_matrix((vals, (rows, cols)), shape=(n, waypoints))  # sums repeated entries
+
+        for part_matrix in _in_batches(setup, one):
+            matrix = matrix + part_matrix
+    return setup.samples, matrix
+
+
+@dataclass(frozen=True)
+class _Setup:
+    samples: SurfaceSamples
+    guns: GunSamples
+    times: np.ndarray
+    flows: np.ndarray
+    pattern: SprayPattern
+    tree: cKDTree | None = None
+    reach: np.ndarray | None = None
+    occlusion: object = None  # None: nothing to compute (no gun samples or no surface samples)
+    batch: int = 4096
+    workers: int = 1
+
+
+def _setup(part, paths, process, overrides, config: CoatingConfig, targets, nodes: bool) -> _Setup:
+    """Surface samples, gun samples and occlusion: what the film's sum runs over."""
+    edge = process.pattern.radius_mm / 5.0 if config.sample_edge_mm is None else config.sample_edge_mm
+    samples = surface_samples(part, targets, edge, facing=paths)
+    guns, times, flows = gun_samples(
+        paths, process, overrides, config.max_step_mm, config.speed_along, config.max_speed_ratio, nodes=nodes
+    )
+    pattern = process.pattern
+    if not (len(guns.position) and len(samples.points)):
+        return _Setup(samples, guns, times, flows, pattern)
+    tree = cKDTree(samples.points)
+    depth = np.einsum("ij,ij->i", guns.aim - guns.position, guns.axis)
+    reach = pattern.support_radius_mm * np.maximum(depth, 1.0) / pattern.standoff_mm * config.search_factor + 1.0
+    occ_step = pattern.radius_mm / 2.5 if config.occlusion_step_mm is None else config.occlusion_step_mm
+    views = make_views(guns, occ_step, reach)
+    half = pattern.support_radius_mm * config.search_factor + 0.5 * occ_step * pattern.standoff_mm / max(
+        float(np.median(depth)), 1.0
+    )
+    workers = config.workers if config.workers is not None else min(os.cpu_count() or 1, 4)
+    on_vertices = targets is None and part.is_mesh
+    occlusion = compute_occlusion(
+        config.occlusion if part.is_mesh else "none",
+        samples,
+        # the film's own mesh (the part's, split finer when coarse) hides points: its vertices are the samples
+        samples.points if on_vertices else part.vertices,
+        samples.faces if on_vertices else part.faces,
+        views,
+        pattern.standoff_mm,
+        half,
+        pixels=int(config.occlusion_pixels),
+        sample_tree=tree,
+        workers=workers,
+        samples_are_vertices=on_vertices,
+    )
+    return _Setup(samples, guns, times, flows, pattern, tree, reach, occlusion, int(config.batch), workers)
+
+
+def _in_batches(setup: _Setup, reduce) -> list:
+    """``reduce(pairs)`` over batches of ``setup.batch`` gun samples, on ``setup.workers`` threads (numpy
+    releases the GIL in its array loops); ``pairs`` is :func:`_pairs`'s (sample, gun, film) of the batch."""
+    guns = setup.guns
+    samples = setup.samples
     origin = samples.points.mean(axis=0)
     vt = np.vstack([(samples.points - origin).T, samples.normals.T]).astype(np.float32)
     pos = guns.position - origin
-    round_pattern = pattern.kind != "double_beta"
     rows = [pos[:, 0], pos[:, 1], pos[:, 2], guns.volume_rate_mm3_s * guns.dt_s]
     rows += [guns.axis[:, 0], guns.axis[:, 1], guns.axis[:, 2]]
-    if not round_pattern:
+    if setup.pattern.kind == "double_beta":  # a round pattern needs no pattern axes
         across = np.cross(guns.axis, guns.along)
         rows += [guns.along[:, 0], guns.along[:, 1], guns.along[:, 2], across[:, 0], across[:, 1], across[:, 2]]
     gt = np.array(rows, dtype=np.float32)
-    h = np.float32(pattern.standoff_mm)
 
     def one(start):
-        sl = slice(start, min(start + batch, len(guns.position)))
-        found = cKDTree(guns.aim[sl]).sparse_distance_matrix(tree, float(reach[sl].max()), output_type="ndarray")
-        gun = found["i"].astype(np.int64) + start
-        sample = found["j"].astype(np.int64)
-        keep = found["v"] <= reach[gun]
-        gun, sample = gun[keep], sample[keep]
-        px, py, pz, nx, ny, nz = np.take(vt, sample, axis=1)
-        g = np.take(gt, gun, axis=1)
-        vx, vy, vz = px - g[0], py - g[1], pz - g[2]  # gun tip -> sample
-        z = vx * g[4] + vy * g[5] + vz * g[6]
-        zs = np.where(z > 1e-6, z, np.float32(1.0))
-        scale = h / zs
-        cos_term = -(vx * nx + vy * ny + vz * nz)
-        if round_pattern:  # the density depends on r^2 = (|v|^2 - z^2) (h / z)^2 only
-            r2 = (vx * vx + vy * vy + vz * vz - z * z) * (scale * scale)
-            flux = pattern.radial_density(r2)
-        else:
-            x = (vx * g[7] + vy * g[8] + vz * g[9]) * scale
-            y = (vx * g[10] + vy * g[11] + vz * g[12]) * scale
-            flux = pattern.density(x, y)
-        value = flux.astype(np.float32) * (scale * scale) * cos_term / zs * g[3]
-        ok = (z > 1e-6) & (cos_term > 0) & occlusion.visible(sample, gun)
-        value = np.where(ok, value, np.float32(0.0)).astype(np.float64)
-        return (
-            np.bincount(sample, value, n),
-            np.bincount(guns.stroke[gun], value * samples.area_mm2[sample], n_strokes),
-            len(gun),
-        )
+        sl = slice(start, min(start + setup.batch, len(guns.position)))
+        return reduce(_pairs(setup, vt, gt, sl))
 
-    starts = range(0, len(guns.position), batch)
-    if workers > 1 and len(starts) > 1:
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            parts = list(pool.map(one, starts))
+    starts = range(0, len(guns.position), setup.batch)
+    if setup.workers > 1 and len(starts) > 1:
+        with ThreadPoolExecutor(max_workers=setup.workers) as pool:
+            return list(pool.map(one, starts))
+    return [one(start) for start in starts]
+
+
+def _pairs(setup: _Setup, vt: np.ndarray, gt: np.ndarray, sl: slice):
+    """(sample, gun, film in mm) of every (sample, gun sample) pair within reach, gun samples ``sl``.
+
+    Pairs come from a k-d tree ball query (``sparse_distance_matrix``, all in C); the formula of the module
+    docstring is evaluated in float32 on coordinates relative to the samples' centroid (``vt``: samples'
+    coordinates and normals; ``gt``: gun samples' tip, Q dt, axis and pattern axes), and returned in float64.
+    """
+    guns, pattern, reach = setup.guns, setup.pattern, setup.reach
+    found = cKDTree(guns.aim[sl]).sparse_distance_matrix(setup.tree, float(reach[sl].max()), output_type="ndarray")
+    gun = found["i"].astype(np.int64) + sl.start
+    sample = found["j"].astype(np.int64)
+    keep = found["v"] <= reach[gun]
+    gun, sample = gun[keep], sample[keep]
+    px, py, pz, nx, ny, nz = np.take(vt, sample, axis=1)
+    g = np.take(gt, gun, axis=1)
+    vx, vy, vz = px - g[0], py - g[1], pz - g[2]  # gun tip -> sample
+    z = vx * g[4] + vy * g[5] + vz * g[6]
+    zs = np.where(z > 1e-6, z, np.float32(1.0))
+    scale = np.float32(pattern.standoff_mm) / zs
+    cos_term = -(vx * nx + vy * ny + vz * nz)
+    if pattern.kind != "double_beta":  # a round pattern's density depends on r^2 = (|v|^2 - z^2) (h / z)^2 only
+        r2 = (vx * vx + vy * vy + vz * vz - z * z) * (scale * scale)
+        flux = pattern.radial_density(r2)
     else:
-        parts = [one(start) for start in starts]
-    thickness = np.sum([p[0] for p in parts], axis=0) if parts else np.zeros(n)
-    deposit = np.sum([p[1] for p in parts], axis=0) if parts else np.zeros(n_strokes)
-    log.debug("coating: %d gun samples, %d surface samples, %d pairs", len(guns.position), n, sum(p[2] for p in parts))
-    return thickness, deposit
+        x = (vx * g[7] + vy * g[8] + vz * g[9]) * scale
+        y = (vx * g[10] + vy * g[11] + vz * g[12]) * scale
+        flux = pattern.density(x, y)
+    value = flux.astype(np.float32) * (scale * scale) * cos_term / zs * g[3]
+    ok = (z > 1e-6) & (cos_term > 0) & setup.occlusion.visible(sample, gun)
+    return sample, gun, np.where(ok, value, np.float32(0.0)).astype(np.float64)
+
+
+def _summed(pairs, setup: _Setup, n_strokes: int):
+    """Film per sample, dry volume per stroke and the number of pairs of one batch."""
+    sample, gun, value = pairs
+    n = len(setup.samples.points)
+    return (
+        np.bincount(sample, value, n),
+        np.bincount(setup.guns.stroke[gun], value * setup.samples.area_mm2[sample], n_strokes),
+        len(gun),
+    )

@@ -42,7 +42,12 @@ def tip_speeds(stroke, job) -> np.ndarray:
     if not stroke.spray_on:
         return np.full(len(stroke), settings.transfer_speed_mm_s)
     return waypoint_speeds(
-        stroke.tcp, stroke.points, settings.gun_speed_mm_s, settings.speed_along, settings.max_speed_ratio
+        stroke.tcp,
+        stroke.points,
+        settings.gun_speed_mm_s,
+        settings.speed_along,
+        settings.max_speed_ratio,
+        stroke.dwell,
     )
 
 
@@ -76,6 +81,7 @@ def plan_to_dict(plan, job, totals: dict, part_file: str | None = None) -> dict:
                     "flow_ml_min": flow if s.spray_on else 0.0,
                     "speed_mm_s": job.plan.gun_speed_mm_s if s.spray_on else job.plan.transfer_speed_mm_s,
                     "tcp_speed_mm_s": _round(tip_speeds(s, job), 3),
+                    "dwell": _round(s.dwell, 4),
                 }
             )
         stations.append(
@@ -180,6 +186,7 @@ def plan_from_dict(data: dict):
                     bool(s["spray_on"]),
                     np.array(s["on_part"], bool),
                     int(s["layer"]),
+                    np.array(s["dwell"], float) if "dwell" in s else None,
                 )
             )
             q9 += [[np.nan] * 9 if q is None else q for q in s["joints"]]

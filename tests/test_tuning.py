@@ -1,0 +1,170 @@
+"""Time factors at the waypoints (Stroke.dwell) and speeds tuned to the film (sprayplan.coating.tuning)."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from sprayplan.coating import (
+    CoatingConfig,
+    Process,
+    SprayPattern,
+    TuningConfig,
+    choose_spacing_and_speed,
+    coating_report,
+    deposit_matrix,
+    load_preset,
+    simulate,
+    tune_speeds,
+)
+from sprayplan.config import PathConfig
+from sprayplan.errors import ConfigError
+from sprayplan.io.load import load_part
+from sprayplan.paths.planner import plan_paths
+from sprayplan.paths.speed import segment_speeds, stroke_time
+from sprayplan.surface.region import select_region
+from sprayplan.types import Paths, Stroke
+from tests.helpers import plate
+
+H = 113.0
+PATTERN = SprayPattern("parabolic", 50.0, H)
+
+
+def line(y: float, x0: float = -150.0, x1: float = 150.0, step: float = 10.0) -> Stroke:
+    count = round(abs(x1 - x0) / step) + 1
+    pts = np.column_stack([np.linspace(x0, x1, count), np.full(count, y), np.zeros(count)])
+    normals = np.tile([0.0, 0.0, 1.0], (count, 1))
+    return Stroke(pts, normals, pts + H * normals)
+
+
+@pytest.fixture(scope="module")
+def panel():
+    return plate(-260, 260, -200, 200, 5.0)
+
+
+def strokes_on(ys, **kw) -> Paths:
+    strokes = [line(y, **kw) for y in ys]
+    strokes = [s if k % 2 == 0 else s.reversed() for k, s in enumerate(strokes)]
+    transfers = [
+        Stroke(
+            np.array([a.points[-1], b.points[0]]), np.tile([0.0, 0, 1], (2, 1)), np.array([a.tcp[-1], b.tcp[0]]), False
+        )
+        for a, b in itertools.pairwise(strokes)
+    ]
+    order = [strokes[0]]
+    for t, s in zip(transfers, strokes[1:]):
+        order += [t, s]
+    return Paths(tuple(order), H, 40.0)
+
+
+def test_the_film_is_linear_in_the_time_factors(panel):
+    paths = strokes_on([-60.0, -15.0, 35.0])
+    process = Process(PATTERN, speed_mm_s=300.0)
+    samples, matrix = deposit_matrix(panel, paths, process)
+    rng = np.random.default_rng(3)
+    dwell = rng.uniform(0.5, 2.0, matrix.shape[1])
+    starts = np.r_[0, np.cumsum([len(s) for s in paths.strokes])]
+    tuned = Paths(tuple(s.with_dwell(dwell[a : a + len(s)]) for s, a in zip(paths.strokes, starts)), H, 40.0)
+    film = simulate(panel, tuned, process).thickness_mm
+    predicted = np.asarray(matrix @ dwell).ravel()
+    assert film.max() > 1e-3
+    np.testing.assert_allclose(predicted, film, rtol=1e-5, atol=1e-9)
+    # transfers paint nothing: their waypoints' columns are empty
+    transfer_cols = np.concatenate([np.arange(a, a + len(s)) for s, a in zip(paths.strokes, starts) if not s.spray_on])
+    assert matrix[:, transfer_cols].nnz == 0
+    np.testing.assert_allclose(samples.points, simulate(panel, paths, process).points)
+
+
+def test_doubling_every_factor_doubles_the_time_and_the_film(panel):
+    paths = strokes_on([-30.0, 20.0])
+    slow = Paths(tuple(s.with_dwell(np.full(len(s), 2.0)) for s in paths.strokes), H, 40.0)
+    process = Process(PATTERN, speed_mm_s=250.0)
+    base, doubled = simulate(panel, paths, process), simulate(panel, slow, process)
+    sprayed = base.stroke_flow_ml_min > 0
+    np.testing.assert_allclose(doubled.stroke_time_s[sprayed], 2 * base.stroke_time_s[sprayed], rtol=1e-12)
+    np.testing.assert_allclose(doubled.thickness_mm, 2 * base.thickness_mm, rtol=1e-5, atol=1e-12)
+    s = slow.strokes[0]
+    assert stroke_time(s.tcp, s.points, 250.0, dwell=s.dwell) == pytest.approx(2 * s.length_mm / 250.0)
+
+
+def test_a_segment_runs_at_the_speed_over_the_mean_of_its_ends_factors():
+    stroke = line(0.0, -20.0, 20.0, 10.0).with_dwell([1.0, 2.0, 0.5, 1.0, 1.0])
+    speeds = segment_speeds(stroke.tcp, stroke.points, 300.0, dwell=stroke.dwell)
+    np.testing.assert_allclose(speeds, 300.0 / np.array([1.5, 1.25, 0.75, 1.0]))
+    # run backwards or cut, every segment keeps its speed
+    back = stroke.reversed()
+    np.testing.assert_allclose(segment_speeds(back.tcp, back.points, 300.0, dwell=back.dwell), speeds[::-1])
+    cut = stroke.part(slice(1, 4))
+    np.testing.assert_allclose(segment_speeds(cut.tcp, cut.points, 300.0, dwell=cut.dwell), speeds[1:3])
+
+
+@pytest.mark.parametrize("dwell", [[1.0, 0.0, 1.0], [1.0, np.nan, 1.0], [1.0, 1.0], [1.0, -2.0, 1.0]])
+def test_bad_time_factors_are_refused(dwell):
+    stroke = line(0.0, -10.0, 10.0, 10.0)
+    with pytest.raises(ValueError, match="dwell"):
+        stroke.with_dwell(dwell)
+
+
+def test_tuning_brings_an_uneven_film_onto_target(panel):
+    # strokes too far apart for the pattern (ripple) and too fast for 50 um
+    paths = strokes_on([-105.0, -45.0, 15.0, 75.0], x0=-200.0, x1=200.0)
+    process = Process(PATTERN, speed_mm_s=420.0)
+    config = TuningConfig(min_dwell=0.5, max_dwell=2.0)
+    tuning = tune_speeds(panel, paths, process, 50.0, 5.0, config=config)
+    summary = tuning.summary(50.0, 5.0)
+    assert summary["before"]["mean_um"] < 45.0
+    assert abs(summary["after"]["mean_um"] - 50.0) < abs(summary["before"]["mean_um"] - 50.0)
+    assert summary["after"]["share_in_spec"] > summary["before"]["share_in_spec"] + 0.2
+    assert summary["after"]["cv"] < summary["before"]["cv"]
+    dwell = np.concatenate([s.dwell for s in tuning.paths.strokes])
+    assert dwell.min() >= 0.5 - 1e-12 and dwell.max() <= 2.0 + 1e-12
+    # geometry unchanged; transfers keep factor 1
+    for old, new in zip(paths.strokes, tuning.paths.strokes):
+        np.testing.assert_array_equal(old.tcp, new.tcp)
+        if not new.spray_on:
+            np.testing.assert_array_equal(new.dwell, 1.0)
+    # the prediction is the film the tuned plan leaves
+    film = simulate(panel, tuning.paths, process).thickness_um
+    np.testing.assert_allclose(film, tuning.after_um, rtol=1e-5, atol=1e-6)
+    # it repeats exactly
+    again = tune_speeds(panel, paths, process, 50.0, 5.0, config=config)
+    np.testing.assert_array_equal(np.concatenate([s.dwell for s in again.paths.strokes]), dwell)
+
+
+def test_smoothing_limits_the_change_between_neighbouring_waypoints(panel):
+    paths = strokes_on([-105.0, -45.0, 15.0, 75.0], x0=-200.0, x1=200.0)
+    process = Process(PATTERN, speed_mm_s=420.0)
+
+    def roughness(smoothing):
+        tuning = tune_speeds(panel, paths, process, 50.0, 5.0, config=TuningConfig(smoothing=smoothing))
+        return max(float(np.abs(np.diff(s.dwell)).max()) for s in tuning.paths.strokes if s.spray_on)
+
+    assert roughness(1.0) < roughness(0.0)
+
+
+def test_tuning_settings_are_checked():
+    for bad in ({"min_dwell": 0.0}, {"max_dwell": 0.9}, {"smoothing": -1.0}, {"iterations": 0}, {"loss": "l1"}):
+        with pytest.raises(ConfigError):
+            TuningConfig(**bad)
+    with pytest.raises(ConfigError):
+        tune_speeds(plate(0, 10, 0, 10, 5.0), strokes_on([0.0]), Process(PATTERN), 50.0, 0.0)
+
+
+def test_tuning_on_the_real_curved_panel(testdata):
+    part = select_region(load_part(testdata / "meshes" / "reach_curved_part.ply", units="m"), "x > -700")
+    process = load_preset("seed000_circle")
+    choice = choose_spacing_and_speed(process, 50.0)
+    paths = plan_paths(part, PathConfig(spacing_mm=choice.spacing_mm, step_mm=10.0))
+    process = process.with_(speed_mm_s=choice.speed_mm_s)
+    coating = CoatingConfig(sample_edge_mm=0.0)
+    tuning = tune_speeds(part, paths, process, 50.0, 5.0, coating=coating)
+    before = coating_report(simulate(part, paths, process, config=coating))["painted"]
+    after = coating_report(simulate(part, tuning.paths, process, config=coating))["painted"]
+    assert after["share_in_spec"] > before["share_in_spec"]
+    assert after["cv"] < before["cv"]
+    assert math.isclose(after["mean_um"], 50.0, rel_tol=0.05)
+    film = simulate(part, tuning.paths, process, config=coating).thickness_um
+    np.testing.assert_allclose(film, tuning.after_um, rtol=1e-4, atol=1e-4)
