@@ -11,7 +11,10 @@ Sections (all in one process; times are wall-clock medians over ``--repeat`` run
    (--units m), the demo roof, noether_raw_scan_mesh.ply and the tray's top, planned with ``plan_paths`` at the
    spacing the chooser picks (and at seed 000's 49.19 mm), with and without the edge handling, the speed taken
    as the tool tip's (``tcp``) or the contact point's (``surface``); also away from the edges and at 420
-   random points; then the whole main job with a 50 um target on the demo roof and the reach part.
+   random points.
+3b. (``--only plan``) The whole main job with a 50 um target on the demo roof, the reach part, the noether
+   scan and the tray's top, with the planned speeds and with the speeds tuned to the film.
+3c. (``--only tuning``) Tuning cost against quality: the solver's evaluations varied.
 4. Spacing chooser vs seed 000's fixed overlap 0.4 (spacing 49.19 mm for r = 50 mm), per pattern model.
 5. Droplet model (bell003 settings): transfer efficiency, pattern radius, fits of the analytic models.
 
@@ -190,32 +193,72 @@ def section_uniformity() -> None:
                 f"{i['share_in_spec']:.4f} | {i['share_of_area']:.3f} | {m['cv']:.4f} | {m['share_in_spec']:.4f} |"
             )
     print()
-    section_plan_film()
 
 
-def section_plan_film() -> None:
-    """The film of the whole main job (``sprayplan plan PART --thickness-um 50 --simulate``), stations and all."""
-    from sprayplan.coating_stage import meet_thickness, simulate_plan
+def section_plan_film(repeat: int = 3) -> None:
+    """The film of the whole main job (``sprayplan plan PART --thickness-um 50 --simulate``), stations and all,
+    with the planned speeds (``--no-tune-speed``) and with the speeds tuned to the film (the default)."""
+    from sprayplan.coating_stage import meet_thickness, simulate_plan, tune_plan
     from sprayplan.config import JobConfig, PlanConfig
-    from sprayplan.pipeline import plan
+    from sprayplan.pipeline import plan, plan_totals
 
     print("### 3b. The main job: `sprayplan plan PART --thickness-um 50 --simulate` (defaults otherwise)\n")
-    print("| part | stations | strokes | waypoints | unreachable | painted std/mean | painted in spec | min-max um |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("'speeds': as planned (`--no-tune-speed`) or tuned to the film (the default). Tuning time: median of")
+    print(f"{repeat} runs of `tune_plan` (the deposit matrix and the solve). 'interior': painted samples more than")
+    print("50 mm from the part's open boundary.\n")
+    print(
+        "| part | stations | strokes | waypoints | unreachable | speeds | painted std/mean | painted in spec | "
+        "min-max um | interior std/mean | interior in spec | cycle s | tuning s | time factors |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for name, part in (
+        ("demo roof z > 1000", select_region(car_roof(), "z > 1000")),
+        ("reach_curved_part", load_part(DATA / "reach_curved_part.ply", units="m")),
+        ("noether_raw_scan_mesh", load_part(DATA / "noether_raw_scan_mesh.ply", units="m")),
+        ("tray top (z > 3.1)", select_region(load_part(DATA / "tray_bottom_mm_ascii.stl", up="y"), "z > 3.1")),
+    ):
+        job, _ = meet_thickness(JobConfig(plan=PlanConfig(thickness_um=50.0)))
+        result = plan(part, job)
+        strokes = sum(1 for st in result.stations for s in st.strokes if s.spray_on)
+        waypoints = sum(len(st.reachable) for st in result.stations)
+        unreachable = sum(int((~st.reachable).sum()) for st in result.stations)
+        tuning_wall, _, (tuned, info) = timed(lambda p=part, r=result, j=job: tune_plan(p, r, j), repeat)
+        for label, version, wall, factors in (
+            ("planned", result, "-", "1"),
+            ("tuned", tuned, f"{tuning_wall:.1f}", f"{info['dwell_min']:.2f}-{info['dwell_max']:.2f}"),
+        ):
+            report = coating_report(simulate_plan(part, version, job), edge_band_mm=50.0)
+            film, inner = report["painted"], report["interior"]
+            cycle = plan_totals(version, job)["cycle_time_s"]
+            print(
+                f"| {name} | {len(result.stations)} | {strokes} | {waypoints} | {unreachable} | {label} | "
+                f"{film['cv']:.4f} | {film['share_in_spec']:.4f} | {film['min_um']:.1f}-{film['max_um']:.1f} | "
+                f"{inner['cv']:.4f} | {inner['share_in_spec']:.4f} | {cycle:.0f} | {wall} | {factors} |"
+            )
+    print()
+
+
+def section_tuning() -> None:
+    """Tuning cost against quality: the solver's evaluations varied (``tune_speeds`` on the paths alone)."""
+    from sprayplan.coating import TuningConfig, tune_speeds
+
+    process, choice = seed_process()
+    process = process.with_(speed_mm_s=choice.speed_mm_s)
+    print("### 3c. Speeds tuned to the film: the solver's evaluations (30 is the default)\n")
+    print(f"`tune_speeds` on `plan_paths` at {choice.spacing_mm:.2f} mm, one run each.\n")
+    print("| part | evaluations | wall s | std/mean | in spec |")
+    print("|---|---|---|---|---|")
     for name, part in (
         ("demo roof z > 1000", select_region(car_roof(), "z > 1000")),
         ("reach_curved_part", load_part(DATA / "reach_curved_part.ply", units="m")),
     ):
-        job, _ = meet_thickness(JobConfig(plan=PlanConfig(thickness_um=50.0)))
-        result = plan(part, job)
-        film = coating_report(simulate_plan(part, result, job))["painted"]
-        strokes = sum(1 for st in result.stations for s in st.strokes if s.spray_on)
-        waypoints = sum(len(st.reachable) for st in result.stations)
-        unreachable = sum(int((~st.reachable).sum()) for st in result.stations)
-        print(
-            f"| {name} | {len(result.stations)} | {strokes} | {waypoints} | {unreachable} | {film['cv']:.4f} | "
-            f"{film['share_in_spec']:.4f} | {film['min_um']:.1f}-{film['max_um']:.1f} |"
-        )
+        paths = plan_paths(part, PathConfig(spacing_mm=choice.spacing_mm))
+        for evaluations in (10, 20, 30, 50):
+            start = time.perf_counter()
+            tuning = tune_speeds(part, paths, process, 50.0, 5.0, config=TuningConfig(iterations=evaluations))
+            wall = time.perf_counter() - start
+            after = tuning.summary(50.0, 5.0)["after"]
+            print(f"| {name} | {evaluations} | {wall:.1f} | {after['cv']:.4f} | {after['share_in_spec']:.4f} |")
     print()
 
 
@@ -278,13 +321,15 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--skip-droplets", action="store_true")
-    parser.add_argument("--only", choices=["speed", "occlusion", "uniformity", "spacing", "droplets"])
+    parser.add_argument("--only", choices=["speed", "occlusion", "uniformity", "plan", "tuning", "spacing", "droplets"])
     args = parser.parse_args(argv)
     print(f"embreex available: {has_embree()}\n")
     sections = {
         "speed": lambda: section_speed(args.repeat),
         "occlusion": lambda: section_occlusion(args.repeat),
         "uniformity": section_uniformity,
+        "plan": lambda: section_plan_film(args.repeat),
+        "tuning": section_tuning,
         "spacing": section_spacing,
         "droplets": section_droplets,
     }

@@ -64,7 +64,7 @@ class TuningConfig:
     min_dwell: float = 0.5
     max_dwell: float = 2.0
     smoothing: float = 0.1
-    iterations: int = 50
+    iterations: int = 30
     loss: str = "huber"
     painted_fraction: float = 0.1
 
