@@ -146,7 +146,14 @@ def test_smoothing_limits_the_change_between_neighbouring_waypoints(panel):
 
 
 def test_tuning_settings_are_checked():
-    for bad in ({"min_dwell": 0.0}, {"max_dwell": 0.9}, {"smoothing": -1.0}, {"iterations": 0}, {"loss": "l1"}):
+    for bad in (
+        {"min_dwell": 0.01},
+        {"max_dwell": 0.9},
+        {"max_dwell": 50.0},
+        {"smoothing": -1.0},
+        {"iterations": 0},
+        {"loss": "l1"},
+    ):
         with pytest.raises(ConfigError):
             TuningConfig(**bad)
     with pytest.raises(ConfigError):
@@ -168,3 +175,22 @@ def test_tuning_on_the_real_curved_panel(testdata):
     assert math.isclose(after["mean_um"], 50.0, rel_tol=0.05)
     film = simulate(part, tuning.paths, process, config=coating).thickness_um
     np.testing.assert_allclose(film, tuning.after_um, rtol=1e-4, atol=1e-4)
+
+
+def test_equal_bounds_leave_the_speeds_alone(panel):
+    paths = strokes_on([-30.0, 20.0])
+    tuning = tune_speeds(panel, paths, Process(PATTERN), 50.0, 5.0, config=TuningConfig(min_dwell=1.0, max_dwell=1.0))
+    assert all((s.dwell == 1.0).all() for s in tuning.paths.strokes)
+    np.testing.assert_allclose(tuning.after_um, tuning.before_um)
+
+
+def test_time_factors_survive_paths_json(tmp_path):
+    from sprayplan.io.paths_json import read_paths_json, write_paths_json
+
+    paths = strokes_on([-30.0, 20.0])
+    rng = np.random.default_rng(0)
+    tuned = Paths(tuple(s.with_dwell(rng.uniform(0.5, 2.0, len(s))) for s in paths.strokes), H, 40.0)
+    write_paths_json(tmp_path / "paths.json", tuned)
+    back = read_paths_json(tmp_path / "paths.json")
+    for a, b in zip(tuned.strokes, back.strokes):
+        np.testing.assert_allclose(b.dwell, a.dwell, atol=1e-6)

@@ -12,6 +12,10 @@ from dataclasses import dataclass
 
 from sprayplan.errors import ConfigError
 
+#: Smallest time factor of a waypoint (``Stroke.dwell``) the speed tuning may choose, and 1 / this the largest:
+#: a gun 20 times faster or slower than planned is a different plan, not a correction.
+MIN_DWELL = 0.05
+
 FILL_MODES = ("even", "point", "line")
 
 
@@ -331,7 +335,7 @@ class PlanConfig:
         a target.
     min_dwell, max_dwell : float
         Bounds of those factors: the gun runs at between 1 / ``max_dwell`` and 1 / ``min_dwell`` times its
-        planned speed.
+        planned speed (0.05 <= min_dwell <= 1 <= max_dwell <= 20).
     seed : int
     """
 
@@ -376,8 +380,11 @@ class PlanConfig:
             raise ConfigError(f"thickness_um must be a positive number, got {self.thickness_um}")
         if not (math.isfinite(self.tolerance_um) and self.tolerance_um >= 0):
             raise ConfigError(f"tolerance_um must be a number >= 0, got {self.tolerance_um}")
-        if not (0 < self.min_dwell <= 1.0 <= self.max_dwell and math.isfinite(self.max_dwell)):
-            raise ConfigError(f"need 0 < min_dwell <= 1 <= max_dwell, got {self.min_dwell}, {self.max_dwell}")
+        if not (MIN_DWELL <= self.min_dwell <= 1.0 <= self.max_dwell <= 1.0 / MIN_DWELL):
+            raise ConfigError(
+                f"need {MIN_DWELL} <= min_dwell <= 1 <= max_dwell <= {1 / MIN_DWELL:g}, got {self.min_dwell}, "
+                f"{self.max_dwell}"
+            )
         object.__setattr__(self, "tune_speed", bool(self.tune_speed))
         home = tuple(float(v) for v in self.home_mm)
         if len(home) != 3 or not all(math.isfinite(v) for v in home):

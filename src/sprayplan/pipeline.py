@@ -189,7 +189,8 @@ def _order_station(pieces, settings, platform, order_strokes, solve_tour) -> lis
         order = solve_tour(tcp, method=method, closed=False, seed=settings.seed).order
         points = np.concatenate([p.points for p in pieces])[order]
         normals = np.concatenate([p.normals for p in pieces])[order]
-        return [Stroke(points, normals, tcp[order], True, None, -1)]
+        dwell = np.concatenate([p.dwell for p in pieces])[order]
+        return [Stroke(points, normals, tcp[order], True, None, -1, dwell)]
     if settings.tour == "keep" or len(pieces) == 1:
         return pieces
     starts = np.array([p.tcp[0] for p in pieces])

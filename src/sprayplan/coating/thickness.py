@@ -294,20 +294,26 @@ def deposit_matrix(
     setup = _setup(part, paths, process, overrides, config, None, nodes=True)
     n = len(setup.samples.points)
     waypoints = int(sum(len(s) for s in paths.strokes))
-    matrix = sparse.csr_matrix((n, waypoints))
+    entries = []
     if setup.occlusion is not None:
         guns = setup.guns
 
         def one(pairs):
             sample, gun, value = pairs
-            rows = np.repeat(sample, 4)
-            cols = guns.node[gun].reshape(-1)
             vals = (value[:, None] * guns.node_share[gun]).reshape(-1)
-            return sparse.csr_matrix((vals, (rows, cols)), shape=(n, waypoints))  # sums repeated entries
+            # neighbouring time steps share waypoints: sum the batch's repeated entries before keeping them
+            batch = sparse.coo_matrix((vals, (np.repeat(sample, 4), guns.node[gun].reshape(-1))), shape=(n, waypoints))
+            batch = batch.tocsr().tocoo()
+            keep = batch.data != 0.0
+            return batch.row[keep], batch.col[keep], batch.data[keep]
 
-        for part_matrix in _in_batches(setup, one):
-            matrix = matrix + part_matrix
-    return setup.samples, matrix
+        entries = _in_batches(setup, one)
+    if entries:
+        rows, cols, vals = (np.concatenate([e[k] for e in entries]) for k in range(3))
+    else:
+        rows, cols, vals = np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+    # repeated (sample, waypoint) entries are summed
+    return setup.samples, sparse.coo_matrix((vals, (rows, cols)), shape=(n, waypoints)).tocsr()
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,7 @@ crosses a segment at the planned speed divided by the mean of its ends' factors)
 
 where A is :func:`~sprayplan.coating.thickness.deposit_matrix` (film at every surface sample per unit time
 factor, exact: the tuned plan's simulated film is ``A w``), T the target, tol the tolerance, a_s the samples'
-area over their mean, rho the Huber loss (quadratic within the tolerance, linear beyond, so that a few
+area over their mean, rho the Huber loss (rho(r) = r^2 for |r| <= 1, 2 |r| - 1 beyond) (quadratic within the tolerance, linear beyond, so that a few
 samples no path can reach, such as a lip facing away from every stroke, do not drag their neighbours out of
 spec), and the second sum keeps the speed from jumping between waypoints (lambda' = ``smoothing`` times
 sqrt(samples / waypoints) times the target, so the two sums weigh alike whatever the sizes). Only samples
@@ -34,6 +34,7 @@ from scipy.optimize import least_squares
 
 from sprayplan.coating.process import Process
 from sprayplan.coating.thickness import CoatingConfig, deposit_matrix
+from sprayplan.config import MIN_DWELL
 from sprayplan.errors import ConfigError
 from sprayplan.types import Part, Paths
 
@@ -69,8 +70,11 @@ class TuningConfig:
     painted_fraction: float = 0.1
 
     def __post_init__(self):
-        if not (0 < self.min_dwell <= 1.0 <= self.max_dwell and math.isfinite(self.max_dwell)):
-            raise ConfigError(f"need 0 < min_dwell <= 1 <= max_dwell, got {self.min_dwell}, {self.max_dwell}")
+        if not (MIN_DWELL <= self.min_dwell <= 1.0 <= self.max_dwell <= 1.0 / MIN_DWELL):
+            raise ConfigError(
+                f"need {MIN_DWELL} <= min_dwell <= 1 <= max_dwell <= {1 / MIN_DWELL:g}, got {self.min_dwell}, "
+                f"{self.max_dwell}"
+            )
         if not (math.isfinite(self.smoothing) and self.smoothing >= 0):
             raise ConfigError(f"smoothing must be a number >= 0, got {self.smoothing}")
         if int(self.iterations) < 1:
@@ -183,15 +187,14 @@ def tune_speeds(
 def _solve(matrix, area, tuned, free, starts, target, tol, config: TuningConfig) -> np.ndarray:
     rows = np.flatnonzero(tuned)
     cols = np.flatnonzero(free)
-    weight = np.sqrt(area[rows] / area[rows].mean())
-    fit = sparse.diags(weight / tol) @ matrix[rows][:, cols]
-    rhs = weight * target / tol
+    weight = area[rows] / area[rows].mean()
+    fit = matrix[rows][:, cols] / tol
     # neighbouring free waypoints of the same stroke
     position = np.full(len(free), -1)
     position[cols] = np.arange(len(cols))
-    boundary = np.zeros(len(free), bool)
-    boundary[starts[1:-1] - 1] = True  # the last waypoint of a stroke has no next in the same stroke
-    pairs = np.flatnonzero(free[:-1] & free[1:] & ~boundary[:-1])
+    same_stroke = np.ones(len(free) - 1, bool)
+    same_stroke[starts[1:-1][(starts[1:-1] > 0) & (starts[1:-1] < len(free))] - 1] = False
+    pairs = np.flatnonzero(free[:-1] & free[1:] & same_stroke)
     scale = config.smoothing * math.sqrt(len(rows) / len(cols)) * target / tol
     rows_d = np.arange(len(pairs))
     smooth = sparse.csr_matrix(
@@ -202,17 +205,36 @@ def _solve(matrix, area, tuned, free, starts, target, tol, config: TuningConfig)
         shape=(len(pairs), len(cols)),
     )
     system = sparse.vstack([fit, smooth]).tocsr()
-    target_vec = np.r_[rhs, np.zeros(len(pairs))]
-    x0 = np.clip(np.ones(len(cols)), config.min_dwell, config.max_dwell)
+    target_vec = np.r_[np.full(len(rows), target / tol), np.zeros(len(pairs))]
+    if config.max_dwell - config.min_dwell < 1e-12:
+        return np.full(len(cols), config.min_dwell)
+    n_fit = len(rows)
+    huber = config.loss == "huber"
+
+    def loss(z):
+        """rho(z = r^2) and its two derivatives: the samples' terms area-weighted (Huber or squared), the
+        smoothness terms squared."""
+        out = np.empty((3, len(z)))
+        out[0], out[1], out[2] = z, 1.0, 0.0
+        if huber:
+            fz = z[:n_fit]
+            big = fz > 1.0
+            root = np.sqrt(fz[big])
+            head = out[:, :n_fit]
+            head[0, big] = 2.0 * root - 1.0
+            head[1, big] = 1.0 / root
+            head[2, big] = -0.5 / (fz[big] * root)
+        out[:, :n_fit] *= weight
+        return out
+
     result = least_squares(
         lambda x: system @ x - target_vec,
-        x0,
+        np.ones(len(cols)),
         jac=lambda x: system,
         bounds=(config.min_dwell, config.max_dwell),
         method="trf",
         tr_solver="lsmr",
-        loss=config.loss,
-        f_scale=1.0,
+        loss=loss,
         max_nfev=int(config.iterations),
     )
     return np.clip(result.x, config.min_dwell, config.max_dwell)

@@ -2,7 +2,7 @@
 
 Schema (see docs/paths-json.md): ``{"format": "sprayplan.paths", "version": 1, "units": "mm", "part": ...,
 "settings": {...}, "summary": {...}, "strokes": [{"index", "layer", "spray_on", "points", "normals", "tcp",
-"on_part"}, ...]}`` with strokes in execution order.
+"on_part", "rpy", "dwell"}, ...]}`` with strokes in execution order.
 """
 
 from __future__ import annotations
@@ -53,6 +53,7 @@ def paths_to_dict(paths: Paths, settings=None) -> dict:
                 "tcp": np.round(s.tcp, 4).tolist(),
                 "on_part": s.on_part.tolist(),
                 "rpy": np.round(rpy, 7).tolist(),
+                "dwell": np.round(s.dwell, 6).tolist(),
             }
         )
     return {
@@ -94,6 +95,7 @@ def read_paths_json(path: str | os.PathLike) -> Paths:
                 bool(s["spray_on"]),
                 np.array(s["on_part"], bool),
                 int(s["layer"]),
+                np.array(s["dwell"], float) if "dwell" in s else None,
             )
             for s in data["strokes"]
         )

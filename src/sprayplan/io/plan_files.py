@@ -81,7 +81,7 @@ def plan_to_dict(plan, job, totals: dict, part_file: str | None = None) -> dict:
                     "flow_ml_min": flow if s.spray_on else 0.0,
                     "speed_mm_s": job.plan.gun_speed_mm_s if s.spray_on else job.plan.transfer_speed_mm_s,
                     "tcp_speed_mm_s": _round(tip_speeds(s, job), 3),
-                    "dwell": _round(s.dwell, 4),
+                    "dwell": _round(s.dwell, 6),
                 }
             )
         stations.append(
