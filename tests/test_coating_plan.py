@@ -10,6 +10,7 @@ import trimesh
 
 from sprayplan.cli import main
 from sprayplan.coating import choose_spacing_and_speed, load_preset
+from sprayplan.coating.touchup import TOUCH_UP_LAYER, TOUCH_UP_MIN_DWELL
 
 
 @pytest.fixture(scope="module")
@@ -87,7 +88,7 @@ def test_a_thickness_target_tunes_the_speeds_to_the_film(planned):
     # the report is the tuned plan's film: the same figures as predicted (report over painted samples)
     assert report["painted"]["cv"] == pytest.approx(tuning["after"]["cv"], rel=0.05)
     speed = data["settings"]["plan"]["gun_speed_mm_s"]
-    factors, checked = [], 0
+    factors, touch_ups, checked = [], [], 0
     for st in data["stations"]:
         for s in st["strokes"]:
             dwell = np.array(s["dwell"])
@@ -95,7 +96,12 @@ def test_a_thickness_target_tunes_the_speeds_to_the_film(planned):
             if not s["spray_on"]:
                 assert (dwell == 1.0).all()
                 continue
-            factors.append(dwell)
+            if s["layer"] == TOUCH_UP_LAYER:
+                # touch-ups are run only where the arm reaches them all the way
+                assert all(s["reachable"])
+                touch_ups.append(dwell)
+            else:
+                factors.append(dwell)
             # the tip's speed per waypoint includes the factors: on a straight lead (tip and contact point
             # moving alike) it is the speed over the mean of the segment's two factors
             tcp, pts = np.array(s["tcp"]), np.array(s["points"])
@@ -108,6 +114,10 @@ def test_a_thickness_target_tunes_the_speeds_to_the_film(planned):
     assert checked > 100
     factors = np.concatenate(factors)
     assert factors.min() >= 0.5 - 1e-4 and factors.max() <= 2.0 + 1e-4 and factors.std() > 0
+    # this part's lips get touch-ups, whose factors may go down to TOUCH_UP_MIN_DWELL
+    assert len(touch_ups) == tuning["touch_up_strokes"] > 0
+    touch_ups = np.concatenate(touch_ups)
+    assert touch_ups.min() >= TOUCH_UP_MIN_DWELL - 1e-6 and touch_ups.max() <= 2.0 + 1e-4
 
 
 def test_no_tune_speed_keeps_the_planned_speeds(testdata, tmp_path):

@@ -20,14 +20,20 @@ from sprayplan.coating import (
     simulate,
     tune_speeds,
 )
+from sprayplan.coating.touchup import TOUCH_UP_LAYER, TOUCH_UP_MIN_DWELL, touch_up_strokes
 from sprayplan.config import PathConfig
 from sprayplan.errors import ConfigError
 from sprayplan.io.load import load_part
 from sprayplan.paths.planner import plan_paths
 from sprayplan.paths.speed import segment_speeds, stroke_time
 from sprayplan.surface.region import select_region
-from sprayplan.types import Paths, Stroke
+from sprayplan.types import Part, Paths, Stroke
 from tests.helpers import plate
+
+
+def nm_unit(v):
+    return v / np.linalg.norm(v)
+
 
 H = 113.0
 PATTERN = SprayPattern("parabolic", 50.0, H)
@@ -194,3 +200,103 @@ def test_time_factors_survive_paths_json(tmp_path):
     back = read_paths_json(tmp_path / "paths.json")
     for a, b in zip(tuned.strokes, back.strokes):
         np.testing.assert_allclose(b.dwell, a.dwell, atol=1e-6)
+
+
+# ------------------------------------------------------------------------------------------- touch-ups
+
+
+FLANGE_NORMAL = np.array([math.sin(math.radians(60)), 0.0, math.cos(math.radians(60))])
+
+
+def flanged_panel() -> Part:
+    """A 400 x 300 mm panel (z = 0, normal +z) with a 60 mm flange turned down 60 degrees along x = 200, its
+    normal ``FLANGE_NORMAL`` (outwards and up)."""
+    top = plate(-200, 200, -150, 150, 5.0)
+    side = plate(0, 60, -150, 150, 5.0)  # (s, y): s runs down the flange
+    s_, y = side.vertices[:, 0], side.vertices[:, 1]
+    down = np.array([math.cos(math.radians(60)), 0.0, -math.sin(math.radians(60))])
+    side_v = np.column_stack([200.0 + s_ * down[0], y, s_ * down[2]])
+    faces = side.faces
+    tri = side_v[faces]
+    if np.cross(tri[0, 1] - tri[0, 0], tri[0, 2] - tri[0, 0]) @ FLANGE_NORMAL < 0:
+        faces = faces[:, ::-1]
+    return Part(np.vstack([top.vertices, side_v]), np.vstack([top.faces, faces + len(top.vertices)]), None, "flanged")
+
+
+def test_touch_ups_aim_at_a_flange_the_strokes_miss():
+    part = flanged_panel()
+    ys = np.arange(-140.0, 141.0, 35.0)
+    strokes = [
+        Stroke(pts, np.tile([0.0, 0, 1], (len(pts), 1)), pts + H * np.array([0.0, 0, 1]))
+        # run out 50 mm past the flange's edge, as a lead does: the flange gets grazing spray
+        for pts in (np.column_stack([np.linspace(-180, 250, 44), np.full(44, y), np.zeros(44)]) for y in ys)
+    ]
+    paths = Paths(tuple(strokes), H, 35.0)
+    process = Process(PATTERN, speed_mm_s=float(choose_spacing_and_speed(Process(PATTERN), 50.0).speed_mm_s))
+    tuning = tune_speeds(part, paths, process, 50.0, 5.0)
+    flange = (tuning.samples.points[:, 0] > 201.0) & (tuning.samples.points[:, 2] < -5.0)
+    assert tuning.tuned[flange].mean() > 0.5  # painted ...
+    assert np.median(tuning.after_um[flange]) < 45.0  # ... but by grazing spray only
+    extra = touch_up_strokes(
+        tuning.samples,
+        tuning.after_um,
+        tuning.tuned,
+        50.0,
+        5.0,
+        standoff_mm=H,
+        step_mm=10.0,
+        lead_mm=50.0,
+        min_area_mm2=625.0,
+    )
+    assert all(s.layer == TOUCH_UP_LAYER for s in extra)
+    aimed = [s for s in extra if nm_unit(s.normals.mean(axis=0)) @ FLANGE_NORMAL > 0.95]
+    assert len(aimed) == 1, "the flange should get one touch-up stroke"  # (the top's short edges get theirs)
+    first = aimed[0]
+    assert first.layer == TOUCH_UP_LAYER and first.spray_on
+    np.testing.assert_allclose(first.tcp, first.points + H * first.normals)
+    assert (first.normals @ FLANGE_NORMAL > 0.95).all()
+    middle = first.points[5:-5]  # leads of 50 mm at 10 mm steps at each end
+    # near the flange's plane, within its width
+    assert np.abs((middle - [200.0, 0, 0]) @ FLANGE_NORMAL).max() < 2.0
+    assert (middle[:, 2] < 0).all() and (middle[:, 2] > -60 * math.sin(math.radians(60))).all()
+    assert np.ptp(first.points[:, 1]) > 200.0  # along the flange
+    steps = np.linalg.norm(np.diff(middle, axis=0), axis=1)
+    assert np.median(steps) == pytest.approx(10.0, rel=0.2)
+    # with the touch-up (factors free down to TOUCH_UP_MIN_DWELL) the flange comes into spec
+    both = Paths((*paths.strokes, *extra), H, 35.0)
+    lower = np.concatenate(
+        [np.full(len(s), TOUCH_UP_MIN_DWELL if s.layer == TOUCH_UP_LAYER else 0.5) for s in both.strokes]
+    )
+    again = tune_speeds(part, both, process, 50.0, 5.0, lower=lower)
+    inside = (again.after_um[flange] >= 45) & (again.after_um[flange] <= 55)
+    before_inside = (tuning.after_um[flange] >= 45) & (tuning.after_um[flange] <= 55)
+    assert inside.mean() > before_inside.mean() + 0.3
+    assert again.summary(50, 5)["after"]["share_in_spec"] > tuning.summary(50, 5)["after"]["share_in_spec"]
+    main_dwell = np.concatenate([s.dwell for s in again.paths.strokes if s.layer != TOUCH_UP_LAYER])
+    assert main_dwell.min() >= 0.5 - 1e-9
+
+
+def test_no_touch_ups_where_the_film_is_in_spec(panel):
+    paths = strokes_on([-60.0, -15.0, 35.0])
+    tuning = tune_speeds(panel, paths, Process(PATTERN, speed_mm_s=300.0), 50.0, 5.0)
+    film = np.full(len(tuning.samples.points), 50.0)
+    kw = dict(standoff_mm=H, step_mm=10.0, lead_mm=50.0, min_area_mm2=625.0)
+    assert touch_up_strokes(tuning.samples, film, tuning.tuned, 50.0, 5.0, **kw) == []
+    # and a patch smaller than the least area gets none either
+    small = film.copy()
+    small[np.linalg.norm(tuning.samples.points[:, :2], axis=1) < 10.0] = 20.0
+    assert touch_up_strokes(tuning.samples, small, np.ones(len(film), bool), 50.0, 5.0, **kw) == []
+
+
+def test_lower_bounds_are_checked(panel):
+    paths = strokes_on([0.0])
+    with pytest.raises(ConfigError, match="lower"):
+        tune_speeds(panel, paths, Process(PATTERN), 50.0, 5.0, lower=np.zeros(3))
+
+
+def test_plan_settings_of_the_tuning_are_checked():
+    from sprayplan.config import PlanConfig
+
+    for bad in ({"touch_up_rounds": -1}, {"touch_up_rounds": 1.5}, {"min_dwell": 0.0}, {"max_dwell": 0.5}):
+        with pytest.raises(ConfigError):
+            PlanConfig(**bad)

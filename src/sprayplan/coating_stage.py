@@ -64,28 +64,63 @@ def simulate_plan(part, plan: Plan, job: JobConfig):
 
 
 def tune_plan(part, plan: Plan, job: JobConfig) -> tuple[Plan, dict]:
-    """With a film target and ``tune_speed``: the plan with a time factor at every waypoint, chosen from the
-    simulated film (``coating.tune_speeds``), and a summary of the film predicted before and after. The
-    strokes keep their geometry and the joints; only their speeds change. Otherwise the plan unchanged."""
+    """With a film target and ``tune_speed``: the plan with a time factor at every waypoint chosen from the
+    simulated film (``coating.tune_speeds``), and, for ``touch_up_rounds`` rounds, touch-up strokes aimed at
+    the patches still under-painted (``coating.touchup``), run from the nearest station, after which all
+    speeds are tuned again. Returns the plan and a summary (the film predicted before and after, the
+    factors' range, the touch-up strokes added). The plan's own strokes keep their geometry and joints.
+    Without a target or with ``tune_speed`` off: the plan unchanged."""
     settings = job.plan
     if settings.thickness_um is None or not settings.tune_speed or not plan.stations:
         return plan, {}
     from sprayplan.coating import CoatingConfig, TuningConfig, tune_speeds
+    from sprayplan.coating.touchup import TOUCH_UP_LAYER, TOUCH_UP_MIN_DWELL, touch_up_strokes
+    from sprayplan.pipeline import with_added_strokes
 
-    paths = plan_paths_in_order(plan, job.paths.standoff_mm, job.paths.spacing or 0.0)
-    tolerance = settings.tolerance_um if settings.tolerance_um > 0 else 0.05 * settings.thickness_um
-    tuning = tune_speeds(
-        part,
-        paths,
-        process_for(job),
-        settings.thickness_um,
-        tolerance,
-        config=TuningConfig(min_dwell=settings.min_dwell, max_dwell=settings.max_dwell),
-        coating=CoatingConfig(speed_along=settings.speed_along, max_speed_ratio=settings.max_speed_ratio),
-    )
+    target = settings.thickness_um
+    tolerance = settings.tolerance_um if settings.tolerance_um > 0 else 0.05 * target
+    process = process_for(job)
+    config = TuningConfig(min_dwell=settings.min_dwell, max_dwell=settings.max_dwell)
+    coating = CoatingConfig(speed_along=settings.speed_along, max_speed_ratio=settings.max_speed_ratio)
+    radius = process.pattern.radius_mm
+
+    def tuned(plan_):
+        paths = plan_paths_in_order(plan_, job.paths.standoff_mm, job.paths.spacing or 0.0)
+        lower = np.concatenate(
+            [
+                np.full(len(s), TOUCH_UP_MIN_DWELL if s.layer == TOUCH_UP_LAYER else settings.min_dwell)
+                for s in paths.strokes
+            ]
+        )
+        return tune_speeds(part, paths, process, target, tolerance, config=config, coating=coating, lower=lower)
+
+    tuning = tuned(plan)
+    first = tuning.summary(target, tolerance)
+    for _ in range(settings.touch_up_rounds):
+        extra = touch_up_strokes(
+            tuning.samples,
+            tuning.after_um,
+            tuning.tuned,
+            target,
+            tolerance,
+            standoff_mm=job.paths.standoff_mm,
+            step_mm=job.paths.step_mm,
+            lead_mm=radius,
+            min_area_mm2=radius * radius / 4.0,
+        )
+        if not extra:
+            break
+        before = len(tuning.paths.strokes)
+        plan = with_added_strokes(plan, extra, job)
+        if sum(len(st.strokes) for st in plan.stations) == before:
+            break  # the arm reaches none of them
+        tuning = tuned(plan)
     strokes = iter(tuning.paths.strokes)
     stations = tuple(dataclasses.replace(st, strokes=tuple(next(strokes) for _ in st.strokes)) for st in plan.stations)
-    return dataclasses.replace(plan, stations=stations), tuning.summary(settings.thickness_um, tolerance)
+    summary = tuning.summary(target, tolerance)
+    summary["before"] = first["before"]
+    summary["touch_up_strokes"] = sum(1 for s in tuning.paths.strokes if s.layer == TOUCH_UP_LAYER)
+    return dataclasses.replace(plan, stations=stations), summary
 
 
 def write_coating(outdir, result, job: JobConfig, samples: int | None = None, chosen: dict | None = None) -> dict:

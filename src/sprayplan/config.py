@@ -336,6 +336,10 @@ class PlanConfig:
     min_dwell, max_dwell : float
         Bounds of those factors: the gun runs at between 1 / ``max_dwell`` and 1 / ``min_dwell`` times its
         planned speed (0.05 <= min_dwell <= 1 <= max_dwell <= 20).
+    touch_up_rounds : int
+        With speeds tuned: rounds of touch-up strokes, each aimed at a patch the tuned plan still leaves
+        under-painted (a lip or flange that faces away from every stroke), run from the nearest station and
+        tuned with the rest (``sprayplan.coating.touchup``); 0: none.
     seed : int
     """
 
@@ -359,6 +363,7 @@ class PlanConfig:
     tune_speed: bool = True
     min_dwell: float = 0.5
     max_dwell: float = 2.0
+    touch_up_rounds: int = 2
     seed: int = 0
 
     def __post_init__(self):
@@ -386,6 +391,8 @@ class PlanConfig:
                 f"{self.max_dwell}"
             )
         object.__setattr__(self, "tune_speed", bool(self.tune_speed))
+        if not (isinstance(self.touch_up_rounds, int) and 0 <= self.touch_up_rounds <= 10):
+            raise ConfigError(f"touch_up_rounds must be an integer from 0 to 10, got {self.touch_up_rounds!r}")
         home = tuple(float(v) for v in self.home_mm)
         if len(home) != 3 or not all(math.isfinite(v) for v in home):
             raise ConfigError("home_mm must be three numbers")

@@ -12,6 +12,7 @@ kinematics            nine axes at every waypoint: analytic IK in the recommende
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 from dataclasses import dataclass
@@ -174,6 +175,85 @@ def plan(part: Part, job: JobConfig | None = None) -> Plan:
         )
     log.info("%s: %d stations, %d waypoints unassigned", part.name, len(stations), int(unassigned_mask.sum()))
     return Plan(tuple(stations), home, all_points[unassigned_mask], part.name)
+
+
+def with_added_strokes(plan_: Plan, strokes: list[Stroke], job: JobConfig) -> Plan:
+    """The plan with extra spray strokes (touch-ups), each run at the end of the station whose gantry position
+    is nearest its flange positions (in xy), after a transfer, either way round (the nearer end first), with
+    the nine axes solved from that station as in :func:`plan`. A stroke the arm cannot follow all the way is
+    cut to the stretches it reaches (at least a spray radius long) and solved again; the rest is left out, so
+    every added spray waypoint is reachable."""
+    if not strokes or not plan_.stations:
+        return plan_
+    settings = job.plan
+    gantry = Gantry(robot=load_robot("ur5"), gun=load_gun(settings.tool))
+    stations = list(plan_.stations)
+    centres = np.array([st.platform_mm[:2] for st in stations])
+    extra: dict[int, list[Stroke]] = {}
+    for stroke in strokes:
+        flange_xy = (gun_poses(stroke) @ np.linalg.inv(gantry.gun.gun2flange))[:, :2, 3].mean(axis=0)
+        extra.setdefault(int(np.argmin(np.linalg.norm(centres - flange_xy, axis=1))), []).append(stroke)
+    kept = 0
+    for k, added in extra.items():
+        st = stations[k]
+        new, result, reached = _solved_additions(gantry, st, added, job)
+        for _ in range(5):  # strokes are cut to the runs the arm reaches, and solved again
+            if all(mask.all() for mask in reached):
+                break
+            added = [run for stroke, mask in zip(new[1::2], reached) for run in _reached_runs(stroke, mask, job)]
+            if not added:
+                break
+            new, result, reached = _solved_additions(gantry, st, added, job)
+        if not added or not all(mask.all() for mask in reached):
+            continue  # nothing the arm can follow from this station
+        kept += len(added)
+        stations[k] = StationPlan(
+            st.index,
+            st.platform_mm,
+            st.strokes + tuple(new),
+            np.vstack([st.q9, result.q9]),
+            np.concatenate([st.reachable, result.reachable]),
+            np.concatenate([st.method, result.method]),
+            np.concatenate([st.position_error_mm, result.position_error_mm]),
+            np.concatenate([st.axis_error_deg, result.axis_error_deg]),
+            np.concatenate([st.branch_change, result.branch_change]),
+        )
+    log.info("%s: %d strokes added (%d asked for; cut to what the arm reaches)", plan_.name, kept, len(strokes))
+    return Plan(tuple(stations), plan_.home_mm, plan_.unassigned, plan_.name)
+
+
+def _solved_additions(gantry, st: StationPlan, added: list[Stroke], job: JobConfig):
+    """Strokes appended to a station (nearer end first, transfers between) and their joints; and for each
+    added stroke whether the arm reaches all its waypoints."""
+    settings = job.plan
+    ordered, here = [], st.strokes[-1].tcp[-1]
+    for stroke in added:
+        if np.linalg.norm(stroke.tcp[-1] - here) < np.linalg.norm(stroke.tcp[0] - here):
+            stroke = stroke.reversed()
+        ordered.append(stroke)
+        here = stroke.tcp[-1]
+    new = with_transfers([st.strokes[-1], *ordered], job.paths)[1:]
+    last = st.q9[-1, :6]
+    result = solve_gantry_path(
+        gantry,
+        np.concatenate([gun_poses(s) for s in new]),
+        st.platform_mm,
+        seed_q=last if np.isfinite(last).all() else HOME_JOINTS,
+        k_d=settings.k_d,
+        position_tol_mm=settings.position_tol_mm,
+        axis_tol_rad=math.radians(settings.axis_tol_deg),
+    )
+    bounds = np.r_[0, np.cumsum([len(s) for s in new])]
+    reached = [result.reachable[a:b] for a, b in itertools.pairwise(bounds)]
+    # new = transfer, stroke, transfer, stroke, ...: the strokes are at odd positions
+    return new, result, reached[1::2]
+
+
+def _reached_runs(stroke: Stroke, reached: np.ndarray, job: JobConfig) -> list[Stroke]:
+    """The stretches of a stroke whose waypoints the arm all reaches, at least a spray radius long."""
+    edges = np.flatnonzero(np.diff(np.r_[0, reached.astype(int), 0]))
+    runs = [stroke.part(slice(a, b)) for a, b in zip(edges[::2], edges[1::2]) if b - a >= 2]
+    return [run for run in runs if run.length_mm >= job.paths.spray_radius_mm]
 
 
 def _order_station(pieces, settings, platform, order_strokes, solve_tour) -> list[Stroke]:

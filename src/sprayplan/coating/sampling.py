@@ -275,7 +275,9 @@ def _stroke_settings(paths: Paths, process: Process, overrides) -> list[tuple[fl
 def _stroke_samples(stroke, step: float, seg_speed: np.ndarray, q: float, index: int, first: int | None = None):
     tcp, nrm, pts = stroke.tcp, stroke.normals, stroke.points
     seg = np.linalg.norm(np.diff(tcp, axis=0), axis=1)
-    sub = np.maximum(np.ceil(seg / step).astype(np.int64), 1)
+    # a segment a hair longer than a multiple of the step (a waypoint spacing equal to it, rounded in a file)
+    # is not split once more: the film then does not depend on the last digit of the plan's coordinates
+    sub = np.maximum(np.ceil(seg / step - 1e-3).astype(np.int64), 1)
     seg_of = np.repeat(np.arange(len(seg)), sub)
     frac = (np.arange(sub.sum()) - np.repeat(np.cumsum(sub) - sub, sub)) / np.repeat(sub, sub)
     frac = np.concatenate([frac, [1.0]])

@@ -33,6 +33,7 @@ from scipy import sparse
 from scipy.optimize import least_squares
 
 from sprayplan.coating.process import Process
+from sprayplan.coating.sampling import SurfaceSamples
 from sprayplan.coating.thickness import CoatingConfig, deposit_matrix
 from sprayplan.config import MIN_DWELL
 from sprayplan.errors import ConfigError
@@ -99,6 +100,8 @@ class Tuning:
         The samples' areas.
     tuned : (n,) bool
         The samples tuned for.
+    samples : SurfaceSamples
+        The surface samples (points, normals, faces) the film is known at.
     """
 
     paths: Paths
@@ -106,6 +109,7 @@ class Tuning:
     after_um: np.ndarray
     area_mm2: np.ndarray
     tuned: np.ndarray
+    samples: SurfaceSamples
 
     def summary(self, target_um: float, tolerance_um: float) -> dict:
         """Area-weighted std / mean and share in spec of the tuned samples, before and after; the range of
@@ -137,6 +141,7 @@ def tune_speeds(
     *,
     config: TuningConfig | None = None,
     coating: CoatingConfig | None = None,
+    lower: np.ndarray | None = None,
 ) -> Tuning:
     """Time factors at the waypoints of ``paths`` that bring the simulated film to ``target_um``.
 
@@ -152,6 +157,9 @@ def tune_speeds(
     config : TuningConfig, optional
     coating : CoatingConfig, optional
         The film model's settings (as for ``simulate``).
+    lower : (waypoints,) float, optional
+        Per-waypoint lower bounds of the factors, over all of ``paths.strokes`` one after another, in place of
+        ``config.min_dwell`` (touch-up strokes may go lower than the plan's own).
 
     Returns
     -------
@@ -169,8 +177,11 @@ def tune_speeds(
     before = np.asarray(matrix @ np.ones(matrix.shape[1])).ravel()
     tuned = (samples.area_mm2 > 0) & (before >= config.painted_fraction * target_um)
     dwell = np.ones(matrix.shape[1])
+    low = np.full(matrix.shape[1], config.min_dwell) if lower is None else np.asarray(lower, float)
+    if low.shape != (matrix.shape[1],) or not (low > 0).all() or (low > 1.0).any():
+        raise ConfigError(f"lower must hold one bound in (0, 1] per waypoint ({matrix.shape[1]})")
     if tuned.any() and free.any():
-        dwell[free] = _solve(matrix, samples.area_mm2, tuned, free, starts, target_um, tolerance_um, config)
+        dwell[free] = _solve(matrix, samples.area_mm2, tuned, free, starts, target_um, tolerance_um, config, low)
     after = np.asarray(matrix @ dwell).ravel()
     strokes = tuple(s.with_dwell(dwell[a : a + len(s)]) for s, a in zip(paths.strokes, starts))
     log.info(
@@ -180,11 +191,11 @@ def tune_speeds(
         float(dwell[free].max()) if free.any() else 1.0,
     )
     return Tuning(
-        Paths(strokes, paths.standoff_mm, paths.spacing_mm, paths.name), before, after, samples.area_mm2, tuned
+        Paths(strokes, paths.standoff_mm, paths.spacing_mm, paths.name), before, after, samples.area_mm2, tuned, samples
     )
 
 
-def _solve(matrix, area, tuned, free, starts, target, tol, config: TuningConfig) -> np.ndarray:
+def _solve(matrix, area, tuned, free, starts, target, tol, config: TuningConfig, low: np.ndarray) -> np.ndarray:
     rows = np.flatnonzero(tuned)
     cols = np.flatnonzero(free)
     weight = area[rows] / area[rows].mean()
@@ -206,8 +217,9 @@ def _solve(matrix, area, tuned, free, starts, target, tol, config: TuningConfig)
     )
     system = sparse.vstack([fit, smooth]).tocsr()
     target_vec = np.r_[np.full(len(rows), target / tol), np.zeros(len(pairs))]
-    if config.max_dwell - config.min_dwell < 1e-12:
-        return np.full(len(cols), config.min_dwell)
+    low = low[cols]
+    if (config.max_dwell - low < 1e-12).all():
+        return np.full(len(cols), config.max_dwell)
     n_fit = len(rows)
     huber = config.loss == "huber"
 
@@ -231,10 +243,10 @@ def _solve(matrix, area, tuned, free, starts, target, tol, config: TuningConfig)
         lambda x: system @ x - target_vec,
         np.ones(len(cols)),
         jac=lambda x: system,
-        bounds=(config.min_dwell, config.max_dwell),
+        bounds=(np.minimum(low, config.max_dwell - 1e-9), config.max_dwell),
         method="trf",
         tr_solver="lsmr",
         loss=loss,
         max_nfev=int(config.iterations),
     )
-    return np.clip(result.x, config.min_dwell, config.max_dwell)
+    return np.clip(result.x, low, config.max_dwell)

@@ -1,0 +1,151 @@
+"""Touch-up strokes: extra passes aimed at the patches the plan leaves under-painted.
+
+Tuning the speeds (``tuning``) can only move paint the strokes deliver. A surface that faces away from
+every stroke, such as a rolled lip, a flange turned down or a step under a styling line, gets grazing spray
+whatever the speeds. A painter touches such places up with a pass aimed at them, and this module does the
+same from the simulated film:
+
+1. The under-painted samples (film below target - tolerance, among the samples tuned for) are joined into
+   patches. Two samples are joined when they are neighbours (a mesh edge, or for a cloud two points within
+   twice the median spacing) and their normals differ by less than ``max_turn_deg``, so a patch faces one
+   way.
+2. Every patch of at least ``min_area_mm2`` becomes one stroke along its longest extent (the principal axis
+   of its points, area-weighted). Each waypoint sits at the area-weighted centroid of the patch's samples
+   within one step of it along the axis (near the surface, not on it: ``on_part`` is False), aims along
+   their mean normal (smoothed over five waypoints), and stands ``standoff`` off it. Straight leads of
+   ``lead_mm`` extend both ends.
+
+The strokes are returned with ``layer = TOUCH_UP_LAYER``. The main job then runs each one from the nearest
+station and tunes all speeds again; a touch-up's time factors may go down to ``TOUCH_UP_MIN_DWELL``, so a
+pass that turns out to do more harm than good is run fast and paints little.
+
+A patch that curls round more than a quarter turn in the plane of its principal axes gets one straight-ish
+stroke along its main extent, which serves it less well. Patches are not split.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import sparse
+from scipy.ndimage import uniform_filter1d
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from sprayplan.coating.sampling import SurfaceSamples
+from sprayplan.surface import normals as nm
+from sprayplan.types import Stroke
+
+#: ``Stroke.layer`` of a touch-up stroke.
+TOUCH_UP_LAYER = -2
+
+#: The smallest time factor the speed tuning may give a touch-up stroke's waypoints (20 times its speed).
+TOUCH_UP_MIN_DWELL = 0.05
+
+
+def touch_up_strokes(
+    samples: SurfaceSamples,
+    film_um: np.ndarray,
+    tuned: np.ndarray,
+    target_um: float,
+    tolerance_um: float,
+    *,
+    standoff_mm: float,
+    step_mm: float,
+    lead_mm: float,
+    min_area_mm2: float,
+    max_turn_deg: float = 30.0,
+) -> list[Stroke]:
+    """Strokes aimed at the under-painted patches of a film (see the module docstring).
+
+    Parameters
+    ----------
+    samples : SurfaceSamples
+        Where the film is known (``tuning.Tuning.samples``).
+    film_um : (n,) float
+        The film there.
+    tuned : (n,) bool
+        The samples that count (the painted ones).
+    target_um, tolerance_um : float
+    standoff_mm, step_mm, lead_mm : float
+        The strokes' standoff, waypoint spacing and lead length at each end.
+    min_area_mm2 : float
+        Smaller patches get no stroke.
+    max_turn_deg : float
+        Neighbours whose normals differ more are not joined.
+
+    Returns
+    -------
+    list of Stroke
+        Largest patch first.
+    """
+    under = tuned & (samples.area_mm2 > 0) & (film_um < target_um - tolerance_um)
+    if not under.any():
+        return []
+    pairs = _neighbours(samples, under)
+    similar = np.einsum("ij,ij->i", samples.normals[pairs[:, 0]], samples.normals[pairs[:, 1]]) > np.cos(
+        np.radians(max_turn_deg)
+    )
+    pairs = pairs[similar]
+    n = len(samples.points)
+    graph = sparse.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    label = np.where(under, label, -1)
+    patches = [np.flatnonzero(label == k) for k in np.unique(label[under])]
+    patches = [p for p in patches if samples.area_mm2[p].sum() >= min_area_mm2]
+    patches.sort(key=lambda p: -samples.area_mm2[p].sum())
+    out = []
+    for patch in patches:
+        stroke = _patch_stroke(samples, patch, standoff_mm, step_mm, lead_mm)
+        if stroke is not None:
+            out.append(stroke)
+    return out
+
+
+def _neighbours(samples: SurfaceSamples, under: np.ndarray) -> np.ndarray:
+    """(k, 2) int: neighbouring pairs of under-painted samples."""
+    if len(samples.faces):
+        f = samples.faces
+        edges = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+        return edges[under[edges[:, 0]] & under[edges[:, 1]]]
+    index = np.flatnonzero(under)
+    if len(index) < 2:
+        return np.zeros((0, 2), np.int64)
+    spacing = float(np.median(cKDTree(samples.points).query(samples.points[index], 2)[0][:, 1]))
+    local = cKDTree(samples.points[index]).query_pairs(2.0 * spacing, output_type="ndarray")
+    return index[local] if len(local) else np.zeros((0, 2), np.int64)
+
+
+def _patch_stroke(samples: SurfaceSamples, patch: np.ndarray, standoff: float, step: float, lead: float):
+    points, normals, area = samples.points[patch], samples.normals[patch], samples.area_mm2[patch]
+    centre = np.average(points, axis=0, weights=area)
+    _, _, axes = np.linalg.svd((points - centre) * np.sqrt(area)[:, None], full_matrices=False)
+    axis = axes[0]
+    coord = (points - centre) @ axis
+    stations = np.arange(coord.min(), coord.max() + 0.5 * step, step)
+    way_p, way_n = [], []
+    for s in stations:
+        near = np.abs(coord - s) <= step
+        if near.any():
+            way_p.append(np.average(points[near], axis=0, weights=area[near]))
+            way_n.append(np.average(normals[near], axis=0, weights=area[near]))
+    if len(way_p) < 2:
+        return None
+    way_p, way_n = np.array(way_p), np.array(way_n)
+    if len(way_p) >= 5:
+        way_p = uniform_filter1d(way_p, 5, axis=0, mode="nearest")
+        way_n = uniform_filter1d(way_n, 5, axis=0, mode="nearest")
+    way_n = nm.unit(way_n)
+    keep = np.r_[True, np.linalg.norm(np.diff(way_p, axis=0), axis=1) > 1e-6]
+    way_p, way_n = way_p[keep], way_n[keep]
+    if len(way_p) < 2:
+        return None
+    start = nm.unit((way_p[0] - way_p[1])[None])[0]
+    end = nm.unit((way_p[-1] - way_p[-2])[None])[0]
+    count = max(1, int(np.ceil(lead / step))) if lead > 0 else 0
+    offsets = lead * np.arange(1, count + 1) / max(count, 1)
+    lead_in = (way_p[0] + offsets[:, None] * start)[::-1]
+    lead_out = way_p[-1] + offsets[:, None] * end
+    pts = np.vstack([lead_in, way_p, lead_out])
+    nrm = np.vstack([np.repeat(way_n[:1], count, 0), way_n, np.repeat(way_n[-1:], count, 0)])
+    # the waypoints are centroids near the patch, not points of the surface: on_part is False throughout
+    return Stroke(pts, nrm, pts + standoff * nrm, True, np.zeros(len(pts), bool), TOUCH_UP_LAYER)
