@@ -70,7 +70,7 @@ def run_plan(part_path: str, outdir: Path, job, simulate: bool = False, samples:
         result = plan(part, job)
     tuned = {}
     if job.plan.thickness_um is not None and job.plan.tune_speed:
-        with stage("speeds tuned to the film"):
+        with stage("speeds tuned to the film, touch-ups"):
             result, tuned = tune_plan(part, result, job)
     totals = plan_totals(result, job)
     if chosen:
