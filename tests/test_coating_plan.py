@@ -128,3 +128,29 @@ def test_no_tune_speed_keeps_the_planned_speeds(testdata, tmp_path):
     assert "speed_tuning" not in data["totals"]
     assert data["settings"]["plan"]["tune_speed"] is False
     assert all(all(d == 1.0 for d in s["dwell"]) for st in data["stations"] for s in st["strokes"])
+
+
+def test_the_deposit_of_an_extended_plan_reuses_the_earlier_columns(testdata):
+    from sprayplan.coating import deposit_matrix
+    from sprayplan.coating_stage import extended_deposit, plan_paths_in_order, process_for
+    from sprayplan.config import JobConfig, LoadConfig, PlanConfig
+    from sprayplan.io.load import load_part
+    from sprayplan.pipeline import plan, with_added_strokes
+    from sprayplan.surface.region import select_region
+
+    job = JobConfig(load=LoadConfig(units="m"), plan=PlanConfig(thickness_um=50.0))
+    part = select_region(load_part(testdata / "meshes" / "reach_curved_part.ply", units="m"), "x > -300")
+    earlier = plan(part, job)
+    process = process_for(job)
+    samples, old = deposit_matrix(part, plan_paths_in_order(earlier, 113.0, 0.0), process)
+    # two extra strokes: spray strokes of the plan run again, 10 mm higher
+    spray = [s for st in earlier.stations for s in st.strokes if s.spray_on][:2]
+    extra = [type(s)(s.points, s.normals, s.tcp + [0.0, 0.0, 10.0], True, s.on_part, -2) for s in spray]
+    extended = with_added_strokes(earlier, extra, job)
+    assert sum(len(st.strokes) for st in extended.stations) > sum(len(st.strokes) for st in earlier.stations)
+    got = extended_deposit(part, extended, earlier, samples, old, process, None)
+    assert got is not None
+    _, full = deposit_matrix(part, plan_paths_in_order(extended, 113.0, 0.0), process)
+    assert got[1].shape == full.shape
+    assert full.nnz > old.nnz  # the added strokes paint
+    assert abs(got[1] - full).max() <= 1e-6 * abs(full).max()

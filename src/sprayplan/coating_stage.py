@@ -10,6 +10,7 @@ import json
 import os
 
 import numpy as np
+from scipy import sparse
 
 from sprayplan.config import JobConfig
 from sprayplan.types import Paths, Plan
@@ -84,7 +85,7 @@ def tune_plan(part, plan: Plan, job: JobConfig) -> tuple[Plan, dict]:
     coating = CoatingConfig(speed_along=settings.speed_along, max_speed_ratio=settings.max_speed_ratio)
     radius = process.pattern.radius_mm
 
-    def tuned(plan_):
+    def tuned(plan_, earlier=None):
         paths = plan_paths_in_order(plan_, job.paths.standoff_mm, job.paths.spacing or 0.0)
         lower = np.concatenate(
             [
@@ -92,7 +93,10 @@ def tune_plan(part, plan: Plan, job: JobConfig) -> tuple[Plan, dict]:
                 for s in paths.strokes
             ]
         )
-        return tune_speeds(part, paths, process, target, tolerance, config=config, coating=coating, lower=lower)
+        deposit = None if earlier is None else extended_deposit(part, plan_, *earlier, process, coating)
+        return tune_speeds(
+            part, paths, process, target, tolerance, config=config, coating=coating, lower=lower, deposit=deposit
+        )
 
     tuning = tuned(plan)
     first = tuning.summary(target, tolerance)
@@ -111,16 +115,44 @@ def tune_plan(part, plan: Plan, job: JobConfig) -> tuple[Plan, dict]:
         if not extra:
             break
         before = len(tuning.paths.strokes)
-        plan = with_added_strokes(plan, extra, job)
+        previous, plan = plan, with_added_strokes(plan, extra, job)
         if sum(len(st.strokes) for st in plan.stations) == before:
             break  # the arm reaches none of them
-        tuning = tuned(plan)
+        tuning = tuned(plan, (previous, tuning.samples, tuning.deposit_mm))
     strokes = iter(tuning.paths.strokes)
     stations = tuple(dataclasses.replace(st, strokes=tuple(next(strokes) for _ in st.strokes)) for st in plan.stations)
     summary = tuning.summary(target, tolerance)
     summary["before"] = first["before"]
     summary["touch_up_strokes"] = sum(1 for s in tuning.paths.strokes if s.layer == TOUCH_UP_LAYER)
     return dataclasses.replace(plan, stations=stations), summary
+
+
+def extended_deposit(part, plan: Plan, earlier: Plan, samples, deposit_mm, process, coating):
+    """The deposit matrix of ``plan`` (``coating.deposit_matrix``) from that of ``earlier``, a plan whose
+    stations ``plan`` extends with strokes appended at their ends: only the appended strokes' columns are
+    computed (the film of a time step does not depend on the other strokes). Returns (samples, matrix), or
+    None when the samples come out different (a cloud without normals, oriented to face the plan)."""
+    from sprayplan.coating import deposit_matrix
+
+    added, is_new = [], []
+    for st, old in zip(plan.stations, earlier.stations):
+        for j, stroke in enumerate(st.strokes):
+            appended = j >= len(old.strokes)
+            is_new.append(np.full(len(stroke), appended))
+            if appended:
+                added.append(stroke)
+    is_new = np.concatenate(is_new)
+    if not added:
+        return samples, deposit_mm
+    new_samples, new_mm = deposit_matrix(part, Paths(tuple(added), 0.0, 0.0, plan.name), process, config=coating)
+    if not (
+        np.array_equal(new_samples.points, samples.points) and np.array_equal(new_samples.normals, samples.normals)
+    ):
+        return None
+    # columns: the earlier plan's waypoints, then the appended ones; put each where it is in the new plan
+    position = np.concatenate([np.flatnonzero(~is_new), np.flatnonzero(is_new)])
+    stacked = sparse.hstack([deposit_mm, new_mm]).tocsc()
+    return samples, stacked[:, np.argsort(position)].tocsr()
 
 
 def write_coating(outdir, result, job: JobConfig, samples: int | None = None, chosen: dict | None = None) -> dict:

@@ -102,6 +102,8 @@ class Tuning:
         The samples tuned for.
     samples : SurfaceSamples
         The surface samples (points, normals, faces) the film is known at.
+    deposit_mm : scipy.sparse.csr_matrix
+        The deposit matrix used (:func:`~sprayplan.coating.thickness.deposit_matrix`, mm per unit factor).
     """
 
     paths: Paths
@@ -110,6 +112,7 @@ class Tuning:
     area_mm2: np.ndarray
     tuned: np.ndarray
     samples: SurfaceSamples
+    deposit_mm: sparse.csr_matrix
 
     def summary(self, target_um: float, tolerance_um: float) -> dict:
         """Area-weighted std / mean and share in spec of the tuned samples, before and after; the range of
@@ -142,6 +145,7 @@ def tune_speeds(
     config: TuningConfig | None = None,
     coating: CoatingConfig | None = None,
     lower: np.ndarray | None = None,
+    deposit: tuple[SurfaceSamples, sparse.csr_matrix] | None = None,
 ) -> Tuning:
     """Time factors at the waypoints of ``paths`` that bring the simulated film to ``target_um``.
 
@@ -160,6 +164,9 @@ def tune_speeds(
     lower : (waypoints,) float, optional
         Per-waypoint lower bounds of the factors, over all of ``paths.strokes`` one after another, in place of
         ``config.min_dwell`` (touch-up strokes may go lower than the plan's own).
+    deposit : (SurfaceSamples, csr_matrix), optional
+        The samples and deposit matrix of these paths when already known (``deposit_matrix``'s result, mm);
+        otherwise computed.
 
     Returns
     -------
@@ -168,8 +175,10 @@ def tune_speeds(
     config = TuningConfig() if config is None else config
     if not (math.isfinite(target_um) and target_um > 0 and math.isfinite(tolerance_um) and tolerance_um > 0):
         raise ConfigError(f"need target_um > 0 and tolerance_um > 0, got {target_um}, {tolerance_um}")
-    samples, matrix = deposit_matrix(part, paths, process, config=coating)
-    matrix = matrix * 1000.0  # um
+    samples, deposit_mm = deposit_matrix(part, paths, process, config=coating) if deposit is None else deposit
+    if deposit_mm.shape[1] != sum(len(s) for s in paths.strokes):
+        raise ConfigError(f"the deposit matrix has {deposit_mm.shape[1]} columns, the paths other waypoints")
+    matrix = deposit_mm * 1000.0  # um
     starts = np.r_[0, np.cumsum([len(s) for s in paths.strokes])]
     free = np.zeros(matrix.shape[1], bool)
     for stroke, start in zip(paths.strokes, starts):
@@ -191,7 +200,13 @@ def tune_speeds(
         float(dwell[free].max()) if free.any() else 1.0,
     )
     return Tuning(
-        Paths(strokes, paths.standoff_mm, paths.spacing_mm, paths.name), before, after, samples.area_mm2, tuned, samples
+        Paths(strokes, paths.standoff_mm, paths.spacing_mm, paths.name),
+        before,
+        after,
+        samples.area_mm2,
+        tuned,
+        samples,
+        deposit_mm.tocsr(),
     )
 
 
