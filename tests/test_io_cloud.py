@@ -1,4 +1,4 @@
-"""Tests of sprayplan.io.cloud: XYZ text and PCD (ascii, binary, binary_compressed) point clouds."""
+"""Tests of sprayplan.io.cloud and io.pcd: XYZ text and PCD (ascii, binary, binary_compressed) point clouds."""
 
 from __future__ import annotations
 
@@ -11,7 +11,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from sprayplan.errors import PartFileError
-from sprayplan.io.cloud import _lzf_decompress, read_pcd, read_xyz
+from sprayplan.io.cloud import read_xyz
+from sprayplan.io.pcd import _lzf_decompress, read_pcd
 
 FUZZ = settings(
     max_examples=200,
@@ -144,7 +145,7 @@ def test_real_pcd_files_load_with_their_counts(testdata, caplog):
         raw = (folder / name).read_bytes()
         assert f"\nPOINTS {expected}\n".encode() in raw
         caplog.clear()
-        with caplog.at_level(logging.INFO, logger="sprayplan.io.cloud"):
+        with caplog.at_level(logging.INFO, logger="sprayplan.io.pcd"):
             points, normals = read_pcd(folder / name)
         # Both scans hold no NaN point (measured): all declared points come back and none is reported dropped.
         assert points.shape == (expected, 3)
@@ -318,7 +319,7 @@ def test_pcd_nan_points_are_dropped_and_counted(tmp_path, caplog, kind):
     points[[0, 7, 13], :] = np.nan  # organised cloud: no return at 3 pixels
     points[4, 1] = np.nan  # one coordinate alone is enough to drop a point
     data = pcd_bytes(XYZ_F4, dict(zip("xyz", points.T)), kind, width=5, height=4)
-    with caplog.at_level(logging.INFO, logger="sprayplan.io.cloud"):
+    with caplog.at_level(logging.INFO, logger="sprayplan.io.pcd"):
         got, _ = read_pcd(write(tmp_path, "n.pcd", data))
     keep = np.isfinite(points).all(axis=1)
     np.testing.assert_array_equal(got, as_f32(points[keep]))

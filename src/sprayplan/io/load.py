@@ -120,9 +120,9 @@ def read_part_file(path: str) -> tuple[np.ndarray, np.ndarray, np.ndarray | None
         triangles = parse_stl(data, path)
         return triangles.reshape(-1, 3), np.arange(3 * len(triangles)).reshape(-1, 3), None
     if suffix in CLOUD_SUFFIXES:
-        from sprayplan.io import cloud
+        from sprayplan.io import cloud, pcd
 
-        parser = cloud.parse_pcd if suffix == ".pcd" else cloud.parse_xyz
+        parser = pcd.parse_pcd if suffix == ".pcd" else cloud.parse_xyz
         points, normals = parser(data, path)
         return points, empty_faces, normals
     return _read_with_trimesh(data, suffix, path)
