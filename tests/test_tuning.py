@@ -297,6 +297,12 @@ def test_lower_bounds_are_checked(panel):
 def test_plan_settings_of_the_tuning_are_checked():
     from sprayplan.config import PlanConfig
 
-    for bad in ({"touch_up_rounds": -1}, {"touch_up_rounds": 1.5}, {"min_dwell": 0.0}, {"max_dwell": 0.5}):
+    for bad in (
+        {"touch_up_rounds": -1},
+        {"touch_up_rounds": 1.5},
+        {"min_dwell": 0.0},
+        {"max_dwell": 0.5},
+        {"tune_speed": "yes"},
+    ):
         with pytest.raises(ConfigError):
             PlanConfig(**bad)

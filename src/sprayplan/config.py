@@ -390,6 +390,8 @@ class PlanConfig:
                 f"need {MIN_DWELL} <= min_dwell <= 1 <= max_dwell <= {1 / MIN_DWELL:g}, got {self.min_dwell}, "
                 f"{self.max_dwell}"
             )
+        if not isinstance(self.tune_speed, bool):
+            raise ConfigError(f"tune_speed must be true or false, got {self.tune_speed!r}")
         object.__setattr__(self, "tune_speed", bool(self.tune_speed))
         if not (isinstance(self.touch_up_rounds, int) and 0 <= self.touch_up_rounds <= 10):
             raise ConfigError(f"touch_up_rounds must be an integer from 0 to 10, got {self.touch_up_rounds!r}")
