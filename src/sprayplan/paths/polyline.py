@@ -1,8 +1,8 @@
-"""Section polylines: streamlining, discrete curvature, feature points, resampling and interpolation.
+"""Section polylines: streamlining, discrete curvature, feature points and resampling.
 
 Seed 003 (point cloud slicing): section 2.1.1 (angle-method streamlining), 2.1.2 (curvature by the circle through
-three points), 2.1.3 (one-sided derivatives and feature points), 3.2.1 (average sampling, eq. 13) and 3.2.3
-(line or arc interpolation of the gun path).
+three points), 2.1.3 (one-sided derivatives and feature points) and 3.2.1 (average sampling, eq. 13); its
+section 3.2.3 (line or arc interpolation of the gun path) is in ``interpolation``.
 
 Conventions
 -----------
@@ -551,6 +551,3 @@ def resample(
             t[-1] = 1.0
     out = (1.0 - t)[:, None] * chain[seg] + t[:, None] * chain[seg + 1]
     return out, seg.astype(np.int64), t
-
-
-# ---------------------------------------------------------------------------------- 3.2.3 interpolation
