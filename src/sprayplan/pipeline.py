@@ -177,36 +177,49 @@ def plan(part: Part, job: JobConfig | None = None) -> Plan:
     return Plan(tuple(stations), home, all_points[unassigned_mask], part.name)
 
 
+#: How many stations, nearest first, an added stroke's stretches are offered to (``with_added_strokes``).
+ADDED_STROKE_STATIONS = 2
+
+
 def with_added_strokes(plan_: Plan, strokes: list[Stroke], job: JobConfig) -> Plan:
     """The plan with extra spray strokes (touch-ups), each run at the end of the station whose gantry position
     is nearest its flange positions (in xy), after a transfer, either way round (the nearer end first), with
-    the nine axes solved from that station as in :func:`plan`. A stroke the arm cannot follow all the way is
-    cut to the stretches it reaches (at least a spray radius long) and solved again; the rest is left out, so
-    every added spray waypoint is reachable."""
+    the nine axes solved from that station as in :func:`plan`.
+
+    A stroke the arm cannot follow all the way is cut to the stretches it reaches (at least a spray radius
+    long) and solved again. The stretches it does not reach are offered to the next nearest station, up to
+    ``ADDED_STROKE_STATIONS`` stations in all; what none reaches is left out, so every added spray waypoint is
+    reachable."""
     if not strokes or not plan_.stations:
         return plan_
-    settings = job.plan
-    gantry = Gantry(robot=load_robot("ur5"), gun=load_gun(settings.tool))
+    gantry = Gantry(robot=load_robot("ur5"), gun=load_gun(job.plan.tool))
     stations = list(plan_.stations)
     centres = np.array([st.platform_mm[:2] for st in stations])
-    extra: dict[int, list[Stroke]] = {}
-    for stroke in strokes:
-        flange_xy = (gun_poses(stroke) @ np.linalg.inv(gantry.gun.gun2flange))[:, :2, 3].mean(axis=0)
-        extra.setdefault(int(np.argmin(np.linalg.norm(centres - flange_xy, axis=1))), []).append(stroke)
-    kept = 0
-    for k, added in extra.items():
+    accepted: dict[int, list[tuple[Stroke, frozenset]]] = {}
+    solved: dict[int, tuple] = {}
+    pending = [(stroke, frozenset()) for stroke in strokes]
+    for _ in range(min(ADDED_STROKE_STATIONS, len(stations))):
+        offers: dict[int, list[tuple[Stroke, frozenset]]] = {}
+        for stroke, tried in pending:
+            flange_xy = (gun_poses(stroke) @ np.linalg.inv(gantry.gun.gun2flange))[:, :2, 3].mean(axis=0)
+            for k in np.argsort(np.linalg.norm(centres - flange_xy, axis=1), kind="stable"):
+                if int(k) not in tried:
+                    offers.setdefault(int(k), []).append((stroke, tried | {int(k)}))
+                    break
+        pending = []
+        for k, offered in offers.items():
+            candidates = accepted.get(k, []) + offered
+            kept, missed, new, result = _fit_to_station(gantry, stations[k], candidates, job)
+            accepted[k] = kept
+            if kept:
+                solved[k] = (new, result)
+            else:
+                solved.pop(k, None)
+            pending += missed
+        if not pending:
+            break
+    for k, (new, result) in solved.items():
         st = stations[k]
-        new, result, reached = _solved_additions(gantry, st, added, job)
-        for _ in range(5):  # strokes are cut to the runs the arm reaches, and solved again
-            if all(mask.all() for mask in reached):
-                break
-            added = [run for stroke, mask in zip(new[1::2], reached) for run in _reached_runs(stroke, mask, job)]
-            if not added:
-                break
-            new, result, reached = _solved_additions(gantry, st, added, job)
-        if not added or not all(mask.all() for mask in reached):
-            continue  # nothing the arm can follow from this station
-        kept += len(added)
         stations[k] = StationPlan(
             st.index,
             st.platform_mm,
@@ -218,8 +231,34 @@ def with_added_strokes(plan_: Plan, strokes: list[Stroke], job: JobConfig) -> Pl
             np.concatenate([st.axis_error_deg, result.axis_error_deg]),
             np.concatenate([st.branch_change, result.branch_change]),
         )
-    log.info("%s: %d strokes added (%d asked for; cut to what the arm reaches)", plan_.name, kept, len(strokes))
+    count = sum(len(kept) for kept in accepted.values())
+    log.info("%s: %d strokes added (%d asked for; cut to what the arm reaches)", plan_.name, count, len(strokes))
     return Plan(tuple(stations), plan_.home_mm, plan_.unassigned, plan_.name)
+
+
+def _fit_to_station(gantry, st: StationPlan, candidates: list[tuple[Stroke, frozenset]], job: JobConfig):
+    """Strokes appended to one station, cut until the arm reaches every waypoint of them.
+
+    Returns the strokes kept (each with the stations it has been offered to), the stretches of the candidates
+    the first solve found out of reach (to offer elsewhere), and the appended strokes with their joints.
+    """
+    strokes = [stroke for stroke, _ in candidates]
+    tried = [t for _, t in candidates]
+    new, result, reached = _solved_additions(gantry, st, strokes, job)
+    missed = [
+        (run, t) for stroke, mask, t in zip(new[1::2], reached, tried) for run in _reached_runs(stroke, ~mask, job)
+    ]
+    for _ in range(5):  # cut to the runs the arm reaches, and solve again
+        if all(mask.all() for mask in reached):
+            return list(zip(strokes, tried)), missed, new, result
+        cut = [
+            (run, t) for stroke, mask, t in zip(new[1::2], reached, tried) for run in _reached_runs(stroke, mask, job)
+        ]
+        if not cut:
+            break
+        strokes, tried = [c[0] for c in cut], [c[1] for c in cut]
+        new, result, reached = _solved_additions(gantry, st, strokes, job)
+    return [], missed, new, result
 
 
 def _solved_additions(gantry, st: StationPlan, added: list[Stroke], job: JobConfig):
@@ -250,7 +289,7 @@ def _solved_additions(gantry, st: StationPlan, added: list[Stroke], job: JobConf
 
 
 def _reached_runs(stroke: Stroke, reached: np.ndarray, job: JobConfig) -> list[Stroke]:
-    """The stretches of a stroke whose waypoints the arm all reaches, at least a spray radius long."""
+    """The stretches of a stroke where ``reached`` holds at every waypoint, at least a spray radius long."""
     edges = np.flatnonzero(np.diff(np.r_[0, reached.astype(int), 0]))
     runs = [stroke.part(slice(a, b)) for a, b in zip(edges[::2], edges[1::2]) if b - a >= 2]
     return [run for run in runs if run.length_mm >= job.paths.spray_radius_mm]
