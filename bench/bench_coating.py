@@ -221,7 +221,7 @@ def section_plan_film(repeat: int = 3) -> None:
     ):
         job, _ = meet_thickness(JobConfig(plan=PlanConfig(thickness_um=50.0)))
         result = plan(part, job)
-        tuning_wall, _, (tuned, info) = timed(lambda p=part, r=result, j=job: tune_plan(p, r, j), repeat)
+        tuning_wall, _, (tuned, info, _film) = timed(lambda p=part, r=result, j=job: tune_plan(p, r, j), repeat)
         for label, version, wall, factors in (
             ("planned", result, "-", "1"),
             ("tuned", tuned, f"{tuning_wall:.1f}", f"{info['dwell_min']:.2f}-{info['dwell_max']:.2f}"),

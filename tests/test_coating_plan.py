@@ -154,3 +154,24 @@ def test_the_deposit_of_an_extended_plan_reuses_the_earlier_columns(testdata):
     assert got[1].shape == full.shape
     assert full.nnz > old.nnz  # the added strokes paint
     assert abs(got[1] - full).max() <= 1e-6 * abs(full).max()
+
+
+def test_the_tuned_plans_film_is_the_simulated_one(testdata):
+    from sprayplan.coating_stage import meet_thickness, simulate_plan, tune_plan
+    from sprayplan.config import JobConfig, PlanConfig
+    from sprayplan.io.load import load_part
+    from sprayplan.pipeline import plan
+    from sprayplan.surface.region import select_region
+
+    part = select_region(load_part(testdata / "meshes" / "reach_curved_part.ply", units="m"), "x > -300")
+    job, _ = meet_thickness(JobConfig(plan=PlanConfig(thickness_um=50.0)))
+    tuned, summary, film = tune_plan(part, plan(part, job), job)
+    assert summary["touch_up_strokes"] > 0  # the film comes from the extended matrix too
+    simulated = simulate_plan(part, tuned, job)
+    np.testing.assert_array_equal(film.points, simulated.points)
+    np.testing.assert_allclose(film.thickness_mm, simulated.thickness_mm, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(film.stroke_time_s, simulated.stroke_time_s, rtol=1e-12)
+    np.testing.assert_allclose(film.stroke_flow_ml_min, simulated.stroke_flow_ml_min)
+    np.testing.assert_allclose(film.stroke_paint_ml, simulated.stroke_paint_ml, rtol=1e-12)
+    np.testing.assert_allclose(film.stroke_deposit_mm3, simulated.stroke_deposit_mm3, rtol=1e-6, atol=1e-6)
+    assert film.stroke_deposit_mm3.sum() > 0

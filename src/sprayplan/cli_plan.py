@@ -68,17 +68,17 @@ def run_plan(part_path: str, outdir: Path, job, simulate: bool = False, samples:
         part = select_region(part, job.load.region)
     with stage("plan (paths, stations, ordering, kinematics)"):
         result = plan(part, job)
-    tuned = {}
+    tuned, film = {}, None
     if job.plan.thickness_um is not None and job.plan.tune_speed:
         with stage("speeds tuned to the film, touch-ups"):
-            result, tuned = tune_plan(part, result, job)
+            result, tuned, film = tune_plan(part, result, job)
     totals = plan_totals(result, job)
     if chosen:
         totals["chosen_for_thickness"] = chosen
     if tuned:
         totals["speed_tuning"] = tuned
     report = None
-    if simulate:
+    if simulate and film is None:  # a tuned plan's film is known already
         with stage("coating"):
             film = simulate_plan(part, result, job)
     elapsed = time.perf_counter() - start

@@ -64,18 +64,20 @@ def simulate_plan(part, plan: Plan, job: JobConfig):
     return simulate(part, paths, process_for(job), config=config)
 
 
-def tune_plan(part, plan: Plan, job: JobConfig) -> tuple[Plan, dict]:
+def tune_plan(part, plan: Plan, job: JobConfig) -> tuple[Plan, dict, object]:
     """With a film target and ``tune_speed``: the plan with a time factor at every waypoint chosen from the
     simulated film (``coating.tune_speeds``), and, for ``touch_up_rounds`` rounds, touch-up strokes aimed at
     the patches still under-painted (``coating.touchup``), run from the nearest station, after which all
     speeds are tuned again. Returns the plan and a summary (the film predicted before and after, the
-    factors' range, the touch-up strokes added). The plan's own strokes keep their geometry and joints.
-    Without a target or with ``tune_speed`` off: the plan unchanged."""
+    factors' range, the touch-up strokes added) and the tuned plan's film (a ``CoatingResult``, what
+    :func:`simulate_plan` gives for it, taken from the tuning's deposit matrix). The plan's own strokes keep
+    their geometry and joints. Without a target or with ``tune_speed`` off: the plan unchanged, {} and None."""
     settings = job.plan
     if settings.thickness_um is None or not settings.tune_speed or not plan.stations:
-        return plan, {}
+        return plan, {}, None
     from sprayplan.coating import CoatingConfig, TuningConfig, tune_speeds
     from sprayplan.coating.touchup import TOUCH_UP_LAYER, TOUCH_UP_MIN_DWELL, touch_up_strokes
+    from sprayplan.coating.tuning import tuned_film
     from sprayplan.pipeline import with_added_strokes
 
     target = settings.thickness_um
@@ -124,7 +126,8 @@ def tune_plan(part, plan: Plan, job: JobConfig) -> tuple[Plan, dict]:
     summary = tuning.summary(target, tolerance)
     summary["before"] = first["before"]
     summary["touch_up_strokes"] = sum(1 for s in tuning.paths.strokes if s.layer == TOUCH_UP_LAYER)
-    return dataclasses.replace(plan, stations=stations), summary
+    film = dataclasses.replace(tuned_film(tuning, process, coating), name=plan.name)
+    return dataclasses.replace(plan, stations=stations), summary, film
 
 
 def extended_deposit(part, plan: Plan, earlier: Plan, samples, deposit_mm, process, coating):

@@ -33,8 +33,8 @@ from scipy import sparse
 from scipy.optimize import least_squares
 
 from sprayplan.coating.process import Process
-from sprayplan.coating.sampling import SurfaceSamples
-from sprayplan.coating.thickness import CoatingConfig, deposit_matrix
+from sprayplan.coating.sampling import SurfaceSamples, gun_samples
+from sprayplan.coating.thickness import CoatingConfig, CoatingResult, deposit_matrix
 from sprayplan.config import MIN_DWELL
 from sprayplan.errors import ConfigError
 from sprayplan.types import Part, Paths
@@ -207,6 +207,34 @@ def tune_speeds(
         tuned,
         samples,
         deposit_mm.tocsr(),
+    )
+
+
+def tuned_film(tuning: Tuning, process: Process, coating: CoatingConfig | None = None) -> CoatingResult:
+    """The film the tuned paths leave, from the tuning's own deposit matrix: what
+    :func:`~sprayplan.coating.thickness.simulate` returns for ``tuning.paths`` (same samples, film, stroke
+    times, flows, paint and deposits), without computing the film a second time."""
+    coating = CoatingConfig() if coating is None else coating
+    paths = tuning.paths
+    _, times, flows = gun_samples(
+        paths, process, None, coating.max_step_mm, coating.speed_along, coating.max_speed_ratio
+    )
+    dwell = np.concatenate([s.dwell for s in paths.strokes]) if paths.strokes else np.zeros(0)
+    samples = tuning.samples
+    per_waypoint = (samples.area_mm2 @ tuning.deposit_mm) * dwell  # dry volume from each waypoint's factor, mm^3
+    stroke_of = np.repeat(np.arange(len(paths.strokes)), [len(s) for s in paths.strokes])
+    return CoatingResult(
+        samples.points,
+        samples.normals,
+        samples.area_mm2,
+        samples.faces,
+        np.asarray(tuning.deposit_mm @ dwell).ravel(),
+        times,
+        flows,
+        flows * times / 60.0,
+        np.bincount(stroke_of, per_waypoint, len(paths.strokes)),
+        process,
+        paths.name,
     )
 
 
