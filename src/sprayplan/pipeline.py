@@ -181,15 +181,17 @@ def plan(part: Part, job: JobConfig | None = None) -> Plan:
 ADDED_STROKE_STATIONS = 2
 
 
-def with_added_strokes(plan_: Plan, strokes: list[Stroke], job: JobConfig) -> Plan:
+def with_added_strokes(plan_: Plan, strokes: list[Stroke], job: JobConfig, new_stations: int = 0) -> Plan:
     """The plan with extra spray strokes (touch-ups), each run at the end of the station whose gantry position
     is nearest its flange positions (in xy), after a transfer, either way round (the nearer end first), with
     the nine axes solved from that station as in :func:`plan`.
 
     A stroke the arm cannot follow all the way is cut to the stretches it reaches (at least a spray radius
     long) and solved again. The stretches it does not reach are offered to the next nearest station, up to
-    ``ADDED_STROKE_STATIONS`` stations in all; what none reaches is left out, so every added spray waypoint is
-    reachable."""
+    ``ADDED_STROKE_STATIONS`` stations in all. What these miss goes to up to ``new_stations`` new stations at
+    the plan's gantry height, placed where the arm reaches it (``stations.added``; a surface facing sideways or
+    down is sprayed from beside the part), each inserted into the platform tour where it adds the least
+    travel. What no station reaches is left out, so every added spray waypoint is reachable."""
     if not strokes or not plan_.stations:
         return plan_
     gantry = Gantry(robot=load_robot("ur5"), gun=load_gun(job.plan.tool))
@@ -232,8 +234,64 @@ def with_added_strokes(plan_: Plan, strokes: list[Stroke], job: JobConfig) -> Pl
             np.concatenate([st.branch_change, result.branch_change]),
         )
     count = sum(len(kept) for kept in accepted.values())
+    if pending and new_stations > 0:
+        for station in _new_stations(gantry, plan_, [stroke for stroke, _ in pending], job, new_stations):
+            count += sum(1 for s in station.strokes if s.spray_on)
+            _insert_in_tour(stations, station, plan_.home_mm)
     log.info("%s: %d strokes added (%d asked for; cut to what the arm reaches)", plan_.name, count, len(strokes))
     return Plan(tuple(stations), plan_.home_mm, plan_.unassigned, plan_.name)
+
+
+def _new_stations(gantry, plan_: Plan, strokes: list[Stroke], job: JobConfig, most: int) -> list[StationPlan]:
+    """Up to ``most`` new stations, at the plan's gantry height, for strokes its stations do not reach: each
+    with the strokes (cut to what the arm reaches) and their joints, started from home."""
+    from sprayplan.stations.added import stations_for_strokes
+
+    height = float(np.median([st.platform_mm[2] for st in plan_.stations]))
+    placed = stations_for_strokes(gantry, [gun_poses(s) for s in strokes], height, max_stations=most)
+    index = max(st.index for st in plan_.stations) + 1
+    out = []
+    for place in placed:
+        empty = StationPlan(
+            index,
+            place.platform_mm,
+            (),
+            np.zeros((0, 9)),
+            np.zeros(0, bool),
+            np.zeros(0, object),
+            np.zeros(0),
+            np.zeros(0),
+            np.zeros(0, bool),
+        )
+        taken = _nearest_first([strokes[i] for i in place.strokes])
+        kept, _, new, result = _fit_to_station(gantry, empty, [(s, frozenset()) for s in taken], job)
+        if kept:
+            out.append(
+                StationPlan(
+                    index,
+                    place.platform_mm,
+                    tuple(new),
+                    result.q9,
+                    result.reachable,
+                    result.method,
+                    result.position_error_mm,
+                    result.axis_error_deg,
+                    result.branch_change,
+                )
+            )
+            index += 1
+    return out
+
+
+def _insert_in_tour(stations: list[StationPlan], station: StationPlan, home: np.ndarray) -> None:
+    """Insert a station into the visiting order where it adds the least platform travel (Manhattan, from home
+    back to home, as the platform tour)."""
+    stops = [np.asarray(home), *[st.platform_mm for st in stations], np.asarray(home)]
+    extra = [
+        np.abs(a - station.platform_mm).sum() + np.abs(station.platform_mm - b).sum() - np.abs(a - b).sum()
+        for a, b in itertools.pairwise(stops)
+    ]
+    stations.insert(int(np.argmin(extra)), station)
 
 
 def _fit_to_station(gantry, st: StationPlan, candidates: list[tuple[Stroke, frozenset]], job: JobConfig):
@@ -245,14 +303,17 @@ def _fit_to_station(gantry, st: StationPlan, candidates: list[tuple[Stroke, froz
     strokes = [stroke for stroke, _ in candidates]
     tried = [t for _, t in candidates]
     new, result, reached = _solved_additions(gantry, st, strokes, job)
+    first = 1 if st.strokes else 0
     missed = [
-        (run, t) for stroke, mask, t in zip(new[1::2], reached, tried) for run in _reached_runs(stroke, ~mask, job)
+        (run, t) for stroke, mask, t in zip(new[first::2], reached, tried) for run in _reached_runs(stroke, ~mask, job)
     ]
     for _ in range(5):  # cut to the runs the arm reaches, and solve again
         if all(mask.all() for mask in reached):
             return list(zip(strokes, tried)), missed, new, result
         cut = [
-            (run, t) for stroke, mask, t in zip(new[1::2], reached, tried) for run in _reached_runs(stroke, mask, job)
+            (run, t)
+            for stroke, mask, t in zip(new[first::2], reached, tried)
+            for run in _reached_runs(stroke, mask, job)
         ]
         if not cut:
             break
@@ -265,14 +326,18 @@ def _solved_additions(gantry, st: StationPlan, added: list[Stroke], job: JobConf
     """Strokes appended to a station (nearer end first, transfers between) and their joints; and for each
     added stroke whether the arm reaches all its waypoints."""
     settings = job.plan
-    ordered, here = [], st.strokes[-1].tcp[-1]
+    ordered = []
+    here = st.strokes[-1].tcp[-1] if st.strokes else None
     for stroke in added:
-        if np.linalg.norm(stroke.tcp[-1] - here) < np.linalg.norm(stroke.tcp[0] - here):
+        if here is not None and np.linalg.norm(stroke.tcp[-1] - here) < np.linalg.norm(stroke.tcp[0] - here):
             stroke = stroke.reversed()
         ordered.append(stroke)
         here = stroke.tcp[-1]
-    new = with_transfers([st.strokes[-1], *ordered], job.paths)[1:]
-    last = st.q9[-1, :6]
+    if st.strokes:  # new = transfer, stroke, transfer, stroke, ...
+        new, first = with_transfers([st.strokes[-1], *ordered], job.paths)[1:], 1
+    else:  # a new station: stroke, transfer, stroke, ..., started from home
+        new, first = with_transfers(ordered, job.paths), 0
+    last = st.q9[-1, :6] if len(st.q9) else HOME_JOINTS
     result = solve_gantry_path(
         gantry,
         np.concatenate([gun_poses(s) for s in new]),
@@ -284,8 +349,19 @@ def _solved_additions(gantry, st: StationPlan, added: list[Stroke], job: JobConf
     )
     bounds = np.r_[0, np.cumsum([len(s) for s in new])]
     reached = [result.reachable[a:b] for a, b in itertools.pairwise(bounds)]
-    # new = transfer, stroke, transfer, stroke, ...: the strokes are at odd positions
-    return new, result, reached[1::2]
+    return new, result, reached[first::2]
+
+
+def _nearest_first(strokes: list[Stroke]) -> list[Stroke]:
+    """Strokes in nearest-neighbour order from the first, each run from its end nearer the previous one's."""
+    left, out = list(strokes[1:]), list(strokes[:1])
+    while left:
+        end = out[-1].tcp[-1]
+        gaps = [np.linalg.norm(s.tcp[[0, -1]] - end, axis=1) for s in left]
+        k = min(range(len(left)), key=lambda i: gaps[i].min())
+        stroke = left.pop(k)
+        out.append(stroke.reversed() if gaps[k][1] < gaps[k][0] else stroke)
+    return out
 
 
 def _reached_runs(stroke: Stroke, reached: np.ndarray, job: JobConfig) -> list[Stroke]:
