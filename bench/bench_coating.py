@@ -15,6 +15,7 @@ Sections (all in one process; times are wall-clock medians over ``--repeat`` run
 3b. (``--only plan``) The whole main job with a 50 um target on the demo roof, the reach part, the noether
    scan and the tray's top, with the planned speeds and with the speeds tuned to the film.
 3c. (``--only tuning``) Tuning cost against quality: the solver's evaluations varied.
+3d. (``--only touchups``) The touch-up stage piece by piece: new stations, chosen aims, the tuning's dead band.
 4. Spacing chooser vs seed 000's fixed overlap 0.4 (spacing 49.19 mm for r = 50 mm), per pattern model.
 5. Droplet model (bell003 settings): transfer efficiency, pattern radius, fits of the analytic models.
 
@@ -26,6 +27,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import statistics
 import sys
 import time
@@ -264,6 +266,49 @@ def section_tuning() -> None:
     print()
 
 
+def section_touch_ups() -> None:
+    """What each part of the touch-up stage adds: the main job's tuning with the touch-ups' new stations,
+    their aims and the tuning's dead band turned off one after another (``PlanConfig`` settings)."""
+    from sprayplan.coating_stage import meet_thickness, tune_plan
+    from sprayplan.config import JobConfig, PlanConfig
+    from sprayplan.pipeline import plan, plan_totals
+
+    print("### 3d. The touch-up stage, piece by piece (main job, 50 um target)\n")
+    print("Each row adds one piece to the row above; the last is the default. One run each; tuning s: `tune_plan`.")
+    print("'stations': planned + added for touch-ups.\n")
+    print("| part | variant | stations | touch-ups | painted std/mean | painted in spec | cycle s | tuning s |")
+    print("|---|---|---|---|---|---|---|---|")
+    variants = (
+        (
+            "touch-ups at planned stations only, no dead band",
+            dict(touch_up_stations=0, touch_up_aim=False, tune_band=0.0),
+        ),
+        ("+ new stations (up to 4)", dict(touch_up_aim=False, tune_band=0.0)),
+        ("+ aims chosen by the film model", dict(tune_band=0.0)),
+        ("+ dead band 0.3 tolerances (the default)", {}),
+    )
+    for name, part in (
+        ("reach_curved_part", load_part(DATA / "reach_curved_part.ply", units="m")),
+        ("noether_raw_scan_mesh", load_part(DATA / "noether_raw_scan_mesh.ply", units="m")),
+        ("demo roof z > 1000", select_region(car_roof(), "z > 1000")),
+    ):
+        base, _ = meet_thickness(JobConfig(plan=PlanConfig(thickness_um=50.0)))
+        result = plan(part, base)
+        for label, changes in variants:
+            job = dataclasses.replace(base, plan=dataclasses.replace(base.plan, **changes))
+            start = time.perf_counter()
+            tuned, info, film = tune_plan(part, result, job)
+            wall = time.perf_counter() - start
+            report = coating_report(film, edge_band_mm=50.0)["painted"]
+            totals = plan_totals(tuned, job)
+            print(
+                f"| {name} | {label} | {len(result.stations)} + {totals['stations'] - len(result.stations)} | "
+                f"{info['touch_up_strokes']} | {report['cv']:.4f} | {report['share_in_spec']:.4f} | "
+                f"{totals['cycle_time_s']:.0f} | {wall:.1f} |"
+            )
+    print()
+
+
 def section_spacing() -> None:
     print("## 4. Spacing chooser vs seed 000's overlap 0.4 (flat panel, 1-D superposition)\n")
     print(
@@ -323,7 +368,9 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--skip-droplets", action="store_true")
-    parser.add_argument("--only", choices=["speed", "occlusion", "uniformity", "plan", "tuning", "spacing", "droplets"])
+    parser.add_argument(
+        "--only", choices=["speed", "occlusion", "uniformity", "plan", "tuning", "touchups", "spacing", "droplets"]
+    )
     args = parser.parse_args(argv)
     print(f"embreex available: {has_embree()}\n")
     sections = {
@@ -332,6 +379,7 @@ def main(argv=None) -> int:
         "uniformity": section_uniformity,
         "plan": lambda: section_plan_film(args.repeat),
         "tuning": section_tuning,
+        "touchups": section_touch_ups,
         "spacing": section_spacing,
         "droplets": section_droplets,
     }

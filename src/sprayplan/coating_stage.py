@@ -76,14 +76,14 @@ def tune_plan(part, plan: Plan, job: JobConfig) -> tuple[Plan, dict, object]:
     if settings.thickness_um is None or not settings.tune_speed or not plan.stations:
         return plan, {}, None
     from sprayplan.coating import CoatingConfig, TuningConfig, tune_speeds
-    from sprayplan.coating.touchup import TOUCH_UP_LAYER, TOUCH_UP_MIN_DWELL, touch_up_strokes
+    from sprayplan.coating.touchup import TOUCH_UP_LAYER, TOUCH_UP_MIN_DWELL, aim_touch_ups, touch_up_strokes
     from sprayplan.coating.tuning import tuned_film
     from sprayplan.pipeline import with_added_strokes
 
     target = settings.thickness_um
     tolerance = settings.tolerance_um if settings.tolerance_um > 0 else 0.05 * target
     process = process_for(job)
-    config = TuningConfig(min_dwell=settings.min_dwell, max_dwell=settings.max_dwell)
+    config = TuningConfig(min_dwell=settings.min_dwell, max_dwell=settings.max_dwell, band=settings.tune_band)
     coating = CoatingConfig(speed_along=settings.speed_along, max_speed_ratio=settings.max_speed_ratio)
     radius = process.pattern.radius_mm
 
@@ -102,6 +102,7 @@ def tune_plan(part, plan: Plan, job: JobConfig) -> tuple[Plan, dict, object]:
 
     tuning = tuned(plan)
     first = tuning.summary(target, tolerance)
+    planned_stations = len(plan.stations)
     for _ in range(settings.touch_up_rounds):
         extra = touch_up_strokes(
             tuning.samples,
@@ -116,8 +117,23 @@ def tune_plan(part, plan: Plan, job: JobConfig) -> tuple[Plan, dict, object]:
         )
         if not extra:
             break
+        spare = settings.touch_up_stations - (len(plan.stations) - planned_stations)
+        if settings.touch_up_aim:
+            extra = aim_touch_ups(
+                part,
+                extra,
+                tuning.samples,
+                tuning.after_um,
+                tuning.tuned,
+                target,
+                tolerance,
+                process=process,
+                coating=coating,
+                standoff_mm=job.paths.standoff_mm,
+                reach=_reach_from(plan, job, spare > 0),
+            )
         before = len(tuning.paths.strokes)
-        previous, plan = plan, with_added_strokes(plan, extra, job)
+        previous, plan = plan, with_added_strokes(plan, extra, job, new_stations=spare)
         if sum(len(st.strokes) for st in plan.stations) == before:
             break  # the arm reaches none of them
         tuning = tuned(plan, (previous, tuning.samples, tuning.deposit_mm))
@@ -130,17 +146,32 @@ def tune_plan(part, plan: Plan, job: JobConfig) -> tuple[Plan, dict, object]:
     return dataclasses.replace(plan, stations=stations), summary, film
 
 
+def _reach_from(plan: Plan, job: JobConfig, new_stations: bool):
+    """A function of a stroke: the largest share of its waypoints the arm reaches exactly from one of the
+    plan's stations or, with ``new_stations``, from a new station at the plan's gantry height."""
+    from sprayplan.pipeline import gun_poses
+    from sprayplan.robots.gantry import Gantry, load_gun
+    from sprayplan.robots.model import load_robot
+    from sprayplan.stations.added import reach_share
+
+    gantry = Gantry(robot=load_robot("ur5"), gun=load_gun(job.plan.tool))
+    platforms = np.array([st.platform_mm for st in plan.stations])
+    height = float(np.median(platforms[:, 2])) if new_stations else None
+    return lambda stroke: reach_share(gantry, gun_poses(stroke), platforms, height)
+
+
 def extended_deposit(part, plan: Plan, earlier: Plan, samples, deposit_mm, process, coating):
     """The deposit matrix of ``plan`` (``coating.deposit_matrix``) from that of ``earlier``, a plan whose
-    stations ``plan`` extends with strokes appended at their ends: only the appended strokes' columns are
-    computed (the film of a time step does not depend on the other strokes). Returns (samples, matrix), or
+    stations ``plan`` extends with strokes appended at their ends and new stations inserted into the visiting
+    order (stations matched by ``index``): only the added strokes' columns are computed (the film of a time step does not depend on the other strokes). Returns (samples, matrix), or
     None when the samples come out different (a cloud without normals, oriented to face the plan)."""
     from sprayplan.coating import deposit_matrix
 
     added, is_new = [], []
-    for st, old in zip(plan.stations, earlier.stations):
+    before = {st.index: len(st.strokes) for st in earlier.stations}
+    for st in plan.stations:
         for j, stroke in enumerate(st.strokes):
-            appended = j >= len(old.strokes)
+            appended = j >= before.get(st.index, 0)
             is_new.append(np.full(len(stroke), appended))
             if appended:
                 added.append(stroke)

@@ -340,6 +340,15 @@ class PlanConfig:
         With speeds tuned: rounds of touch-up strokes, each aimed at a patch the tuned plan still leaves
         under-painted (a lip or flange that faces away from every stroke), run from the nearest station and
         tuned with the rest (``sprayplan.coating.touchup``); 0: none.
+    tune_band : float
+        Film errors up to this many tolerances cost nothing in the tuning (its dead band,
+        ``coating.TuningConfig.band``): larger favours the share in spec over uniformity; 0 <= tune_band < 1.
+    touch_up_aim : bool
+        Turn each touch-up to the tilt about its direction of travel that the film model favours
+        (``coating.touchup.aim_touch_ups``); false: aim along the patch's normals.
+    touch_up_stations : int
+        At most this many gantry stations added for touch-ups no planned station reaches (a lip facing
+        sideways or down, sprayed from beside the part), in all rounds together; 0: none.
     seed : int
     """
 
@@ -363,7 +372,10 @@ class PlanConfig:
     tune_speed: bool = True
     min_dwell: float = 0.5
     max_dwell: float = 2.0
+    tune_band: float = 0.3
     touch_up_rounds: int = 2
+    touch_up_aim: bool = True
+    touch_up_stations: int = 4
     seed: int = 0
 
     def __post_init__(self):
@@ -395,6 +407,14 @@ class PlanConfig:
         object.__setattr__(self, "tune_speed", bool(self.tune_speed))
         if not (isinstance(self.touch_up_rounds, int) and 0 <= self.touch_up_rounds <= 10):
             raise ConfigError(f"touch_up_rounds must be an integer from 0 to 10, got {self.touch_up_rounds!r}")
+        if isinstance(self.tune_band, bool) or not (
+            isinstance(self.tune_band, (int, float)) and math.isfinite(self.tune_band) and 0 <= self.tune_band < 1
+        ):
+            raise ConfigError(f"tune_band must be a number in [0, 1), got {self.tune_band!r}")
+        if not isinstance(self.touch_up_aim, bool):
+            raise ConfigError(f"touch_up_aim must be true or false, got {self.touch_up_aim!r}")
+        if not (isinstance(self.touch_up_stations, int) and 0 <= self.touch_up_stations <= 20):
+            raise ConfigError(f"touch_up_stations must be an integer from 0 to 20, got {self.touch_up_stations!r}")
         home = tuple(float(v) for v in self.home_mm)
         if len(home) != 3 or not all(math.isfinite(v) for v in home):
             raise ConfigError("home_mm must be three numbers")

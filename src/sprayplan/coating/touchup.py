@@ -149,3 +149,104 @@ def _patch_stroke(samples: SurfaceSamples, patch: np.ndarray, standoff: float, s
     nrm = np.vstack([np.repeat(way_n[:1], count, 0), way_n, np.repeat(way_n[-1:], count, 0)])
     # the waypoints are centroids near the patch, not points of the surface: on_part is False throughout
     return Stroke(pts, nrm, pts + standoff * nrm, True, np.zeros(len(pts), bool), TOUCH_UP_LAYER)
+
+
+#: Tilts tried for a touch-up's aim about its direction of travel, degrees (``aim_touch_ups``).
+AIM_TILTS_DEG = (-40.0, -20.0, 0.0, 20.0, 40.0)
+
+#: Time factors a candidate aim is scored at (the speed tuning rescales whichever is kept).
+AIM_SCALES = (0.25, 0.5, 1.0, 2.0)
+
+
+def tilted(stroke: Stroke, degrees: float, standoff_mm: float) -> Stroke:
+    """The stroke with its aim turned by ``degrees`` about its direction of travel at every waypoint (the
+    waypoints stay; the gun moves round them at the standoff). Positive turns follow the right-hand rule
+    about the direction of travel."""
+    if degrees == 0.0:
+        return stroke
+    tangent = np.gradient(stroke.points, axis=0)
+    tangent = nm.unit(tangent - np.einsum("ij,ij->i", tangent, stroke.normals)[:, None] * stroke.normals)
+    angle = np.radians(degrees)
+    normals = nm.unit(stroke.normals * np.cos(angle) + np.cross(tangent, stroke.normals) * np.sin(angle))
+    return Stroke(
+        stroke.points, normals, stroke.points + standoff_mm * normals, True, stroke.on_part, stroke.layer, stroke.dwell
+    )
+
+
+def misfit(film_um: np.ndarray, area_mm2: np.ndarray, target_um: float, tolerance_um: float) -> np.ndarray:
+    """Area-weighted squared excess of the film over half the tolerance either side of the target, per film
+    (the last axis holds the samples): what an aim is chosen to reduce."""
+    excess = np.maximum(np.abs(film_um - target_um) - 0.5 * tolerance_um, 0.0)
+    return (area_mm2 * excess * excess).sum(axis=-1)
+
+
+def aim_touch_ups(
+    part,
+    strokes: list[Stroke],
+    samples: SurfaceSamples,
+    film_um: np.ndarray,
+    tuned: np.ndarray,
+    target_um: float,
+    tolerance_um: float,
+    *,
+    process,
+    coating,
+    standoff_mm: float,
+    tilts_deg: tuple = AIM_TILTS_DEG,
+    reach=None,
+) -> list[Stroke]:
+    """Each touch-up turned to the aim that helps the film most.
+
+    Aiming along a patch's normal is not always best: on a narrow step between two surfaces already in spec,
+    the pass also paints its neighbours. Each stroke is tried turned about its direction of travel by each of
+    ``tilts_deg``; its deposit is computed with the film model (``deposit_matrix``, occlusion included) and
+    added to the film at each of ``AIM_SCALES`` times its speed's worth, and the tilt whose best scale lowers
+    :func:`misfit` over the ``tuned`` samples most is kept. With ``reach`` (a function of a stroke giving the
+    share of its waypoints the robot can reach), only tilts the robot reaches at least half of, or failing
+    that the best reached, are chosen from. A stroke no allowed tilt improves keeps its aim (the speed tuning
+    decides how much of it to run). Returns the strokes in the same order; unchanged when the film
+    model's samples differ from ``samples``.
+    """
+    from sprayplan.coating.thickness import deposit_matrix
+    from sprayplan.types import Paths
+
+    if not strokes:
+        return []
+    candidates = [tilted(s, t, standoff_mm) for s in strokes for t in tilts_deg]
+    found, matrix = deposit_matrix(part, Paths(tuple(candidates), standoff_mm, 0.0), process, config=coating)
+    if not (np.array_equal(found.points, samples.points) and np.array_equal(found.normals, samples.normals)):
+        return list(strokes)
+    # the film each candidate adds at unit time factors, on the tuned samples
+    bounds = np.r_[0, np.cumsum([len(c) for c in candidates])]
+    owner = np.repeat(np.arange(len(candidates)), np.diff(bounds))
+    per_candidate = sparse.csr_matrix(
+        (np.ones(len(owner)), (np.arange(len(owner)), owner)), shape=(len(owner), len(candidates))
+    )
+    added = (matrix @ per_candidate).tocsc()  # mm at unit time factors, samples x candidates
+    scales = np.asarray(AIM_SCALES)
+    gain = np.zeros(len(candidates))
+    for c in range(len(candidates)):  # only the samples a candidate reaches change
+        span = slice(added.indptr[c], added.indptr[c + 1])
+        rows, more = added.indices[span], 1000.0 * added.data[span]
+        counted = tuned[rows]
+        if not counted.any():
+            continue
+        rows, more = rows[counted], more[counted]
+        film, area = film_um[rows], samples.area_mm2[rows]
+        now = misfit(film, area, target_um, tolerance_um)
+        gain[c] = now - misfit(film[None] + scales[:, None] * more[None], area, target_um, tolerance_um).min()
+    gain = gain.reshape(len(strokes), len(tilts_deg))
+    zero = list(tilts_deg).index(0.0) if 0.0 in tilts_deg else 0
+    out = []
+    for k in range(len(strokes)):
+        mine = candidates[k * len(tilts_deg) : (k + 1) * len(tilts_deg)]
+        allowed = np.ones(len(tilts_deg), dtype=bool)
+        if reach is not None:
+            share = np.array([reach(c) for c in mine])
+            allowed = share >= min(0.5, share.max())
+        score = np.where(allowed, gain[k], -np.inf)
+        best = int(np.argmax(score))
+        if not score[best] > 0:
+            best = zero if allowed[zero] else best
+        out.append(mine[best])
+    return out
