@@ -9,16 +9,10 @@ import numpy as np
 import pytest
 
 from sprayplan.errors import ConfigError
+from sprayplan.paths.curvature import curvature
 from sprayplan.paths.interpolation import interpolate, interpolate_with_normals
-from sprayplan.paths.polyline import (
-    curvature,
-    feature_points,
-    one_sided_derivatives,
-    polyline_length,
-    resample,
-    split_at,
-    streamline,
-)
+from sprayplan.paths.polyline import polyline_length, resample, streamline
+from sprayplan.paths.segmentation import feature_points, one_sided_derivatives, split_at
 
 DEG = math.pi / 180.0
 

@@ -21,6 +21,7 @@ from scipy.spatial import cKDTree
 from sprayplan.config import PathConfig
 from sprayplan.errors import InputError
 from sprayplan.paths import polyline as pl
+from sprayplan.paths import segmentation
 from sprayplan.paths.edges import (
     edge_pass_counts,
     layer_spacing,
@@ -315,12 +316,12 @@ def _section_pieces(points, normals, closed, travel, config: PathConfig) -> list
     parts = [(points, normals, closed)]
     if config.split_angle_deg is not None and len(points) >= 5:
         # sharp points: where the tangent turns by more than the angle (L = 0: the angle decides)
-        sharp = pl.feature_points(points, 0.0, np.radians(config.split_angle_deg))
+        sharp = segmentation.feature_points(points, 0.0, np.radians(config.split_angle_deg))
         if not closed:
             sharp = sharp[(sharp > 0) & (sharp < len(points) - 1)]
         if len(sharp):
-            pieces = pl.split_at(points, sharp, closed=closed)
-            normal_pieces = pl.split_at(normals, sharp, closed=closed)
+            pieces = segmentation.split_at(points, sharp, closed=closed)
+            normal_pieces = segmentation.split_at(normals, sharp, closed=closed)
             parts = [(p, n, False) for p, n in zip(pieces, normal_pieces)]
     out = []
     for p, n, is_closed in parts:
