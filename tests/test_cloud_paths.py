@@ -10,6 +10,7 @@ from scipy.spatial import cKDTree
 from sprayplan.config import PathConfig
 from sprayplan.errors import ConfigError
 from sprayplan.io.load import load_part
+from sprayplan.paths import cloud_normals as cn
 from sprayplan.paths import cloud_slicing as cs
 from sprayplan.paths import cloudprep as cp
 from sprayplan.surface.filling import sample_even
@@ -297,12 +298,12 @@ def test_normals_on_a_sphere_agree_with_the_radial_direction():
     cloud = sphere_points(6000, 200.0, seed=4)
     query = sphere_points(300, 200.0, seed=5)  # sampling points that are not cloud points
     radial = query / 200.0
-    tri = cs.neighbour_triangle_normals(frozen(query), frozen(cloud), k=8)
-    plane = cs.plane_fit_normals(query, cloud, k=12)
+    tri = cn.neighbour_triangle_normals(frozen(query), frozen(cloud), k=8)
+    plane = cn.plane_fit_normals(query, cloud, k=12)
     assert np.allclose(np.linalg.norm(tri, axis=1), 1) and np.allclose(np.linalg.norm(plane, axis=1), 1)
     assert angle_deg(tri, radial).max() < 4.0
     assert angle_deg(plane, radial).max() < 4.0
-    own = cs.neighbour_triangle_normals(cloud[:200], cloud)  # cloud points: Q itself is not its own neighbour
+    own = cn.neighbour_triangle_normals(cloud[:200], cloud)  # cloud points: Q itself is not its own neighbour
     assert angle_deg(own, cloud[:200] / 200.0).max() < 3.0
 
 
@@ -322,7 +323,7 @@ def grid_cloud(curved: bool):
 @pytest.mark.parametrize("curved", [False, True])
 def test_triangle_normal_weightings_on_a_regular_grid(weighting, curved):
     points, true = grid_cloud(curved)
-    normals = cs.neighbour_triangle_normals(points, points, k=8, weighting=weighting)
+    normals = cn.neighbour_triangle_normals(points, points, k=8, weighting=weighting)
     limit = 1e-4 if not curved else 1.0
     assert angle_deg(normals, true).max() < limit  # corners and edges too: the wrapping triangle is skipped
 
@@ -331,8 +332,8 @@ def test_inverse_area_needs_the_hidden_neighbour_rule_on_a_curved_grid():
     """Without dropping the neighbours hidden behind nearer ones, the seed's 1/S weight lets the needle
     triangles along a grid's edges dominate; the area weight barely notices them."""
     points, true = grid_cloud(True)
-    raw_inverse = cs.neighbour_triangle_normals(points, points, weighting="inverse_area", min_fan_angle_rad=0)
-    raw_area = cs.neighbour_triangle_normals(points, points, weighting="area", min_fan_angle_rad=0)
+    raw_inverse = cn.neighbour_triangle_normals(points, points, weighting="inverse_area", min_fan_angle_rad=0)
+    raw_area = cn.neighbour_triangle_normals(points, points, weighting="area", min_fan_angle_rad=0)
     assert angle_deg(raw_inverse, true).max() > 20.0
     assert angle_deg(raw_area, true).max() < 3.0
 
@@ -341,13 +342,13 @@ def test_inverse_area_weighting_follows_the_smallest_triangle():
     """The seed's 1/S weight: a fan of one tiny, tilted triangle and big flat ones leans to the tiny one."""
     q = np.zeros((1, 3))
     ring = np.array([[10, 0, 0], [0, 10, 0], [-10, 0, 0], [0, -10, 0], [0.3, -0.3, 0.6]], dtype=float)
-    area = cs.neighbour_triangle_normals(q, ring, k=5, weighting="area")[0]
-    inverse = cs.neighbour_triangle_normals(q, ring, k=5, weighting="inverse_area")[0]
+    area = cn.neighbour_triangle_normals(q, ring, k=5, weighting="area")[0]
+    inverse = cn.neighbour_triangle_normals(q, ring, k=5, weighting="inverse_area")[0]
     z = np.array([0.0, 0.0, 1.0])
     assert abs(area @ z) > abs(inverse @ z)
     assert np.degrees(np.arccos(abs(area @ z))) < 10
     with pytest.raises(ConfigError):
-        cs.neighbour_triangle_normals(q, ring, weighting="volume")
+        cn.neighbour_triangle_normals(q, ring, weighting="volume")
 
 
 # ---------------------------------------------------------------------------------------------------- preprocessing

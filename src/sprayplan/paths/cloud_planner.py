@@ -10,7 +10,8 @@ from scipy.spatial import cKDTree
 from sprayplan.config import PathConfig
 from sprayplan.paths import cloudprep
 from sprayplan.paths import polyline as pl
-from sprayplan.paths.cloud_slicing import neighbour_triangle_normals, plane_fit_normals, slice_cloud
+from sprayplan.paths.cloud_normals import neighbour_triangle_normals, plane_fit_normals
+from sprayplan.paths.cloud_slicing import slice_cloud
 from sprayplan.paths.edges import edge_pass_counts, layer_spacing, with_edge_passes, with_inner_edge_passes
 from sprayplan.paths.pieces import Piece, in_travel_order, smooth_normals
 from sprayplan.paths.planner import _section_pieces, covariance, layer_offsets, slicing_frame
