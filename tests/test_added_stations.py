@@ -71,14 +71,16 @@ def test_new_stations_reach_what_the_planned_ones_miss(reach):
     # the planned stations keep their strokes and order; each new one sits where it adds the least travel
     kept = [st for st in with_new.stations if st.index in {s.index for s in planned.stations}]
     assert [st.index for st in kept] == [st.index for st in without.stations]
-    for st in added:
-        others = [s for s in with_new.stations if s is not st]
+    for st in added:  # inserted in index order: compare with the tour as it was then
+        planned_index = {p.index for p in planned.stations}
+        then = [s for s in with_new.stations if s.index <= st.index or s.index in planned_index]
+        others = [s for s in then if s is not st]
         stops = [planned.home_mm, *[s.platform_mm for s in others], planned.home_mm]
         extra = [
             np.abs(a - st.platform_mm).sum() + np.abs(st.platform_mm - b).sum() - np.abs(a - b).sum()
             for a, b in itertools.pairwise(stops)
         ]
-        place = with_new.stations.index(st)
+        place = next(i for i, s in enumerate(then) if s is st)
         assert extra[place] == pytest.approx(min(extra))
 
 
@@ -211,6 +213,13 @@ def test_the_chosen_aim_is_the_one_the_film_model_favours():
         gains.append(best)
     assert int(np.argmax(gains)) == 2 and gains[2] > gains[1] > 0  # aiming along the slope paints less of it
     np.testing.assert_allclose(chosen.normals, tilted(wall, 20.0, H).normals, atol=1e-12)
+    # strokes aimed together get the aims they get alone (a second stroke, shorter and reversed, on the top)
+    top = Stroke(*(a[:12] for a in (wall.points + [-60.0, 0, 5], wall.normals, wall.tcp + [-60.0, 0, 5])))
+    top = Stroke(top.points, np.tile([0.0, 0, 1], (12, 1)), top.points + H * np.array([0.0, 0, 1])).reversed()
+    together = aim_touch_ups(part, [top, wall], *args, process=process, coating=None, standoff_mm=H, tilts_deg=tilts)
+    alone = aim_touch_ups(part, [top], *args, process=process, coating=None, standoff_mm=H, tilts_deg=tilts)
+    np.testing.assert_allclose(together[0].normals, alone[0].normals, atol=1e-12)
+    np.testing.assert_allclose(together[1].normals, chosen.normals, atol=1e-12)
     # only the tilts the robot reaches are chosen from
     only_zero = aim_touch_ups(
         part,
@@ -262,3 +271,51 @@ def test_the_new_plan_settings_are_checked():
             PlanConfig(tune_band=bad)
     with pytest.raises(ConfigError, match="touch_up_aim"):
         PlanConfig(touch_up_aim="yes")
+
+
+def test_the_dead_bands_jacobian_is_the_derivative_of_its_residuals():
+    from scipy import sparse
+
+    from sprayplan.coating.tuning import _residuals
+
+    rng = np.random.default_rng(3)
+    system = sparse.random(40, 12, density=0.3, random_state=rng, format="csr") * 3.0
+    target = np.r_[rng.normal(2.0, 1.0, 30), np.zeros(10)]
+    for band in (0.0, 0.3):
+        residual, jacobian = _residuals(system, target, 30, band)
+        for _ in range(20):
+            x = rng.uniform(0.5, 2.0, 12)
+            r = residual(x)
+            inside = np.abs((system @ x - target)[:30]) <= band
+            assert (r[:30][inside] == 0).all()  # the band costs nothing
+            step = 1e-6
+            numeric = np.column_stack(
+                [(residual(x + step * e) - residual(x - step * e)) / (2 * step) for e in np.eye(12)]
+            )
+            # the kinks at |u| = band: compare rows away from them
+            away = np.r_[np.abs(np.abs((system @ x - target)[:30]) - band) > 1e-4, np.ones(10, bool)]
+            np.testing.assert_allclose(jacobian(x).toarray()[away], numeric[away], atol=1e-6)
+
+
+def test_tune_plan_keeps_to_its_budget_of_new_stations(testdata):
+    from sprayplan.coating_stage import meet_thickness, tune_plan
+    from sprayplan.config import JobConfig, PlanConfig
+    from sprayplan.io.load import load_part
+    from sprayplan.pipeline import plan
+    from sprayplan.surface.region import select_region
+
+    part = select_region(load_part(testdata / "meshes" / "reach_curved_part.ply", units="m"), "x > -300")
+    for budget, aim in ((0, False), (1, True)):
+        job, _ = meet_thickness(
+            JobConfig(plan=PlanConfig(thickness_um=50.0, touch_up_stations=budget, touch_up_aim=aim))
+        )
+        planned = plan(part, job)
+        tuned, summary, _ = tune_plan(part, planned, job)
+        assert summary["touch_up_strokes"] > 0
+        assert len(planned.stations) <= len(tuned.stations) <= len(planned.stations) + budget
+        assert len({st.index for st in tuned.stations}) == len(tuned.stations)
+        touch = [(st, s) for st in tuned.stations for s in st.strokes if s.layer == TOUCH_UP_LAYER]
+        for st in tuned.stations:  # every touch-up spray waypoint is reachable
+            spray = np.concatenate([np.full(len(s), s.layer == TOUCH_UP_LAYER and s.spray_on) for s in st.strokes])
+            assert st.reachable[spray].all()
+        assert touch

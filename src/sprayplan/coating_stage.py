@@ -148,8 +148,10 @@ def tune_plan(part, plan: Plan, job: JobConfig) -> tuple[Plan, dict, object]:
 
 def _reach_from(plan: Plan, job: JobConfig, new_stations: bool):
     """A function of a stroke: the largest share of its waypoints the arm reaches exactly from one of the
-    plan's stations or, with ``new_stations``, from a new station at the plan's gantry height."""
-    from sprayplan.pipeline import gun_poses
+    stations ``pipeline.with_added_strokes`` offers it to (the nearest ``ADDED_STROKE_STATIONS``) or, with
+    ``new_stations``, from a new station at the plan's gantry height (whether the budget of new stations
+    then runs out is not foreseen)."""
+    from sprayplan.pipeline import ADDED_STROKE_STATIONS, gun_poses
     from sprayplan.robots.gantry import Gantry, load_gun
     from sprayplan.robots.model import load_robot
     from sprayplan.stations.added import reach_share
@@ -157,14 +159,23 @@ def _reach_from(plan: Plan, job: JobConfig, new_stations: bool):
     gantry = Gantry(robot=load_robot("ur5"), gun=load_gun(job.plan.tool))
     platforms = np.array([st.platform_mm for st in plan.stations])
     height = float(np.median(platforms[:, 2])) if new_stations else None
-    return lambda stroke: reach_share(gantry, gun_poses(stroke), platforms, height)
+    to_flange = np.linalg.inv(gantry.gun.gun2flange)
+
+    def reach(stroke):
+        poses = gun_poses(stroke)
+        # the stations with_added_strokes offers the stroke to: the nearest to its flange positions
+        centre = (poses @ to_flange)[:, :2, 3].mean(axis=0)
+        order = np.argsort(np.linalg.norm(platforms[:, :2] - centre, axis=1), kind="stable")
+        return reach_share(gantry, poses, platforms[order[:ADDED_STROKE_STATIONS]], height)
+
+    return reach
 
 
 def extended_deposit(part, plan: Plan, earlier: Plan, samples, deposit_mm, process, coating):
     """The deposit matrix of ``plan`` (``coating.deposit_matrix``) from that of ``earlier``, a plan whose
     stations ``plan`` extends with strokes appended at their ends and new stations inserted into the visiting
-    order (stations matched by ``index``): only the added strokes' columns are computed (the film of a time step does not depend on the other strokes). Returns (samples, matrix), or
-    None when the samples come out different (a cloud without normals, oriented to face the plan)."""
+    order (stations matched by ``index``): only the added strokes' columns are computed, on the earlier
+    samples (the film of a time step does not depend on the other strokes). Returns (samples, matrix)."""
     from sprayplan.coating import deposit_matrix
 
     added, is_new = [], []
@@ -178,11 +189,7 @@ def extended_deposit(part, plan: Plan, earlier: Plan, samples, deposit_mm, proce
     is_new = np.concatenate(is_new)
     if not added:
         return samples, deposit_mm
-    new_samples, new_mm = deposit_matrix(part, Paths(tuple(added), 0.0, 0.0, plan.name), process, config=coating)
-    if not (
-        np.array_equal(new_samples.points, samples.points) and np.array_equal(new_samples.normals, samples.normals)
-    ):
-        return None
+    _, new_mm = deposit_matrix(part, Paths(tuple(added), 0.0, 0.0, plan.name), process, config=coating, samples=samples)
     # columns: the earlier plan's waypoints, then the appended ones; put each where it is in the new plan
     position = np.concatenate([np.flatnonzero(~is_new), np.flatnonzero(is_new)])
     stacked = sparse.hstack([deposit_mm, new_mm]).tocsc()

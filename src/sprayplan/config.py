@@ -413,7 +413,9 @@ class PlanConfig:
             raise ConfigError(f"tune_band must be a number in [0, 1), got {self.tune_band!r}")
         if not isinstance(self.touch_up_aim, bool):
             raise ConfigError(f"touch_up_aim must be true or false, got {self.touch_up_aim!r}")
-        if not (isinstance(self.touch_up_stations, int) and 0 <= self.touch_up_stations <= 20):
+        if isinstance(self.touch_up_stations, bool) or not (
+            isinstance(self.touch_up_stations, int) and 0 <= self.touch_up_stations <= 20
+        ):
             raise ConfigError(f"touch_up_stations must be an integer from 0 to 20, got {self.touch_up_stations!r}")
         home = tuple(float(v) for v in self.home_mm)
         if len(home) != 3 or not all(math.isfinite(v) for v in home):

@@ -302,8 +302,7 @@ def _fit_to_station(gantry, st: StationPlan, candidates: list[tuple[Stroke, froz
     """
     strokes = [stroke for stroke, _ in candidates]
     tried = [t for _, t in candidates]
-    new, result, reached = _solved_additions(gantry, st, strokes, job)
-    first = 1 if st.strokes else 0
+    new, result, reached, first = _solved_additions(gantry, st, strokes, job)
     missed = [
         (run, t) for stroke, mask, t in zip(new[first::2], reached, tried) for run in _reached_runs(stroke, ~mask, job)
     ]
@@ -318,13 +317,14 @@ def _fit_to_station(gantry, st: StationPlan, candidates: list[tuple[Stroke, froz
         if not cut:
             break
         strokes, tried = [c[0] for c in cut], [c[1] for c in cut]
-        new, result, reached = _solved_additions(gantry, st, strokes, job)
+        new, result, reached, first = _solved_additions(gantry, st, strokes, job)
     return [], missed, new, result
 
 
 def _solved_additions(gantry, st: StationPlan, added: list[Stroke], job: JobConfig):
-    """Strokes appended to a station (nearer end first, transfers between) and their joints; and for each
-    added stroke whether the arm reaches all its waypoints."""
+    """Strokes appended to a station (nearer end first, transfers between) and their joints; for each added
+    stroke whether the arm reaches its waypoints; and where the added strokes start among the new strokes
+    (1 after a transfer from the station's last stroke, 0 at a new station; transfers alternate with them)."""
     settings = job.plan
     ordered = []
     here = st.strokes[-1].tcp[-1] if st.strokes else None
@@ -349,7 +349,7 @@ def _solved_additions(gantry, st: StationPlan, added: list[Stroke], job: JobConf
     )
     bounds = np.r_[0, np.cumsum([len(s) for s in new])]
     reached = [result.reachable[a:b] for a, b in itertools.pairwise(bounds)]
-    return new, result, reached[first::2]
+    return new, result, reached[first::2], first
 
 
 def _nearest_first(strokes: list[Stroke]) -> list[Stroke]:

@@ -281,6 +281,7 @@ def deposit_matrix(
     *,
     overrides: Mapping[int, StrokeOverride] | Sequence[StrokeOverride | None] | None = None,
     config: CoatingConfig | None = None,
+    samples: SurfaceSamples | None = None,
 ) -> tuple[SurfaceSamples, sparse.csr_matrix]:
     """The film as a linear function of the waypoints' time factors (``Stroke.dwell``).
 
@@ -289,9 +290,13 @@ def deposit_matrix(
     factors ``w`` is ``A @ w`` (exactly :func:`simulate`'s for strokes with ``dwell = w``), because a time
     step's duration is linear in its segments' factors (``GunSamples.node_share``) and the film is linear in
     the time steps. The strokes' own ``dwell`` is not used.
+
+    ``samples``: the surface samples of an earlier call on the same part (its first result), to add columns
+    for more strokes without sampling the part again; by default the part is sampled as :func:`simulate`
+    does.
     """
     config = CoatingConfig() if config is None else config
-    setup = _setup(part, paths, process, overrides, config, None, nodes=True)
+    setup = _setup(part, paths, process, overrides, config, None, nodes=True, samples=samples)
     n = len(setup.samples.points)
     waypoints = int(sum(len(s) for s in paths.strokes))
     entries = []
@@ -330,10 +335,11 @@ class _Setup:
     workers: int = 1
 
 
-def _setup(part, paths, process, overrides, config: CoatingConfig, targets, nodes: bool) -> _Setup:
-    """Surface samples, gun samples and occlusion: what the film's sum runs over."""
-    edge = process.pattern.radius_mm / 5.0 if config.sample_edge_mm is None else config.sample_edge_mm
-    samples = surface_samples(part, targets, edge, facing=paths)
+def _setup(part, paths, process, overrides, config: CoatingConfig, targets, nodes: bool, samples=None) -> _Setup:
+    """Surface samples (unless given), gun samples and occlusion: what the film's sum runs over."""
+    if samples is None:
+        edge = process.pattern.radius_mm / 5.0 if config.sample_edge_mm is None else config.sample_edge_mm
+        samples = surface_samples(part, targets, edge, facing=paths)
     guns, times, flows = gun_samples(
         paths, process, overrides, config.max_step_mm, config.speed_along, config.max_speed_ratio, nodes=nodes
     )

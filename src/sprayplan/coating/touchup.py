@@ -161,15 +161,31 @@ AIM_SCALES = (0.25, 0.5, 1.0, 2.0)
 def tilted(stroke: Stroke, degrees: float, standoff_mm: float) -> Stroke:
     """The stroke with its aim turned by ``degrees`` about its direction of travel at every waypoint (the
     waypoints stay; the gun moves round them at the standoff). Positive turns follow the right-hand rule
-    about the direction of travel."""
-    if degrees == 0.0:
+    about the direction of travel: at each waypoint the chord between its neighbours, or the stroke's
+    overall direction where that chord is zero or along the normal. A stroke without a direction (fewer than
+    two distinct waypoints) is returned unchanged."""
+    overall = stroke.points[-1] - stroke.points[0] if len(stroke) else np.zeros(3)
+    if degrees == 0.0 or len(stroke) < 2 or np.linalg.norm(overall) < 1e-9:
         return stroke
     tangent = np.gradient(stroke.points, axis=0)
-    tangent = nm.unit(tangent - np.einsum("ij,ij->i", tangent, stroke.normals)[:, None] * stroke.normals)
+    tangent = tangent - np.einsum("ij,ij->i", tangent, stroke.normals)[:, None] * stroke.normals
+    flat = np.linalg.norm(tangent, axis=1) < 1e-9 * max(np.linalg.norm(overall), 1.0)
+    if flat.any():
+        fallback = overall[None] - (stroke.normals[flat] @ overall)[:, None] * stroke.normals[flat]
+        tangent[flat] = fallback
+    good = np.linalg.norm(tangent, axis=1) > 1e-12
+    tangent = nm.unit(np.where(good[:, None], tangent, 0.0))
     angle = np.radians(degrees)
-    normals = nm.unit(stroke.normals * np.cos(angle) + np.cross(tangent, stroke.normals) * np.sin(angle))
+    turned = stroke.normals * np.cos(angle) + np.cross(tangent, stroke.normals) * np.sin(angle)
+    normals = np.where(good[:, None], nm.unit(turned), stroke.normals)
     return Stroke(
-        stroke.points, normals, stroke.points + standoff_mm * normals, True, stroke.on_part, stroke.layer, stroke.dwell
+        stroke.points,
+        normals,
+        stroke.points + standoff_mm * normals,
+        stroke.spray_on,
+        stroke.on_part,
+        stroke.layer,
+        stroke.dwell,
     )
 
 
@@ -204,8 +220,7 @@ def aim_touch_ups(
     :func:`misfit` over the ``tuned`` samples most is kept. With ``reach`` (a function of a stroke giving the
     share of its waypoints the robot can reach), only tilts the robot reaches at least half of, or failing
     that the best reached, are chosen from. A stroke no allowed tilt improves keeps its aim (the speed tuning
-    decides how much of it to run). Returns the strokes in the same order; unchanged when the film
-    model's samples differ from ``samples``.
+    decides how much of it to run). Returns the strokes in the same order.
     """
     from sprayplan.coating.thickness import deposit_matrix
     from sprayplan.types import Paths
@@ -213,9 +228,9 @@ def aim_touch_ups(
     if not strokes:
         return []
     candidates = [tilted(s, t, standoff_mm) for s in strokes for t in tilts_deg]
-    found, matrix = deposit_matrix(part, Paths(tuple(candidates), standoff_mm, 0.0), process, config=coating)
-    if not (np.array_equal(found.points, samples.points) and np.array_equal(found.normals, samples.normals)):
-        return list(strokes)
+    _, matrix = deposit_matrix(
+        part, Paths(tuple(candidates), standoff_mm, 0.0), process, config=coating, samples=samples
+    )
     # the film each candidate adds at unit time factors, on the tuned samples
     bounds = np.r_[0, np.cumsum([len(c) for c in candidates])]
     owner = np.repeat(np.arange(len(candidates)), np.diff(bounds))
@@ -236,9 +251,8 @@ def aim_touch_ups(
         now = misfit(film, area, target_um, tolerance_um)
         gain[c] = now - misfit(film[None] + scales[:, None] * more[None], area, target_um, tolerance_um).min()
     gain = gain.reshape(len(strokes), len(tilts_deg))
-    zero = list(tilts_deg).index(0.0) if 0.0 in tilts_deg else 0
     out = []
-    for k in range(len(strokes)):
+    for k, stroke in enumerate(strokes):
         mine = candidates[k * len(tilts_deg) : (k + 1) * len(tilts_deg)]
         allowed = np.ones(len(tilts_deg), dtype=bool)
         if reach is not None:
@@ -246,7 +260,5 @@ def aim_touch_ups(
             allowed = share >= min(0.5, share.max())
         score = np.where(allowed, gain[k], -np.inf)
         best = int(np.argmax(score))
-        if not score[best] > 0:
-            best = zero if allowed[zero] else best
-        out.append(mine[best])
+        out.append(mine[best] if score[best] > 0 else stroke)
     return out

@@ -11,7 +11,8 @@ crosses a segment at the planned speed divided by the mean of its ends' factors)
 
 where A is :func:`~sprayplan.coating.thickness.deposit_matrix` (film at every surface sample per unit time
 factor, exact: the tuned plan's simulated film is ``A w``), T the target, tol the tolerance, a_s the samples'
-area over their mean, rho the Huber loss (rho(r) = r^2 for |r| <= 1, 2 |r| - 1 beyond) (quadratic within the tolerance, linear beyond, so that a few
+area over their mean, rho the Huber loss (rho(r) = r^2 for |r| <= 1, 2 |r| - 1 beyond: with the dead band,
+quadratic up to 1 + b tolerances from the target and linear beyond, so that a few
 samples no path can reach, such as a lip facing away from every stroke, do not drag their neighbours out of
 spec), d a dead band of ``band`` = b tolerances round the target (a film already that close costs nothing, so
 the solver spends the speeds on the samples near or out of spec: on reach_curved_part b = 0.3 puts 98.5 % of
@@ -89,7 +90,9 @@ class TuningConfig:
             raise ConfigError(f"iterations must be >= 1, got {self.iterations}")
         if self.loss not in ("huber", "linear"):
             raise ConfigError(f"loss must be huber or linear, got {self.loss!r}")
-        if not (math.isfinite(self.band) and 0 <= self.band < 1):
+        if isinstance(self.band, bool) or not (
+            isinstance(self.band, (int, float)) and math.isfinite(self.band) and 0 <= self.band < 1
+        ):
             raise ConfigError(f"band must be in [0, 1), got {self.band}")
         if not 0 <= self.painted_fraction < 1:
             raise ConfigError(f"painted_fraction must be in [0, 1), got {self.painted_fraction}")
@@ -291,27 +294,7 @@ def _solve(matrix, area, tuned, free, starts, target, tol, config: TuningConfig,
         out[:, :n_fit] *= weight
         return out
 
-    band = float(config.band)
-    if band > 0:
-
-        def residual(x):
-            r = system @ x - target_vec
-            f = r[:n_fit]
-            r[:n_fit] = np.sign(f) * np.maximum(np.abs(f) - band, 0.0)
-            return r
-
-        def jacobian(x):
-            f = (fit @ x) - target / tol
-            slope = np.r_[(np.abs(f) > band).astype(float), np.ones(len(pairs))]
-            return sparse.diags(slope) @ system
-    else:
-
-        def residual(x):
-            return system @ x - target_vec
-
-        def jacobian(x):
-            return system
-
+    residual, jacobian = _residuals(system, target_vec, n_fit, float(config.band))
     result = least_squares(
         residual,
         np.ones(len(cols)),
@@ -323,3 +306,25 @@ def _solve(matrix, area, tuned, free, starts, target, tol, config: TuningConfig,
         max_nfev=int(config.iterations),
     )
     return np.clip(result.x, low, config.max_dwell)
+
+
+def _residuals(system: sparse.csr_matrix, target_vec: np.ndarray, n_fit: int, band: float):
+    """The tuning's residual function and its Jacobian: ``system @ x - target_vec``, the first ``n_fit`` rows
+    (the film terms, in tolerances) through the dead band ``d(u) = sign(u) max(|u| - band, 0)``, whose
+    derivative is 1 outside the band and 0 inside."""
+
+    def residual(x):
+        r = system @ x - target_vec
+        if band > 0:
+            f = r[:n_fit]
+            r[:n_fit] = np.sign(f) * np.maximum(np.abs(f) - band, 0.0)
+        return r
+
+    def jacobian(x):
+        if band <= 0:
+            return system
+        f = system[:n_fit] @ x - target_vec[:n_fit]
+        slope = np.r_[(np.abs(f) > band).astype(float), np.ones(system.shape[0] - n_fit)]
+        return sparse.diags(slope) @ system
+
+    return residual, jacobian
