@@ -160,19 +160,7 @@ def plan(part: Part, job: JobConfig | None = None) -> Plan:
             position_tol_mm=settings.position_tol_mm,
             axis_tol_rad=math.radians(settings.axis_tol_deg),
         )
-        stations.append(
-            StationPlan(
-                k,
-                platforms[k],
-                tuple(strokes),
-                result.q9,
-                result.reachable,
-                result.method,
-                result.position_error_mm,
-                result.axis_error_deg,
-                result.branch_change,
-            )
-        )
+        stations.append(_station(k, platforms[k], strokes, result))
     log.info("%s: %d stations, %d waypoints unassigned", part.name, len(stations), int(unassigned_mask.sum()))
     return Plan(tuple(stations), home, all_points[unassigned_mask], part.name)
 
@@ -222,17 +210,7 @@ def with_added_strokes(plan_: Plan, strokes: list[Stroke], job: JobConfig, new_s
             break
     for k, (new, result) in solved.items():
         st = stations[k]
-        stations[k] = StationPlan(
-            st.index,
-            st.platform_mm,
-            st.strokes + tuple(new),
-            np.vstack([st.q9, result.q9]),
-            np.concatenate([st.reachable, result.reachable]),
-            np.concatenate([st.method, result.method]),
-            np.concatenate([st.position_error_mm, result.position_error_mm]),
-            np.concatenate([st.axis_error_deg, result.axis_error_deg]),
-            np.concatenate([st.branch_change, result.branch_change]),
-        )
+        stations[k] = _station(st.index, st.platform_mm, new, result, after=st)
     count = sum(len(kept) for kept in accepted.values())
     if pending and new_stations > 0:
         for station in _new_stations(gantry, plan_, [stroke for stroke, _ in pending], job, new_stations):
@@ -252,35 +230,27 @@ def _new_stations(gantry, plan_: Plan, strokes: list[Stroke], job: JobConfig, mo
     index = max(st.index for st in plan_.stations) + 1
     out = []
     for place in placed:
-        empty = StationPlan(
-            index,
-            place.platform_mm,
-            (),
-            np.zeros((0, 9)),
-            np.zeros(0, bool),
-            np.zeros(0, object),
-            np.zeros(0),
-            np.zeros(0),
-            np.zeros(0, bool),
-        )
+        empty = StationPlan(index, place.platform_mm, (), *_PATH_EMPTY)
         taken = _nearest_first([strokes[i] for i in place.strokes])
         kept, _, new, result = _fit_to_station(gantry, empty, [(s, frozenset()) for s in taken], job)
         if kept:
-            out.append(
-                StationPlan(
-                    index,
-                    place.platform_mm,
-                    tuple(new),
-                    result.q9,
-                    result.reachable,
-                    result.method,
-                    result.position_error_mm,
-                    result.axis_error_deg,
-                    result.branch_change,
-                )
-            )
+            out.append(_station(index, place.platform_mm, new, result))
             index += 1
     return out
+
+
+#: A StationPlan's per-waypoint fields for no waypoints (q9, reachable, method, errors, branch changes).
+_PATH_EMPTY = (np.zeros((0, 9)), np.zeros(0, bool), np.zeros(0, object), np.zeros(0), np.zeros(0), np.zeros(0, bool))
+
+
+def _station(index: int, platform, strokes, path, after: StationPlan | None = None) -> StationPlan:
+    """A station's plan from strokes and their joints (a ``GantryPath``), run after ``after``'s when given."""
+    fields = (path.q9, path.reachable, path.method, path.position_error_mm, path.axis_error_deg, path.branch_change)
+    if after is not None:
+        before = (after.q9, after.reachable, after.method, after.position_error_mm, after.axis_error_deg)
+        fields = tuple(np.concatenate([a, b]) for a, b in zip((*before, after.branch_change), fields))
+        strokes = after.strokes + tuple(strokes)
+    return StationPlan(index, platform, tuple(strokes), *fields)
 
 
 def _insert_in_tour(stations: list[StationPlan], station: StationPlan, home: np.ndarray) -> None:
