@@ -20,10 +20,10 @@ from sprayplan.paths.ruled import (
     RuledPathConfig,
     RuledSurface,
     cartesian_table,
-    load_ruled,
     ruled_paths,
     write_table_csv,
 )
+from sprayplan.paths.ruled_toml import load_ruled
 from sprayplan.robots.r5150 import table4_joints, table4_points
 from sprayplan.surface.coverage import spacing_for_overlap
 

@@ -183,7 +183,8 @@ def cmd_paths(args) -> int:
     start = time.perf_counter()
     output = Path(args.output)
     if args.ruled:
-        from sprayplan.paths.ruled import load_ruled, ruled_paths, write_table_csv
+        from sprayplan.paths.ruled import ruled_paths, write_table_csv
+        from sprayplan.paths.ruled_toml import load_ruled
 
         if args.part:
             raise ConfigError("give either a PART or --ruled SURFACE.toml, not both")
