@@ -451,6 +451,14 @@ def test_bad_files_raise_part_file_error_naming_the_file(tmp_path, text, key):
 def test_missing_file_is_a_part_file_error(tmp_path):
     with pytest.raises(PartFileError, match="not found"):
         load_ruled(tmp_path / "nope.toml")
+    with pytest.raises(PartFileError, match="directory"):
+        load_ruled(tmp_path)
+    with pytest.raises(PartFileError, match="usable file name"):
+        load_ruled(str(tmp_path / "a\x00b.toml"))
+    bad = tmp_path / "latin1.toml"
+    bad.write_bytes(b"name = '\xe9'\n")
+    with pytest.raises(PartFileError, match="UTF-8"):
+        load_ruled(bad)
 
 
 def test_good_file_loads_with_documented_defaults(tmp_path):

@@ -40,7 +40,7 @@ _NORMAL_NAMES = (("nx", "ny", "nz"), ("normal_x", "normal_y", "normal_z"))
 # shared helpers
 
 
-def _read_bytes(path: str | os.PathLike) -> bytes:
+def read_file_bytes(path: str | os.PathLike) -> bytes:
     """Read a whole file, turning every reason it cannot be read into a PartFileError."""
     try:
         return Path(path).read_bytes()
@@ -218,7 +218,7 @@ def read_xyz(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
         or infinite coordinate or normal, rows with different numbers of columns, or fewer than 3 columns.
         The message names the file and the line.
     """
-    return parse_xyz(_read_bytes(path), path)
+    return parse_xyz(read_file_bytes(path), path)
 
 
 def parse_xyz(data: bytes, path: str | os.PathLike = "<bytes>") -> tuple[np.ndarray, np.ndarray | None]:

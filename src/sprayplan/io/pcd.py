@@ -22,7 +22,7 @@ import struct
 import numpy as np
 
 from sprayplan.errors import PartFileError
-from sprayplan.io.cloud import _BOM, _NORMAL_NAMES, _SEPARATORS, _XYZ_NAMES, _parse_table, _read_bytes, _show
+from sprayplan.io.cloud import _BOM, _NORMAL_NAMES, _SEPARATORS, _XYZ_NAMES, _parse_table, _show, read_file_bytes
 
 __all__ = ["parse_pcd", "read_pcd"]
 
@@ -131,7 +131,7 @@ def read_pcd(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None]:
         inconsistent header, an unknown ``DATA`` kind, truncated binary data, a corrupt compressed block, a
         value that is not a number (with its line), an infinite coordinate, or no finite point at all.
     """
-    return parse_pcd(_read_bytes(path), path)
+    return parse_pcd(read_file_bytes(path), path)
 
 
 def _header_ints(path: str | os.PathLike, key: str, values: list[str], line: int, minimum: int) -> list[int]:

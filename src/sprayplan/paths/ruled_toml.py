@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from sprayplan.errors import ConfigError, PartFileError
+from sprayplan.io.cloud import read_file_bytes
 from sprayplan.paths.ruled import RuledJob, RuledPathConfig
 from sprayplan.paths.ruled_surface import Arc, Curve, Line, PointCurve, Polyline, RuledSurface
 
@@ -224,13 +225,9 @@ def load_ruled(path: str | os.PathLike) -> RuledJob:
         The file is missing or unreadable, is not valid TOML, or breaks the schema; the message names the file.
     """
     try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise PartFileError(path, "file not found") from None
+        text = read_file_bytes(path).decode("utf-8")
     except UnicodeDecodeError:
         raise PartFileError(path, "not UTF-8 text") from None
-    except OSError as err:
-        raise PartFileError(path, f"cannot be read ({err.strerror})") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
