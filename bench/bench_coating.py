@@ -27,7 +27,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import statistics
 import sys
 import time
@@ -200,10 +199,14 @@ def section_uniformity() -> None:
 def section_plan_film(repeat: int = 3) -> None:
     """The film of the whole main job (``sprayplan plan PART --thickness-um 50 --simulate``), stations and all,
     with the planned speeds (``--no-tune-speed``) and with the speeds tuned to the film (the default)."""
-    from sprayplan.coating.touchup import TOUCH_UP_LAYER
-    from sprayplan.coating_stage import meet_thickness, simulate_plan, tune_plan
-    from sprayplan.config import JobConfig, PlanConfig
-    from sprayplan.pipeline import plan, plan_totals
+    from sprayplan.coating.stage import meet_thickness, simulate_plan
+    from sprayplan.config import JobConfig
+    from sprayplan.export.summary import plan_totals
+    from sprayplan.job import run_job
+    from sprayplan.refine.stage import tune_plan
+
+    def plan(part, job):
+        return run_job(part, job, until="kinematics").plan
 
     print("### 3b. The main job: `sprayplan plan PART --thickness-um 50 --simulate` (defaults otherwise)\n")
     print("'speeds': as planned (`--no-tune-speed`) or tuned to the film with touch-up strokes (the default;")
@@ -221,7 +224,7 @@ def section_plan_film(repeat: int = 3) -> None:
         ("noether_raw_scan_mesh", load_part(DATA / "noether_raw_scan_mesh.ply", units="m")),
         ("tray top (z > 3.1)", select_region(load_part(DATA / "tray_bottom_mm_ascii.stl", up="y"), "z > 3.1")),
     ):
-        job, _ = meet_thickness(JobConfig(plan=PlanConfig(thickness_um=50.0)))
+        job, _ = meet_thickness(JobConfig().replace(coating={"thickness_um": 50.0}))
         result = plan(part, job)
         tuning_wall, _, (tuned, info, _film) = timed(lambda p=part, r=result, j=job: tune_plan(p, r, j), repeat)
         for label, version, wall, factors in (
@@ -232,7 +235,7 @@ def section_plan_film(repeat: int = 3) -> None:
             film, inner = report["painted"], report["interior"]
             totals = plan_totals(version, job)
             cycle = totals["cycle_time_s"]
-            touch_ups = sum(1 for st in version.stations for s in st.strokes if s.layer == TOUCH_UP_LAYER)
+            touch_ups = sum(1 for st in version.stations for s in st.strokes if s.kind == "touch-up")
             print(
                 f"| {name} | {totals['stations']} | {totals['strokes']} | {touch_ups} | {totals['waypoints']} | "
                 f"{totals['unreachable_waypoints']} | {label} | "
@@ -244,7 +247,7 @@ def section_plan_film(repeat: int = 3) -> None:
 
 def section_tuning() -> None:
     """Tuning cost against quality: the solver's evaluations varied (``tune_speeds`` on the paths alone)."""
-    from sprayplan.coating import TuningConfig, tune_speeds
+    from sprayplan.refine.tuning import TuningConfig, tune_speeds
 
     process, choice = seed_process()
     process = process.with_(speed_mm_s=choice.speed_mm_s)
@@ -268,10 +271,15 @@ def section_tuning() -> None:
 
 def section_touch_ups() -> None:
     """What each part of the touch-up stage adds: the main job's tuning with the touch-ups' new stations,
-    their aims and the tuning's dead band turned off one after another (``PlanConfig`` settings)."""
-    from sprayplan.coating_stage import meet_thickness, tune_plan
-    from sprayplan.config import JobConfig, PlanConfig
-    from sprayplan.pipeline import plan, plan_totals
+    their aims and the tuning's dead band turned off one after another (``[tuning]`` settings)."""
+    from sprayplan.coating.stage import meet_thickness
+    from sprayplan.config import JobConfig
+    from sprayplan.export.summary import plan_totals
+    from sprayplan.job import run_job
+    from sprayplan.refine.stage import tune_plan
+
+    def plan(part, job):
+        return run_job(part, job, until="kinematics").plan
 
     print("### 3d. The touch-up stage, piece by piece (main job, 50 um target)\n")
     print("Each row adds one piece to the row above; the last is the default. One run each; tuning s: `tune_plan`.")
@@ -281,10 +289,10 @@ def section_touch_ups() -> None:
     variants = (
         (
             "touch-ups at planned stations only, no dead band",
-            dict(touch_up_stations=0, touch_up_aim=False, tune_band=0.0),
+            dict(touch_up_stations=0, touch_up_aim=False, band=0.0),
         ),
-        ("+ new stations (up to 4)", dict(touch_up_aim=False, tune_band=0.0)),
-        ("+ aims chosen by the film model", dict(tune_band=0.0)),
+        ("+ new stations (up to 4)", dict(touch_up_aim=False, band=0.0)),
+        ("+ aims chosen by the film model", dict(band=0.0)),
         ("+ dead band 0.3 tolerances (the default)", {}),
     )
     for name, part in (
@@ -292,10 +300,10 @@ def section_touch_ups() -> None:
         ("noether_raw_scan_mesh", load_part(DATA / "noether_raw_scan_mesh.ply", units="m")),
         ("demo roof z > 1000", select_region(car_roof(), "z > 1000")),
     ):
-        base, _ = meet_thickness(JobConfig(plan=PlanConfig(thickness_um=50.0)))
+        base, _ = meet_thickness(JobConfig().replace(coating={"thickness_um": 50.0}))
         result = plan(part, base)
         for label, changes in variants:
-            job = dataclasses.replace(base, plan=dataclasses.replace(base.plan, **changes))
+            job = base.replace(tuning=changes)
             start = time.perf_counter()
             tuned, info, film = tune_plan(part, result, job)
             wall = time.perf_counter() - start

@@ -57,15 +57,19 @@ def end_to_end(repeat: int) -> None:
 
 
 def station_tours() -> None:
-    from sprayplan.config import JobConfig, LoadConfig, PlanConfig
+    from sprayplan.config import JobConfig, LoadConfig, OrderingConfig
     from sprayplan.demo import DEMO_REGION, car_roof
+    from sprayplan.job import run_job
     from sprayplan.ordering import solve_tour
     from sprayplan.ordering.genetic import GAParams, ga_tour
-    from sprayplan.pipeline import plan
+
+    def plan(part, job):
+        return run_job(part, job, until="kinematics").plan
+
     from sprayplan.surface.region import select_region
 
     roof = select_region(car_roof(), DEMO_REGION)
-    job = JobConfig(load=LoadConfig(region=DEMO_REGION), plan=PlanConfig(mode="points", tour="keep"))
+    job = JobConfig(mode="points", load=LoadConfig(region=DEMO_REGION), ordering=OrderingConfig(tour="keep"))
     result = plan(roof, job)
     params = GAParams(population=200, generations=2000)
     print(

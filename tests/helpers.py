@@ -59,3 +59,11 @@ def plate(xmin, xmax, ymin, ymax, step, z=0.0, flip=False) -> Part:
     b, c, d = a + ny, a + ny + 1, a + 1
     faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
     return Part(vertices, faces[:, ::-1] if flip else faces, None, "plate")
+
+
+def planned(part, job):
+    """The plan of a part as the main job makes it before refinement (``run_job(..., until="kinematics")``),
+    with the job's own spacing and gun speed: a film target, if the job has one, is not met first."""
+    from sprayplan.job import run_job
+
+    return run_job(part, job.replace(coating={"thickness_um": None}), until="kinematics").plan

@@ -1,4 +1,4 @@
-"""Touch-ups the planned stations cannot reach: new gantry stations (stations.added, pipeline), aims turned
+"""Touch-ups the planned stations cannot reach: new gantry stations (refine.added_stations, refine.extend), aims turned
 to help the film (coating.touchup.aim_touch_ups) and the tuning's dead band."""
 
 from __future__ import annotations
@@ -9,9 +9,10 @@ import math
 import numpy as np
 import pytest
 
-from sprayplan.coating import Process, SprayPattern, TuningConfig, simulate, tune_speeds
-from sprayplan.coating.touchup import TOUCH_UP_LAYER, aim_touch_ups, misfit, tilted, touch_up_strokes
+from sprayplan.coating import Process, SprayPattern, simulate
 from sprayplan.errors import ConfigError
+from sprayplan.refine.touchup import aim_touch_ups, misfit, tilted, touch_up_strokes
+from sprayplan.refine.tuning import TuningConfig, tune_speeds
 from sprayplan.robots.gantry import Gantry, pose_errors
 from sprayplan.types import Paths, Stroke
 from tests.helpers import plate
@@ -25,11 +26,11 @@ def reach(testdata):
     """The real curved panel planned for 50 um, and touch-ups aimed at its front lip's underside (the
     samples facing forward and down): the stations over the panel reach only part of them."""
     from sprayplan.coating.sampling import surface_samples
-    from sprayplan.config import JobConfig, PlanConfig
+    from sprayplan.config import JobConfig
     from sprayplan.io.load import load_part
-    from sprayplan.pipeline import plan
+    from tests.helpers import planned as plan
 
-    job = JobConfig(plan=PlanConfig(thickness_um=50.0))
+    job = JobConfig().replace(coating={"thickness_um": 50.0})
     part = load_part(testdata / "meshes" / "reach_curved_part.ply", units="m")
     samples = surface_samples(part)
     lip = (samples.normals[:, 0] > 0.6) & (samples.normals[:, 2] < -0.2)
@@ -41,11 +42,12 @@ def reach(testdata):
 
 
 def touch_up_waypoints(plan_) -> int:
-    return sum(len(s) for st in plan_.stations for s in st.strokes if s.layer == TOUCH_UP_LAYER)
+    return sum(len(s) for st in plan_.stations for s in st.strokes if s.kind == "touch-up")
 
 
 def test_new_stations_reach_what_the_planned_ones_miss(reach):
-    from sprayplan.pipeline import gun_poses, with_added_strokes
+    from sprayplan.refine.extend import with_added_strokes
+    from sprayplan.surface.poses import stroke_poses as gun_poses
 
     _, job, planned, strokes = reach
     without = with_added_strokes(planned, strokes, job, new_stations=0)
@@ -59,15 +61,15 @@ def test_new_stations_reach_what_the_planned_ones_miss(reach):
     height = np.median([st.platform_mm[2] for st in planned.stations])
     for st in added:
         assert st.platform_mm[2] == pytest.approx(height)  # at the plan's gantry height
-        assert all(s.layer == TOUCH_UP_LAYER for s in st.strokes if s.spray_on)
+        assert all(s.kind == "touch-up" for s in st.strokes if s.spray_on)
         assert len(st.q9) == sum(len(s) for s in st.strokes)
         spray = np.concatenate([np.full(len(s), s.spray_on) for s in st.strokes])
         assert st.reachable[spray].all()
         # forward kinematics of the solved joints puts the spray target where it is wanted
         wanted = np.concatenate([gun_poses(s) for s in st.strokes])[spray] @ gantry.gun.target2gun
         position, axis = pose_errors(gantry.target2world(st.q9[spray]), wanted)
-        assert position.max() <= job.plan.position_tol_mm * (1 + 1e-6)
-        assert axis.max() <= math.radians(job.plan.axis_tol_deg) * (1 + 1e-6)
+        assert position.max() <= job.kinematics.position_tol_mm * (1 + 1e-6)
+        assert axis.max() <= math.radians(job.kinematics.axis_tol_deg) * (1 + 1e-6)
     # the planned stations keep their strokes and order; each new one sits where it adds the least travel
     kept = [st for st in with_new.stations if st.index in {s.index for s in planned.stations}]
     assert [st.index for st in kept] == [st.index for st in without.stations]
@@ -86,8 +88,9 @@ def test_new_stations_reach_what_the_planned_ones_miss(reach):
 
 def test_the_deposit_matrix_extends_over_a_new_station(reach):
     from sprayplan.coating import deposit_matrix
-    from sprayplan.coating_stage import extended_deposit, plan_paths_in_order, process_for
-    from sprayplan.pipeline import with_added_strokes
+    from sprayplan.coating.stage import plan_paths_in_order, process_for
+    from sprayplan.refine.extend import with_added_strokes
+    from sprayplan.refine.stage import extended_deposit
 
     part, job, planned, strokes = reach
     process = process_for(job)
@@ -96,21 +99,21 @@ def test_the_deposit_matrix_extends_over_a_new_station(reach):
     assert len(extended.stations) > len(planned.stations)
     got = extended_deposit(part, extended, planned, samples, old, process, None)
     _, full = deposit_matrix(part, plan_paths_in_order(extended, H, 0.0), process)
-    assert got is not None and got[1].shape == full.shape
+    assert got[0] is samples and got[1].shape == full.shape
     assert abs(got[1] - full).max() <= 1e-6 * abs(full).max()
 
 
 def test_a_station_is_placed_where_the_arm_reaches_a_stroke():
-    from sprayplan.pipeline import gun_poses
+    from sprayplan.refine.added_stations import reach_share, stations_for_strokes
     from sprayplan.robots.gantry import solve_gantry_path
-    from sprayplan.stations.added import reach_share, stations_for_strokes
+    from sprayplan.surface.poses import stroke_poses as gun_poses
 
     gantry = Gantry()
     # the underside of a lip 1.5 m from the gantry's origin, sprayed upwards and inwards
     count = 30
     points = np.column_stack([np.full(count, 1500.0), np.linspace(-150, 150, count), np.zeros(count)])
     normals = np.tile(np.array([0.85, 0.0, -0.45]) / math.hypot(0.85, 0.45), (count, 1))
-    stroke = Stroke(points, normals, points + H * normals, True, None, TOUCH_UP_LAYER)
+    stroke = Stroke(points, normals, points + H * normals, True, None, -1, None, "touch-up")
     poses = gun_poses(stroke)
     height = 600.0
     assert reach_share(gantry, poses, np.array([[0.0, 0.0, height]])) == 0.0  # out of the origin's reach
@@ -132,7 +135,7 @@ def test_tilted_turns_the_aim_about_the_direction_of_travel():
     count = 12
     points = np.column_stack([np.linspace(0, 110, count), np.zeros(count), np.zeros(count)])
     normals = np.tile([0.0, 0.0, 1.0], (count, 1))
-    stroke = Stroke(points, normals, points + H * normals, True, None, TOUCH_UP_LAYER)
+    stroke = Stroke(points, normals, points + H * normals, True, None, -1, None, "touch-up")
     turned = tilted(stroke, 30.0, H)
     np.testing.assert_array_equal(turned.points, stroke.points)
     np.testing.assert_allclose(np.linalg.norm(turned.normals, axis=1), 1.0)
@@ -141,7 +144,7 @@ def test_tilted_turns_the_aim_about_the_direction_of_travel():
     # right hand about +x turns +z towards -y
     np.testing.assert_allclose(turned.normals[:, 1], -math.sin(math.radians(30)))
     np.testing.assert_allclose(turned.tcp, turned.points + H * turned.normals)
-    assert turned.layer == TOUCH_UP_LAYER
+    assert turned.kind == "touch-up"
     assert tilted(stroke, 0.0, H) is stroke
 
 
@@ -195,7 +198,9 @@ def test_the_chosen_aim_is_the_one_the_film_model_favours():
     # positive one aims upwards from below, along the slope rather than into it
     count = 30
     pts = np.column_stack([np.zeros(count), np.linspace(-145, 145, count), np.full(count, -5.0)])
-    wall = Stroke(pts, np.tile([1.0, 0, 0], (count, 1)), pts + H * np.array([1.0, 0, 0]), True, None, TOUCH_UP_LAYER)
+    wall = Stroke(
+        pts, np.tile([1.0, 0, 0], (count, 1)), pts + H * np.array([1.0, 0, 0]), True, None, -1, None, "touch-up"
+    )
     tilts = (-20.0, 0.0, 20.0)
     args = (tuning.samples, tuning.after_um, tuning.tuned, 50.0, 5.0)
     (chosen,) = aim_touch_ups(part, [wall], *args, process=process, coating=None, standoff_mm=H, tilts_deg=tilts)
@@ -259,24 +264,24 @@ def test_a_film_inside_the_dead_band_keeps_its_speeds():
 
 
 def test_the_new_plan_settings_are_checked():
-    from sprayplan.config import PlanConfig
+    from sprayplan.config import RefineConfig
 
-    settings = PlanConfig()
-    assert (settings.touch_up_stations, settings.tune_band, settings.touch_up_aim) == (4, 0.3, True)
+    settings = RefineConfig()
+    assert (settings.touch_up_stations, settings.band, settings.touch_up_aim) == (4, 0.3, True)
     for bad in (-1, 21, 1.5, "2"):
         with pytest.raises(ConfigError, match="touch_up_stations"):
-            PlanConfig(touch_up_stations=bad)
+            RefineConfig(touch_up_stations=bad)
     for bad in (-0.1, 1.0, float("nan"), "0.3", True):
-        with pytest.raises(ConfigError, match="tune_band"):
-            PlanConfig(tune_band=bad)
+        with pytest.raises(ConfigError, match="band"):
+            RefineConfig(band=bad)
     with pytest.raises(ConfigError, match="touch_up_aim"):
-        PlanConfig(touch_up_aim="yes")
+        RefineConfig(touch_up_aim="yes")
 
 
 def test_the_dead_bands_jacobian_is_the_derivative_of_its_residuals():
     from scipy import sparse
 
-    from sprayplan.coating.tuning import _residuals
+    from sprayplan.refine.tuning import _residuals
 
     rng = np.random.default_rng(3)
     system = sparse.random(40, 12, density=0.3, random_state=rng, format="csr") * 3.0
@@ -298,24 +303,27 @@ def test_the_dead_bands_jacobian_is_the_derivative_of_its_residuals():
 
 
 def test_tune_plan_keeps_to_its_budget_of_new_stations(testdata):
-    from sprayplan.coating_stage import meet_thickness, tune_plan
-    from sprayplan.config import JobConfig, PlanConfig
+    from sprayplan.coating.stage import meet_thickness
+    from sprayplan.config import JobConfig
     from sprayplan.io.load import load_part
-    from sprayplan.pipeline import plan
+    from sprayplan.refine.stage import tune_plan
     from sprayplan.surface.region import select_region
+    from tests.helpers import planned as plan
 
     part = select_region(load_part(testdata / "meshes" / "reach_curved_part.ply", units="m"), "x > -300")
     for budget, aim in ((0, False), (1, True)):
         job, _ = meet_thickness(
-            JobConfig(plan=PlanConfig(thickness_um=50.0, touch_up_stations=budget, touch_up_aim=aim))
+            JobConfig().replace(
+                coating={"thickness_um": 50.0}, tuning={"touch_up_stations": budget, "touch_up_aim": aim}
+            )
         )
         planned = plan(part, job)
         tuned, summary, _ = tune_plan(part, planned, job)
         assert summary["touch_up_strokes"] > 0
         assert len(planned.stations) <= len(tuned.stations) <= len(planned.stations) + budget
         assert len({st.index for st in tuned.stations}) == len(tuned.stations)
-        touch = [(st, s) for st in tuned.stations for s in st.strokes if s.layer == TOUCH_UP_LAYER]
+        touch = [(st, s) for st in tuned.stations for s in st.strokes if s.kind == "touch-up"]
         for st in tuned.stations:  # every touch-up spray waypoint is reachable
-            spray = np.concatenate([np.full(len(s), s.layer == TOUCH_UP_LAYER and s.spray_on) for s in st.strokes])
+            spray = np.concatenate([np.full(len(s), s.kind == "touch-up" and s.spray_on) for s in st.strokes])
             assert st.reachable[spray].all()
         assert touch

@@ -195,7 +195,7 @@ def test_edge_and_speed_options_reach_the_plan(testdata, tmp_path, capsys):
     code, _, _ = run(capsys, "plan", part, *args, "-o", str(tmp_path / "plan"), "--speed-along", "tcp")
     assert code == 0
     plan = json.loads((tmp_path / "plan" / "plan.json").read_text())
-    assert plan["settings"]["plan"]["speed_along"] == "tcp" and plan["settings"]["paths"]["edge_passes"] == "auto"
+    assert plan["settings"]["motion"]["speed_along"] == "tcp" and plan["settings"]["paths"]["edge_passes"] == "auto"
     for station in plan["stations"]:
         for stroke in station["strokes"]:
             assert set(stroke["tcp_speed_mm_s"]) == {stroke["speed_mm_s"]}  # one tip speed per stroke

@@ -10,7 +10,7 @@ import trimesh
 
 from sprayplan.cli import main
 from sprayplan.coating import choose_spacing_and_speed, load_preset
-from sprayplan.coating.touchup import TOUCH_UP_LAYER, TOUCH_UP_MIN_DWELL
+from sprayplan.refine.touchup import TOUCH_UP_MIN_DWELL
 
 
 @pytest.fixture(scope="module")
@@ -41,7 +41,7 @@ def test_thickness_target_chooses_spacing_and_speed(planned):
     data = json.loads((planned / "plan.json").read_text())
     choice = choose_spacing_and_speed(load_preset("seed000_circle"), 50.0, standoff_mm=113.0)
     assert data["settings"]["paths"]["spacing_mm"] == pytest.approx(choice.spacing_mm)
-    assert data["settings"]["plan"]["gun_speed_mm_s"] == pytest.approx(choice.speed_mm_s)
+    assert data["settings"]["motion"]["gun_speed_mm_s"] == pytest.approx(choice.speed_mm_s)
     assert data["totals"]["chosen_for_thickness"]["target_um"] == 50.0
     # per-stroke process: spray strokes at the chosen speed and the preset's flow, transfers at flow 0
     strokes = [s for st in data["stations"] for s in st["strokes"]]
@@ -87,7 +87,7 @@ def test_a_thickness_target_tunes_the_speeds_to_the_film(planned):
     assert tuning["after"]["cv"] < tuning["before"]["cv"]
     # the report is the tuned plan's film: the same figures as predicted (report over painted samples)
     assert report["painted"]["cv"] == pytest.approx(tuning["after"]["cv"], rel=0.05)
-    speed = data["settings"]["plan"]["gun_speed_mm_s"]
+    speed = data["settings"]["motion"]["gun_speed_mm_s"]
     factors, touch_ups, checked = [], [], 0
     for st in data["stations"]:
         for s in st["strokes"]:
@@ -96,7 +96,7 @@ def test_a_thickness_target_tunes_the_speeds_to_the_film(planned):
             if not s["spray_on"]:
                 assert (dwell == 1.0).all()
                 continue
-            if s["layer"] == TOUCH_UP_LAYER:
+            if s["kind"] == "touch-up":
                 # touch-ups are run only where the arm reaches them all the way
                 assert all(s["reachable"])
                 touch_ups.append(dwell)
@@ -126,30 +126,34 @@ def test_no_tune_speed_keeps_the_planned_speeds(testdata, tmp_path):
     assert main([*args, "--no-tune-speed"]) == 0
     data = json.loads((tmp_path / "plan.json").read_text())
     assert "speed_tuning" not in data["totals"]
-    assert data["settings"]["plan"]["tune_speed"] is False
+    assert data["settings"]["tuning"]["tune_speed"] is False
     assert all(all(d == 1.0 for d in s["dwell"]) for st in data["stations"] for s in st["strokes"])
 
 
 def test_the_deposit_of_an_extended_plan_reuses_the_earlier_columns(testdata):
     from sprayplan.coating import deposit_matrix
-    from sprayplan.coating_stage import extended_deposit, plan_paths_in_order, process_for
-    from sprayplan.config import JobConfig, LoadConfig, PlanConfig
+    from sprayplan.coating.stage import plan_paths_in_order, process_for
+    from sprayplan.config import JobConfig
     from sprayplan.io.load import load_part
-    from sprayplan.pipeline import plan, with_added_strokes
+    from sprayplan.refine.extend import with_added_strokes
+    from sprayplan.refine.stage import extended_deposit
     from sprayplan.surface.region import select_region
+    from tests.helpers import planned as plan
 
-    job = JobConfig(load=LoadConfig(units="m"), plan=PlanConfig(thickness_um=50.0))
+    job = JobConfig().replace(load={"units": "m"}, coating={"thickness_um": 50.0})
     part = select_region(load_part(testdata / "meshes" / "reach_curved_part.ply", units="m"), "x > -300")
     earlier = plan(part, job)
     process = process_for(job)
     samples, old = deposit_matrix(part, plan_paths_in_order(earlier, 113.0, 0.0), process)
     # two extra strokes: spray strokes of the plan run again, 10 mm higher
     spray = [s for st in earlier.stations for s in st.strokes if s.spray_on][:2]
-    extra = [type(s)(s.points, s.normals, s.tcp + [0.0, 0.0, 10.0], True, s.on_part, -2) for s in spray]
+    extra = [
+        type(s)(s.points, s.normals, s.tcp + [0.0, 0.0, 10.0], True, s.on_part, -1, None, "touch-up") for s in spray
+    ]
     extended = with_added_strokes(earlier, extra, job)
     assert sum(len(st.strokes) for st in extended.stations) > sum(len(st.strokes) for st in earlier.stations)
     got = extended_deposit(part, extended, earlier, samples, old, process, None)
-    assert got is not None
+    assert got[0] is samples  # the earlier samples, not new ones
     _, full = deposit_matrix(part, plan_paths_in_order(extended, 113.0, 0.0), process)
     assert got[1].shape == full.shape
     assert full.nnz > old.nnz  # the added strokes paint
@@ -157,14 +161,15 @@ def test_the_deposit_of_an_extended_plan_reuses_the_earlier_columns(testdata):
 
 
 def test_the_tuned_plans_film_is_the_simulated_one(testdata):
-    from sprayplan.coating_stage import meet_thickness, simulate_plan, tune_plan
-    from sprayplan.config import JobConfig, PlanConfig
+    from sprayplan.coating.stage import meet_thickness, simulate_plan
+    from sprayplan.config import JobConfig
     from sprayplan.io.load import load_part
-    from sprayplan.pipeline import plan
+    from sprayplan.refine.stage import tune_plan
     from sprayplan.surface.region import select_region
+    from tests.helpers import planned as plan
 
     part = select_region(load_part(testdata / "meshes" / "reach_curved_part.ply", units="m"), "x > -300")
-    job, _ = meet_thickness(JobConfig(plan=PlanConfig(thickness_um=50.0)))
+    job, _ = meet_thickness(JobConfig().replace(coating={"thickness_um": 50.0}))
     tuned, summary, film = tune_plan(part, plan(part, job), job)
     assert summary["touch_up_strokes"] > 0  # the film comes from the extended matrix too
     simulated = simulate_plan(part, tuned, job)

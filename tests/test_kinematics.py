@@ -195,7 +195,7 @@ def test_cli_ik_r5150_reproduces_the_seed_table4(tmp_path, capsys):
 def test_cli_gantry_ik_along_paths(tmp_path, capsys):
     from sprayplan.config import PathConfig
     from sprayplan.demo import car_roof
-    from sprayplan.io.paths_json import write_paths_json
+    from sprayplan.export.paths_json import write_paths_json
     from sprayplan.paths.planner import plan_paths
     from sprayplan.surface.region import select_region
 

@@ -13,8 +13,8 @@ from scipy.spatial import cKDTree
 from sprayplan.cli import main
 from sprayplan.config import PathConfig
 from sprayplan.errors import ConfigError, InputError
+from sprayplan.export.paths_json import read_paths_json, write_paths_json
 from sprayplan.io.load import load_part
-from sprayplan.io.paths_json import read_paths_json, write_paths_json
 from sprayplan.paths.planner import plan_paths, point_segment_distance, slicing_frame, surface_covariance
 from sprayplan.surface.filling import sample_uniform
 from sprayplan.surface.region import select_region

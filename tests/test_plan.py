@@ -9,26 +9,34 @@ import numpy as np
 import pytest
 
 from sprayplan.cli import main
-from sprayplan.config import JobConfig, LoadConfig, PathConfig, PlanConfig, job_from_toml
+from sprayplan.config import SECTIONS, JobConfig, LoadConfig, OrderingConfig, PathConfig, job_from_toml
 from sprayplan.errors import PartFileError
+from sprayplan.export.summary import plan_totals
 from sprayplan.io.load import load_part
-from sprayplan.pipeline import plan, plan_totals
+from sprayplan.job import run_job
 from sprayplan.robots.gantry import Gantry
 from tests.conftest import REPO
+
+
+def plan(part, job):
+    """The plan of a part, without refinement (the main job up to its kinematics stage)."""
+    return run_job(part, job, until="kinematics").plan
 
 
 def test_process_toml_documents_every_default():
     assert job_from_toml(REPO / "examples" / "process.toml") == JobConfig()
     # every setting is there, set or (when its default is computed) commented out
     text = (REPO / "examples" / "process.toml").read_text()
-    for table in dataclasses.fields(JobConfig):
-        for field in dataclasses.fields(table.type if isinstance(table.type, type) else type(table.default)):
-            assert f"\n{field.name} = " in text or f"\n# {field.name} = " in text, (table.name, field.name)
+    assert "\nmode = " in text
+    for name, section in SECTIONS.items():
+        body = text.split(f"\n[{name}]", 1)[1].split("\n[", 1)[0]
+        for field in dataclasses.fields(section):
+            assert f"\n{field.name} = " in body or f"\n# {field.name} = " in body, (name, field.name)
 
 
 def test_bad_process_toml(tmp_path):
     (tmp_path / "p.toml").write_text("[paths]\nspacing = 40\n")
-    with pytest.raises(PartFileError, match=r"p.toml: \[paths\]: unknown PathConfig key\(s\): spacing"):
+    with pytest.raises(PartFileError, match=r"p.toml: \[paths\]: unknown key\(s\) spacing"):
         job_from_toml(tmp_path / "p.toml")
     (tmp_path / "q.toml").write_text("[painting]\n")
     with pytest.raises(PartFileError, match="unknown table"):
@@ -38,7 +46,7 @@ def test_bad_process_toml(tmp_path):
 @pytest.fixture(scope="module")
 def reach_plan(testdata, tmp_path_factory):
     out = tmp_path_factory.mktemp("plan")
-    (out / "process.toml").write_text("[paths]\nspacing_mm = 80.0\nstep_mm = 20.0\n[plan]\ngun_speed_mm_s = 500.0\n")
+    (out / "process.toml").write_text("[paths]\nspacing_mm = 80.0\nstep_mm = 20.0\n[motion]\ngun_speed_mm_s = 500.0\n")
     code = main(
         [
             "plan",
@@ -61,7 +69,7 @@ def test_plan_json_reads_back(reach_plan):
     _out, data = reach_plan
     assert data["format"] == "sprayplan.plan" and data["units"]["length"] == "mm"
     # settings: the TOML file and the flags both took effect
-    assert data["settings"]["paths"]["spacing_mm"] == 80.0 and data["settings"]["plan"]["gun_speed_mm_s"] == 500.0
+    assert data["settings"]["paths"]["spacing_mm"] == 80.0 and data["settings"]["motion"]["gun_speed_mm_s"] == 500.0
     assert data["settings"]["load"]["units"] == "m"
     totals = data["totals"]
     assert totals["stations"] == len(data["stations"]) >= 2
@@ -159,7 +167,8 @@ def test_points_mode_visits_every_target(tmp_path):
     roof = select_region(car_roof(resolution_mm=50.0), "box(-700, -500, 1000, 700, 500, 2000)")
     job = JobConfig(
         load=LoadConfig(region=None),
-        plan=dataclasses.replace(PlanConfig(), mode="points", tour="auto"),
+        mode="points",
+        ordering=OrderingConfig(tour="auto"),
     )
     result = plan(roof, job)
     visited = np.vstack([s.points for st in result.stations for s in st.strokes if s.spray_on])
@@ -181,14 +190,14 @@ def test_a_plan_repeats_exactly(testdata):
 
 
 def test_a_stroke_split_between_stations_is_sprayed_whole():
-    from sprayplan.pipeline import _split_by_station
+    from sprayplan.stations.stage import split_by_station
     from sprayplan.types import Stroke
 
     x = np.arange(0.0, 101.0, 10.0)
     points = np.column_stack([x, np.zeros_like(x), np.zeros_like(x)])
     stroke = Stroke(points, np.tile([0.0, 0.0, 1.0], (len(x), 1)), points + [0, 0, 113.0], True, None, 3)
     station = np.array([2, 2, 2, 2, 5, 5, 5, -1, -1, 5, 5])
-    pieces = _split_by_station(stroke, station)
+    pieces = split_by_station(stroke, station)
     assert [k for k, _ in pieces] == [2, 5, 5]
     # the hand-over segment 30 -> 40 belongs to the first station's piece; a run ending at waypoints no station
     # takes stops there; every piece keeps the stroke's layer

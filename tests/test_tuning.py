@@ -1,4 +1,4 @@
-"""Time factors at the waypoints (Stroke.dwell) and speeds tuned to the film (sprayplan.coating.tuning)."""
+"""Time factors at the waypoints (Stroke.dwell) and speeds tuned to the film (sprayplan.refine.tuning)."""
 
 from __future__ import annotations
 
@@ -12,20 +12,19 @@ from sprayplan.coating import (
     CoatingConfig,
     Process,
     SprayPattern,
-    TuningConfig,
     choose_spacing_and_speed,
     coating_report,
     deposit_matrix,
     load_preset,
     simulate,
-    tune_speeds,
 )
-from sprayplan.coating.touchup import TOUCH_UP_LAYER, TOUCH_UP_MIN_DWELL, touch_up_strokes
 from sprayplan.config import PathConfig
 from sprayplan.errors import ConfigError
 from sprayplan.io.load import load_part
 from sprayplan.paths.planner import plan_paths
 from sprayplan.paths.speed import segment_speeds, stroke_time
+from sprayplan.refine.touchup import TOUCH_UP_MIN_DWELL, touch_up_strokes
+from sprayplan.refine.tuning import TuningConfig, tune_speeds
 from sprayplan.surface.region import select_region
 from sprayplan.types import Part, Paths, Stroke
 from tests.helpers import plate
@@ -191,7 +190,7 @@ def test_equal_bounds_leave_the_speeds_alone(panel):
 
 
 def test_time_factors_survive_paths_json(tmp_path):
-    from sprayplan.io.paths_json import read_paths_json, write_paths_json
+    from sprayplan.export.paths_json import read_paths_json, write_paths_json
 
     paths = strokes_on([-30.0, 20.0])
     rng = np.random.default_rng(0)
@@ -248,11 +247,11 @@ def test_touch_ups_aim_at_a_flange_the_strokes_miss():
         lead_mm=50.0,
         min_area_mm2=625.0,
     )
-    assert all(s.layer == TOUCH_UP_LAYER for s in extra)
+    assert all(s.kind == "touch-up" for s in extra)
     aimed = [s for s in extra if nm_unit(s.normals.mean(axis=0)) @ FLANGE_NORMAL > 0.95]
     assert len(aimed) == 1, "the flange should get one touch-up stroke"  # (the top's short edges get theirs)
     first = aimed[0]
-    assert first.layer == TOUCH_UP_LAYER and first.spray_on
+    assert first.kind == "touch-up" and first.spray_on
     np.testing.assert_allclose(first.tcp, first.points + H * first.normals)
     assert (first.normals @ FLANGE_NORMAL > 0.95).all()
     middle = first.points[5:-5]  # leads of 50 mm at 10 mm steps at each end
@@ -264,15 +263,13 @@ def test_touch_ups_aim_at_a_flange_the_strokes_miss():
     assert np.median(steps) == pytest.approx(10.0, rel=0.2)
     # with the touch-up (factors free down to TOUCH_UP_MIN_DWELL) the flange comes into spec
     both = Paths((*paths.strokes, *extra), H, 35.0)
-    lower = np.concatenate(
-        [np.full(len(s), TOUCH_UP_MIN_DWELL if s.layer == TOUCH_UP_LAYER else 0.5) for s in both.strokes]
-    )
+    lower = np.concatenate([np.full(len(s), TOUCH_UP_MIN_DWELL if s.kind == "touch-up" else 0.5) for s in both.strokes])
     again = tune_speeds(part, both, process, 50.0, 5.0, lower=lower)
     inside = (again.after_um[flange] >= 45) & (again.after_um[flange] <= 55)
     before_inside = (tuning.after_um[flange] >= 45) & (tuning.after_um[flange] <= 55)
     assert inside.mean() > before_inside.mean() + 0.3
     assert again.summary(50, 5)["after"]["share_in_spec"] > tuning.summary(50, 5)["after"]["share_in_spec"]
-    main_dwell = np.concatenate([s.dwell for s in again.paths.strokes if s.layer != TOUCH_UP_LAYER])
+    main_dwell = np.concatenate([s.dwell for s in again.paths.strokes if s.kind != "touch-up"])
     assert main_dwell.min() >= 0.5 - 1e-9
 
 
@@ -295,7 +292,7 @@ def test_lower_bounds_are_checked(panel):
 
 
 def test_plan_settings_of_the_tuning_are_checked():
-    from sprayplan.config import PlanConfig
+    from sprayplan.config import RefineConfig
 
     for bad in (
         {"touch_up_rounds": -1},
@@ -305,4 +302,4 @@ def test_plan_settings_of_the_tuning_are_checked():
         {"tune_speed": "yes"},
     ):
         with pytest.raises(ConfigError):
-            PlanConfig(**bad)
+            RefineConfig(**bad)

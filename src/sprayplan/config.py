@@ -11,25 +11,118 @@ import math
 from dataclasses import dataclass
 
 from sprayplan.errors import ConfigError
+from sprayplan.errors import PartFileError as _PartFileError
 
 #: Smallest time factor of a waypoint (``Stroke.dwell``) the speed tuning may choose, and 1 / this the largest:
 #: a gun 20 times faster or slower than planned is a different plan, not a correction.
 MIN_DWELL = 0.05
 
 FILL_MODES = ("even", "point", "line")
+UNITS = ("mm", "cm", "m", "in")
+UP_AXES = ("z", "y", "x")
+MODES = ("paths", "points")
+TOURS = ("auto", "ga", "exact", "keep")
+ROBOTS = ("gantry-ur5", "gantry-ur5e")
+SPEED_ALONG = ("surface", "tcp")
+
+
+def _fail(cls, name: str, wanted: str, value) -> ConfigError:
+    return ConfigError(f"{cls.SECTION}.{name} must be {wanted}, got {value!r}")
+
+
+class Section:
+    """Base of every config section: checks each field against its annotation before the section's own checks.
+
+    ``float`` fields take a finite number (not a bool, not a string) and are stored as float; ``int`` fields a
+    whole number (stored as int); ``bool`` fields only true or false; ``str`` fields only a string. ``X | None``
+    also takes None. Other annotations are left to the section's ``_check``. A bad value raises a one-line
+    :class:`~sprayplan.errors.ConfigError` naming ``section.key`` and what it takes.
+    """
+
+    SECTION = "config"
+
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            kind = str(f.type).replace(" ", "")
+            optional = kind.endswith("|None")
+            kind = kind.removesuffix("|None")
+            value = getattr(self, f.name)
+            if value is None and optional:
+                continue
+            converted = _typed(type(self), f.name, kind, value, optional)
+            if converted is not value:
+                object.__setattr__(self, f.name, converted)
+        self._check()
+
+    def _check(self) -> None:
+        """Range and consistency checks of the section (types are checked already)."""
+
+
+def _typed(cls, name: str, kind: str, value, optional: bool):
+    tail = " or none" if optional else ""
+    if kind == "float":
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise _fail(cls, name, "a finite number" + tail, value)
+        return float(value)
+    if kind == "int":
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise _fail(cls, name, "a whole number" + tail, value)
+        if int(value) != value:
+            raise _fail(cls, name, "a whole number" + tail, value)
+        return int(value)
+    if kind == "bool":
+        if not isinstance(value, bool):
+            raise _fail(cls, name, "true or false", value)
+        return value
+    if kind == "str":
+        if not isinstance(value, str):
+            raise _fail(cls, name, "a string" + tail, value)
+        return value
+    return value
+
+
+def _choice(cls, name: str, value, allowed) -> None:
+    if value not in allowed:
+        raise _fail(cls, name, "one of " + ", ".join(map(str, allowed)), value)
+
+
+def _at_least(cls, name: str, value, low: float, *, strict: bool = False) -> None:
+    if value is not None and not (value > low if strict else value >= low):
+        raise _fail(cls, name, f"a number {'>' if strict else '>='} {low:g}", value)
+
+
+def _within(cls, name: str, value, low: float, high: float) -> None:
+    if value is not None and not low <= value <= high:
+        raise _fail(cls, name, f"a number from {low:g} to {high:g}", value)
 
 
 @dataclass(frozen=True)
-class LoadConfig:
-    """How a part file is read: its length unit, its up axis, and the region to keep."""
+class LoadConfig(Section):
+    """How a part file is read (``[load]``): its length unit, its up axis, and the region to keep.
 
+    Attributes
+    ----------
+    units : {"mm", "cm", "m", "in"}
+    up : {"z", "y", "x"}
+        The file's up axis, turned to +z.
+    region : str or None
+        A region expression (``sprayplan.surface.region``), in mm in the part frame; None: the whole part.
+    """
+
+    SECTION = "load"
     units: str = "mm"
     up: str = "z"
     region: str | None = None
 
+    def _check(self):
+        _choice(LoadConfig, "units", self.units, UNITS)
+        _choice(LoadConfig, "up", self.up, UP_AXES)
+        if self.region is not None and not self.region.strip():
+            raise _fail(LoadConfig, "region", "a region expression or none", self.region)
+
 
 @dataclass(frozen=True)
-class TargetsConfig:
+class TargetsConfig(Section):
     """Target points (seed 000, section 2).
 
     Attributes
@@ -59,6 +152,7 @@ class TargetsConfig:
         Random seed of the even sampling.
     """
 
+    SECTION = "targets"
     fill: str = "even"
     spacing_mm: float | None = None
     spray_radius_mm: float = 50.0
@@ -70,7 +164,9 @@ class TargetsConfig:
     orient: str | None = None
     seed: int = 0
 
-    def __post_init__(self):
+    def _check(self):
+        if self.seed < 0:
+            raise _fail(TargetsConfig, "seed", "a whole number >= 0", self.seed)
         from sprayplan.surface.compress import COMPRESS_METHODS
         from sprayplan.surface.normals import ORIENT_METHODS
 
@@ -114,12 +210,13 @@ def config_from_dict(cls, table: dict):
     names = {f.name for f in dataclasses.fields(cls)}
     unknown = sorted(set(table) - names)
     if unknown:
-        raise ConfigError(f"unknown {cls.__name__} key(s): {', '.join(unknown)}; known: {', '.join(sorted(names))}")
+        where = f"[{cls.SECTION}]" if hasattr(cls, "SECTION") else cls.__name__
+        raise ConfigError(f"{where}: unknown key(s) {', '.join(unknown)}; known: {', '.join(sorted(names))}")
     return cls(**table)
 
 
 @dataclass(frozen=True)
-class PathConfig:
+class PathConfig(Section):
     """Spray paths by slicing (seed 003 sections 2-3; spacing from seed 000's eq. 6).
 
     Attributes
@@ -185,6 +282,7 @@ class PathConfig:
         than the spacing) when more than half a spacing would be left bare.
     """
 
+    SECTION = "paths"
     direction: str | tuple = "auto"
     spacing_mm: float | None = None
     layers: int | None = None
@@ -206,7 +304,7 @@ class PathConfig:
     rim_mm: float | None = None
     edge_passes: str | int = "auto"
 
-    def __post_init__(self):
+    def _check(self):
         if self.edge_passes != "auto":
             value = self.edge_passes
             if (
@@ -288,153 +386,432 @@ class PathConfig:
 
 
 @dataclass(frozen=True)
-class PlanConfig:
-    """The main job, ``sprayplan plan`` (seed 000 sections 5-6 around the paths of seed 003).
+class StationsConfig(Section):
+    """Gantry stations (``[stations]``, seed 000 section 5.1).
 
     Attributes
     ----------
-    mode : {"paths", "points"}
-        ``paths``: slicing strokes (the default); ``points``: the seed's target points visited in a tour.
+    home_mm : tuple of 3 float
+        Where the gantry starts and ends (the seed's "zero").
+    platform_z_mm : float or None
+        Gantry height; None: the part's flange positions at the middle of the working cylinder.
+    seed : int
+        Random seed of the circle cover's search.
+    """
+
+    SECTION = "stations"
+    home_mm: tuple = (0.0, 0.0, 0.0)
+    platform_z_mm: float | None = None
+    seed: int = 0
+
+    def _check(self):
+        home = self.home_mm
+        if isinstance(home, (str, bytes)) or not hasattr(home, "__len__") or len(home) != 3:
+            raise _fail(StationsConfig, "home_mm", "three numbers", home)
+        if any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) for v in home):
+            raise _fail(StationsConfig, "home_mm", "three finite numbers", home)
+        object.__setattr__(self, "home_mm", tuple(float(v) for v in home))
+        _at_least(StationsConfig, "seed", self.seed, 0)
+
+
+@dataclass(frozen=True)
+class OrderingConfig(Section):
+    """The order of the work inside a station (``[ordering]``, seed 000 section 5.2).
+
+    Attributes
+    ----------
     tour : {"auto", "ga", "exact", "keep"}
         Ordering inside a station: of the strokes (``keep``: zig-zag order as sliced) or, in points mode, of
         the targets (``ga``: the seed's genetic algorithm). ``auto`` is a deterministic descent (nearest
         neighbour, 2-opt, Or-opt), so that a plan repeats exactly on any machine.
-    robot : str
-        ``gantry-ur5`` (seed 000's nine axes).
+    seed : int
+        Random seed of the tour solvers.
+    """
+
+    SECTION = "ordering"
+    tour: str = "auto"
+    seed: int = 0
+
+    def _check(self):
+        _choice(OrderingConfig, "tour", self.tour, TOURS)
+        _at_least(OrderingConfig, "seed", self.seed, 0)
+
+
+@dataclass(frozen=True)
+class KinematicsConfig(Section):
+    """The robot and its inverse kinematics (``[kinematics]``, seed 000 sections 3-4).
+
+    Attributes
+    ----------
+    robot : {"gantry-ur5", "gantry-ur5e"}
+        Seed 000's three-axis gantry carrying a UR5 (or a UR5e).
     tool : str
         Gun preset (``wa101``).
+    position_tol_mm, axis_tol_deg : float
+        Allowed errors of the SQP fallback (eqs. 21-22; seed: 5 mm, 5 degrees).
+    k_d : float
+        Weight of gantry travel in eq. 20, rad^2/mm^2 (0.1: 3.2 mm of travel costs as much as 1 rad).
+    """
+
+    SECTION = "kinematics"
+    robot: str = "gantry-ur5"
+    tool: str = "wa101"
+    position_tol_mm: float = 5.0
+    axis_tol_deg: float = 5.0
+    k_d: float = 0.1
+
+    def _check(self):
+        _choice(KinematicsConfig, "robot", self.robot, ROBOTS)
+        _choice(KinematicsConfig, "tool", self.tool, ("wa101",))
+        _at_least(KinematicsConfig, "position_tol_mm", self.position_tol_mm, 0, strict=True)
+        _within(KinematicsConfig, "axis_tol_deg", self.axis_tol_deg, 1e-9, 90.0)
+        _at_least(KinematicsConfig, "k_d", self.k_d, 0)
+
+    @property
+    def arm(self) -> str:
+        """The arm on the gantry: ``ur5`` or ``ur5e``."""
+        return self.robot.removeprefix("gantry-")
+
+
+@dataclass(frozen=True)
+class MotionConfig(Section):
+    """Speeds (``[motion]``): the gun's while spraying, the arm's between strokes, the gantry's.
+
+    Attributes
+    ----------
     gun_speed_mm_s, transfer_speed_mm_s, platform_speed_mm_s : float
-        For the cycle time: spraying, spray-off moves of the arm, and the gantry.
+        Spraying, spray-off moves of the arm, and the gantry.
     speed_along : {"surface", "tcp"}
         What moves at ``gun_speed_mm_s`` while spraying: the paint's contact point on the surface (the gun
         tip then speeds up over convex bends and slows down in concave ones; plan.json gives the tip's speed
         per waypoint), or the gun tip itself (one speed per stroke). See ``sprayplan.paths.speed``.
     max_speed_ratio : float
         With ``surface``: the gun tip's speed stays within [v / ratio, v ratio].
-    home_mm : tuple of 3 float
-        Where the gantry starts and ends (the seed's "zero").
-    platform_z_mm : float or None
-        Gantry height; None: the part's targets at the middle of the working cylinder.
-    position_tol_mm, axis_tol_deg : float
-        Allowed errors of the SQP fallback (eqs. 21-22; seed: 5 mm, 5 degrees).
-    k_d : float
-        Weight of gantry travel in eq. 20, rad^2/mm^2 (0.1: 3.2 mm of travel costs as much as 1 rad).
+    """
+
+    SECTION = "motion"
+    gun_speed_mm_s: float = 400.0
+    transfer_speed_mm_s: float = 1000.0
+    platform_speed_mm_s: float = 250.0
+    speed_along: str = "surface"
+    max_speed_ratio: float = 3.0
+
+    def _check(self):
+        for name in ("gun_speed_mm_s", "transfer_speed_mm_s", "platform_speed_mm_s"):
+            _at_least(MotionConfig, name, getattr(self, name), 0, strict=True)
+        _choice(MotionConfig, "speed_along", self.speed_along, SPEED_ALONG)
+        _at_least(MotionConfig, "max_speed_ratio", self.max_speed_ratio, 1)
+
+
+@dataclass(frozen=True)
+class FilmConfig(Section):
+    """The paint and the film model (``[coating]``, seed 003 sections 4-5).
+
+    Attributes
+    ----------
     process : str
         Spray process preset or TOML file (``seed000_circle``, ``seed000_flat``, ``bell003``): the pattern,
         flow, solids and transfer efficiency used to predict the film.
     thickness_um : float or None
         A dry-film target: when set, the stroke spacing and the gun speed are chosen to meet it (the spacing
         that makes the film across parallel strokes flattest, the speed that puts its mean on target), in
-        place of ``[paths] spacing_mm`` and ``gun_speed_mm_s``.
+        place of ``[paths] spacing_mm`` and ``[motion] gun_speed_mm_s``.
     tolerance_um : float
         The spec is ``thickness_um +- tolerance_um`` (default 5, seed 003's); without a target the film is
         judged against seed 003's 50 +- 5 um.
-    tune_speed : bool
-        With a target: after planning, give every waypoint a time factor (``Stroke.dwell``) chosen from the
-        simulated film so that it comes closer to the target (``sprayplan.coating.tuning``). No effect without
-        a target.
-    min_dwell, max_dwell : float
-        Bounds of those factors: the gun runs at between 1 / ``max_dwell`` and 1 / ``min_dwell`` times its
-        planned speed (0.05 <= min_dwell <= 1 <= max_dwell <= 20).
-    touch_up_rounds : int
-        With speeds tuned: rounds of touch-up strokes, each aimed at a patch the tuned plan still leaves
-        under-painted (a lip or flange that faces away from every stroke), run from the nearest station and
-        tuned with the rest (``sprayplan.coating.touchup``); 0: none.
-    tune_band : float
-        Film errors up to this many tolerances cost nothing in the tuning (its dead band,
-        ``coating.TuningConfig.band``): larger favours the share in spec over uniformity; 0 <= tune_band < 1.
-    touch_up_aim : bool
-        Turn each touch-up to the tilt about its direction of travel that the film model favours
-        (``coating.touchup.aim_touch_ups``); false: aim along the patch's normals.
-    touch_up_stations : int
-        At most this many gantry stations added for touch-ups no planned station reaches (a lip facing
-        sideways or down, sprayed from beside the part), in all rounds together; 0: none.
-    seed : int
+    max_step_mm, occlusion, occlusion_step_mm, occlusion_pixels, sample_edge_mm, search_factor, batch, workers
+        The film simulation's numerical settings (``sprayplan.coating.CoatingConfig``; None: its defaults).
     """
 
-    mode: str = "paths"
-    tour: str = "auto"
-    robot: str = "gantry-ur5"
-    tool: str = "wa101"
-    gun_speed_mm_s: float = 400.0
-    transfer_speed_mm_s: float = 1000.0
-    platform_speed_mm_s: float = 250.0
-    speed_along: str = "surface"
-    max_speed_ratio: float = 3.0
-    home_mm: tuple = (0.0, 0.0, 0.0)
-    platform_z_mm: float | None = None
-    position_tol_mm: float = 5.0
-    axis_tol_deg: float = 5.0
-    k_d: float = 0.1
+    SECTION = "coating"
     process: str = "seed000_circle"
     thickness_um: float | None = None
     tolerance_um: float = 5.0
+    max_step_mm: float | None = None
+    occlusion: str = "auto"
+    occlusion_step_mm: float | None = None
+    occlusion_pixels: int = 16
+    sample_edge_mm: float | None = None
+    search_factor: float = 1.15
+    batch: int = 4096
+    workers: int | None = None
+
+    def _check(self):
+        if not self.process.strip():
+            raise _fail(FilmConfig, "process", "a preset name or a .toml file", self.process)
+        _at_least(FilmConfig, "thickness_um", self.thickness_um, 0, strict=True)
+        _at_least(FilmConfig, "tolerance_um", self.tolerance_um, 0)
+        _at_least(FilmConfig, "workers", self.workers, 1)
+        try:
+            self.simulation(MotionConfig())
+        except ConfigError as exc:
+            raise ConfigError(f"coating.{exc}") from None
+
+    def simulation(self, motion: MotionConfig):
+        """The film simulation's settings (``coating.CoatingConfig``), with the speeds of ``motion``."""
+        from sprayplan.coating.thickness import CoatingConfig
+
+        return CoatingConfig(
+            max_step_mm=self.max_step_mm,
+            occlusion=self.occlusion,
+            occlusion_step_mm=self.occlusion_step_mm,
+            occlusion_pixels=self.occlusion_pixels,
+            speed_along=motion.speed_along,
+            max_speed_ratio=motion.max_speed_ratio,
+            sample_edge_mm=self.sample_edge_mm,
+            search_factor=self.search_factor,
+            batch=self.batch,
+            workers=self.workers,
+        )
+
+    @property
+    def tolerance(self) -> float:
+        """The tolerance the tuning aims for, um: as set, or 5 % of the target when set to 0."""
+        target = 50.0 if self.thickness_um is None else self.thickness_um
+        return self.tolerance_um if self.tolerance_um > 0 else 0.05 * target
+
+
+@dataclass(frozen=True)
+class RefineConfig(Section):
+    """Refinement of a planned program against its film (``[tuning]``): speeds, touch-ups, added stations.
+
+    Attributes
+    ----------
+    tune_speed : bool
+        With a film target: after planning, give every waypoint a time factor (``Stroke.dwell``) chosen from
+        the simulated film so that it comes closer to the target (``sprayplan.refine.tuning``). No effect
+        without a target.
+    min_dwell, max_dwell : float
+        Bounds of those factors: the gun runs at between 1 / ``max_dwell`` and 1 / ``min_dwell`` times its
+        planned speed (0.05 <= min_dwell <= 1 <= max_dwell <= 20).
+    band : float
+        Film errors up to this many tolerances cost nothing in the tuning (its dead band): larger favours
+        the share in spec over uniformity; 0 <= band < 1.
+    smoothing, iterations, loss, painted_fraction
+        The least-squares fit's settings (``refine.tuning.TuningConfig``).
+    touch_up_rounds : int
+        With speeds tuned: rounds of touch-up strokes, each aimed at a patch the tuned plan still leaves
+        under-painted (a lip or flange that faces away from every stroke), run from the nearest station and
+        tuned with the rest (``sprayplan.refine.touchup``); 0: none.
+    touch_up_aim : bool
+        Turn each touch-up to the tilt about its direction of travel that the film model favours; false: aim
+        along the patch's normals.
+    touch_up_stations : int
+        At most this many gantry stations added for touch-ups no planned station reaches (a lip facing
+        sideways or down, sprayed from beside the part), in all rounds together; 0: none.
+    """
+
+    SECTION = "tuning"
     tune_speed: bool = True
     min_dwell: float = 0.5
     max_dwell: float = 2.0
-    tune_band: float = 0.3
+    band: float = 0.3
+    smoothing: float = 0.1
+    iterations: int = 30
+    loss: str = "huber"
+    painted_fraction: float = 0.1
     touch_up_rounds: int = 2
     touch_up_aim: bool = True
     touch_up_stations: int = 4
-    seed: int = 0
 
-    def __post_init__(self):
-        if self.mode not in ("paths", "points"):
-            raise ConfigError(f"mode must be paths or points, got {self.mode!r}")
-        if self.tour not in ("auto", "ga", "exact", "keep"):
-            raise ConfigError(f"tour must be auto, ga, exact or keep, got {self.tour!r}")
-        if self.robot != "gantry-ur5":
-            raise ConfigError(f"robot must be gantry-ur5 for the plan, got {self.robot!r}")
-        for name in ("gun_speed_mm_s", "transfer_speed_mm_s", "platform_speed_mm_s", "position_tol_mm", "axis_tol_deg"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise ConfigError(f"{name} must be a positive number, got {value}")
-        if self.speed_along not in ("surface", "tcp"):
-            raise ConfigError(f"speed_along must be surface or tcp, got {self.speed_along!r}")
-        if not (math.isfinite(self.max_speed_ratio) and self.max_speed_ratio >= 1.0):
-            raise ConfigError(f"max_speed_ratio must be a number >= 1, got {self.max_speed_ratio}")
-        if self.thickness_um is not None and not (math.isfinite(self.thickness_um) and self.thickness_um > 0):
-            raise ConfigError(f"thickness_um must be a positive number, got {self.thickness_um}")
-        if not (math.isfinite(self.tolerance_um) and self.tolerance_um >= 0):
-            raise ConfigError(f"tolerance_um must be a number >= 0, got {self.tolerance_um}")
+    def _check(self):
         if not (MIN_DWELL <= self.min_dwell <= 1.0 <= self.max_dwell <= 1.0 / MIN_DWELL):
             raise ConfigError(
-                f"need {MIN_DWELL} <= min_dwell <= 1 <= max_dwell <= {1 / MIN_DWELL:g}, got {self.min_dwell}, "
-                f"{self.max_dwell}"
+                f"tuning: need {MIN_DWELL} <= min_dwell <= 1 <= max_dwell <= {1 / MIN_DWELL:g}, got "
+                f"{self.min_dwell}, {self.max_dwell}"
             )
-        if not isinstance(self.tune_speed, bool):
-            raise ConfigError(f"tune_speed must be true or false, got {self.tune_speed!r}")
-        object.__setattr__(self, "tune_speed", bool(self.tune_speed))
-        if not (isinstance(self.touch_up_rounds, int) and 0 <= self.touch_up_rounds <= 10):
-            raise ConfigError(f"touch_up_rounds must be an integer from 0 to 10, got {self.touch_up_rounds!r}")
-        if isinstance(self.tune_band, bool) or not (
-            isinstance(self.tune_band, (int, float)) and math.isfinite(self.tune_band) and 0 <= self.tune_band < 1
-        ):
-            raise ConfigError(f"tune_band must be a number in [0, 1), got {self.tune_band!r}")
-        if not isinstance(self.touch_up_aim, bool):
-            raise ConfigError(f"touch_up_aim must be true or false, got {self.touch_up_aim!r}")
-        if isinstance(self.touch_up_stations, bool) or not (
-            isinstance(self.touch_up_stations, int) and 0 <= self.touch_up_stations <= 20
-        ):
-            raise ConfigError(f"touch_up_stations must be an integer from 0 to 20, got {self.touch_up_stations!r}")
-        home = tuple(float(v) for v in self.home_mm)
-        if len(home) != 3 or not all(math.isfinite(v) for v in home):
-            raise ConfigError("home_mm must be three numbers")
-        object.__setattr__(self, "home_mm", home)
+        if not 0 <= self.band < 1:
+            raise _fail(RefineConfig, "band", "a number in [0, 1)", self.band)
+        _at_least(RefineConfig, "smoothing", self.smoothing, 0)
+        _within(RefineConfig, "iterations", self.iterations, 1, 10_000)
+        _choice(RefineConfig, "loss", self.loss, ("huber", "linear"))
+        _within(RefineConfig, "painted_fraction", self.painted_fraction, 0, 1)
+        _within(RefineConfig, "touch_up_rounds", self.touch_up_rounds, 0, 10)
+        _within(RefineConfig, "touch_up_stations", self.touch_up_stations, 0, 20)
+
+    def tuning(self):
+        """The speed tuning's own settings (``refine.tuning.TuningConfig``)."""
+        from sprayplan.refine.tuning import TuningConfig
+
+        return TuningConfig(
+            min_dwell=self.min_dwell,
+            max_dwell=self.max_dwell,
+            smoothing=self.smoothing,
+            iterations=self.iterations,
+            loss=self.loss,
+            painted_fraction=self.painted_fraction,
+            band=self.band,
+        )
+
+
+@dataclass(frozen=True)
+class OutputConfig(Section):
+    """What the main job writes besides plan.json and waypoints.csv (``[output]``).
+
+    Attributes
+    ----------
+    simulate : bool
+        Predict the film (thickness.ply, thickness.csv, coating.json); always done with a film target.
+    samples : int or None
+        Also report the film at this many random points (seed 003: 420).
+    """
+
+    SECTION = "output"
+    simulate: bool = False
+    samples: int | None = None
+
+    def _check(self):
+        _at_least(OutputConfig, "samples", self.samples, 1)
 
 
 @dataclass(frozen=True)
 class JobConfig:
-    """Every setting of ``sprayplan plan``, one section per stage (the TOML file's tables)."""
+    """Every setting of the main job, one section per stage (the TOML file's tables).
 
+    Attributes
+    ----------
+    mode : {"paths", "points"}
+        ``paths``: slicing strokes (the default); ``points``: the seed's target points visited in a tour.
+    load, targets, paths, stations, ordering, kinematics, motion, coating, tuning, output
+        One section each (``[load]``, ``[targets]``, ...).
+    """
+
+    mode: str = "paths"
     load: LoadConfig = LoadConfig()
     targets: TargetsConfig = TargetsConfig()
     paths: PathConfig = PathConfig()
-    plan: PlanConfig = PlanConfig()
+    stations: StationsConfig = StationsConfig()
+    ordering: OrderingConfig = OrderingConfig()
+    kinematics: KinematicsConfig = KinematicsConfig()
+    motion: MotionConfig = MotionConfig()
+    coating: FilmConfig = FilmConfig()
+    tuning: RefineConfig = RefineConfig()
+    output: OutputConfig = OutputConfig()
+
+    def __post_init__(self):
+        if self.mode not in MODES:
+            raise ConfigError(f"mode must be one of {', '.join(MODES)}, got {self.mode!r}")
+        for name, cls in SECTIONS.items():
+            if not isinstance(getattr(self, name), cls):
+                raise ConfigError(f"JobConfig.{name} must be a {cls.__name__}, got {getattr(self, name)!r}")
+
+    @property
+    def film_target(self) -> bool:
+        """True when the job has a dry-film target (``[coating] thickness_um``)."""
+        return self.coating.thickness_um is not None
+
+    def replace(self, **sections) -> JobConfig:
+        """The job with some settings changed: ``job.replace(coating={"thickness_um": 50}, mode="points")``.
+
+        A section given as a dict changes only those keys of it; a section object replaces it whole.
+        """
+        changes = {}
+        for name, value in sections.items():
+            if name == "mode":
+                changes[name] = value
+            elif name not in SECTIONS:
+                raise ConfigError(f"unknown section {name!r}; known: mode, {', '.join(SECTIONS)}")
+            elif isinstance(value, dict):
+                changes[name] = config_from_dict(SECTIONS[name], {**_asdict(getattr(self, name)), **value})
+            else:
+                changes[name] = value
+        return dataclasses.replace(self, **changes)
+
+
+SECTIONS = {
+    "load": LoadConfig,
+    "targets": TargetsConfig,
+    "paths": PathConfig,
+    "stations": StationsConfig,
+    "ordering": OrderingConfig,
+    "kinematics": KinematicsConfig,
+    "motion": MotionConfig,
+    "coating": FilmConfig,
+    "tuning": RefineConfig,
+    "output": OutputConfig,
+}
+
+#: Where each key of the old ``[plan]`` table (before 0.2) lives now, for the error that points a user there.
+_MOVED = {
+    "mode": "the top level (mode = ...)",
+    "tour": "[ordering]",
+    "robot": "[kinematics]",
+    "tool": "[kinematics]",
+    "position_tol_mm": "[kinematics]",
+    "axis_tol_deg": "[kinematics]",
+    "k_d": "[kinematics]",
+    "gun_speed_mm_s": "[motion]",
+    "transfer_speed_mm_s": "[motion]",
+    "platform_speed_mm_s": "[motion]",
+    "speed_along": "[motion]",
+    "max_speed_ratio": "[motion]",
+    "home_mm": "[stations]",
+    "platform_z_mm": "[stations]",
+    "process": "[coating]",
+    "thickness_um": "[coating]",
+    "tolerance_um": "[coating]",
+    "tune_speed": "[tuning]",
+    "min_dwell": "[tuning]",
+    "max_dwell": "[tuning]",
+    "tune_band": "[tuning] band",
+    "touch_up_rounds": "[tuning]",
+    "touch_up_aim": "[tuning]",
+    "touch_up_stations": "[tuning]",
+    "seed": "[stations] and [ordering]",
+}
+
+
+def _asdict(section) -> dict:
+    return {f.name: getattr(section, f.name) for f in dataclasses.fields(section)}
+
+
+def job_to_dict(job: JobConfig) -> dict:
+    """The job's settings as plain data (tuples as lists), read back by :func:`job_from_dict`."""
+
+    def plain(value):
+        return list(value) if isinstance(value, tuple) else value
+
+    out: dict = {"mode": job.mode}
+    for name in SECTIONS:
+        out[name] = {k: plain(v) for k, v in _asdict(getattr(job, name)).items()}
+    return out
+
+
+def job_from_dict(data: dict) -> JobConfig:
+    """A JobConfig from plain data (a TOML file's tables, or plan.json's ``settings``).
+
+    Raises
+    ------
+    ConfigError
+        An unknown table or key, or a bad value; the message names the table and key.
+    """
+    if not isinstance(data, dict):
+        raise ConfigError(f"settings must be a table, got {type(data).__name__}")
+    if "plan" in data:
+        table = data["plan"] if isinstance(data["plan"], dict) else {}
+        where = "; ".join(f"{k} -> {_MOVED[k]}" for k in table if k in _MOVED) or "see examples/process.toml"
+        raise ConfigError(f"the [plan] table was split into sections: {where}")
+    unknown = sorted(set(data) - set(SECTIONS) - {"mode"})
+    if unknown:
+        raise ConfigError(f"unknown table(s) {', '.join(unknown)}; known: mode, {', '.join(SECTIONS)}")
+    parts: dict = {}
+    for key, cls in SECTIONS.items():
+        table = data.get(key, {})
+        if not isinstance(table, dict):
+            raise ConfigError(f"[{key}] must be a table")
+        table = dict(table)
+        for name in ("direction", "streamline_deg", "home_mm"):
+            if isinstance(table.get(name), list):
+                table[name] = tuple(table[name])
+        try:
+            parts[key] = config_from_dict(cls, table)
+        except TypeError as exc:
+            raise ConfigError(f"[{key}]: {exc}") from None
+    return JobConfig(mode=data.get("mode", "paths"), **parts)
 
 
 def job_from_toml(path) -> JobConfig:
-    """Read a process TOML file (tables ``[load]``, ``[targets]``, ``[paths]``, ``[plan]``).
+    """Read a process TOML file (``mode`` and the tables ``[load]``, ``[targets]``, ``[paths]``, ...).
 
     Raises
     ------
@@ -444,27 +821,17 @@ def job_from_toml(path) -> JobConfig:
     import os
     import tomllib
 
-    from sprayplan.errors import PartFileError
-
     name = os.fspath(path)
     try:
         with open(path, "rb") as handle:
             data = tomllib.load(handle)
     except FileNotFoundError:
-        raise PartFileError(name, "no such file") from None
-    except (OSError, tomllib.TOMLDecodeError) as exc:
-        raise PartFileError(name, f"not a readable TOML file ({exc})") from None
-    tables = {"load": LoadConfig, "targets": TargetsConfig, "paths": PathConfig, "plan": PlanConfig}
-    unknown = sorted(set(data) - set(tables))
-    if unknown:
-        raise PartFileError(name, f"unknown table(s) {', '.join(unknown)}; known: {', '.join(tables)}")
-    parts = {}
-    for key, cls in tables.items():
-        table = data.get(key, {})
-        if not isinstance(table, dict):
-            raise PartFileError(name, f"[{key}] must be a table")
-        try:
-            parts[key] = config_from_dict(cls, table)
-        except (ConfigError, TypeError) as exc:
-            raise PartFileError(name, f"[{key}]: {exc}") from None
-    return JobConfig(**parts)
+        raise _PartFileError(name, "no such file") from None
+    except IsADirectoryError:
+        raise _PartFileError(name, "is a folder, not a TOML file") from None
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise _PartFileError(name, f"not a readable TOML file ({exc})") from None
+    try:
+        return job_from_dict(data)
+    except ConfigError as exc:
+        raise _PartFileError(name, str(exc)) from None

@@ -41,3 +41,26 @@ class ConfigError(InputError):
 
 class RegionError(InputError):
     """A region expression cannot be parsed, or it selects nothing of the part."""
+
+
+class StageError(InputError):
+    """Bad input found inside a stage of the main job (``sprayplan.job``): names the stage and the part.
+
+    Parameters
+    ----------
+    stage : str
+        The stage's name (``load``, ``paths``, ...).
+    part : str
+        The part's name or file.
+    cause : InputError
+        What the stage raised; its message follows the stage's name (and the part's, when the message does
+        not name it already).
+    """
+
+    def __init__(self, stage: str, part: str, cause: Exception):
+        self.stage = stage
+        self.part = part
+        self.cause = cause
+        message = str(cause)
+        where = stage if not part or part in message else f"{stage}: {part}"
+        super().__init__(f"{where}: {message}")

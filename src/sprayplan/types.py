@@ -119,6 +119,14 @@ class Targets:
         return Targets(self.points[index], self.normals[index], self.face_index[index])
 
 
+#: What a stroke is for (``Stroke.kind``).
+STROKE_KINDS = ("spray", "transfer", "touch-up")
+
+#: How a waypoint's joints were found (``StationPlan.method``): the closed-form IK, the SQP fallback, or not at
+#: all (unreachable).
+IK_METHODS = ("analytic", "sqp", "")
+
+
 @dataclass(frozen=True)
 class Stroke:
     """One continuous move of the gun: a spray pass, or a spray-off transfer between passes.
@@ -138,11 +146,15 @@ class Stroke:
         True where the point lies on the part's surface (False on lead-in/lead-out extensions, on straight
         bridges across small gaps, and on transfers).
     layer : int
-        The slicing layer (section plane) the stroke comes from; -1 for transfers.
+        The slicing layer (section plane) the stroke comes from; -1 for transfers, touch-ups and targets.
     dwell : (n,) float
         Time factor at each waypoint (all 1 unless the speeds were tuned to the film,
-        ``sprayplan.coating.tuning``): the gun crosses the segment from waypoint i to i + 1 at the planned
+        ``sprayplan.refine.tuning``): the gun crosses the segment from waypoint i to i + 1 at the planned
         speed divided by ``(dwell[i] + dwell[i + 1]) / 2``, so 2 is half speed and twice the paint.
+    kind : {"spray", "transfer", "touch-up"}
+        What the stroke is for: a planned spray pass, a spray-off move between passes, or a spray pass added
+        after planning to touch up a patch the film model finds under-painted (``sprayplan.refine``). Empty:
+        ``spray`` or ``transfer`` after ``spray_on``. ``spray_on`` is False exactly for transfers.
     """
 
     points: np.ndarray
@@ -152,6 +164,7 @@ class Stroke:
     on_part: np.ndarray = field(default=None)  # type: ignore[assignment]
     layer: int = -1
     dwell: np.ndarray = field(default=None)  # type: ignore[assignment]
+    kind: str = ""
 
     def __post_init__(self):
         points = _frozen(self.points, np.float64, (3,), "points")
@@ -176,6 +189,12 @@ class Stroke:
         object.__setattr__(self, "on_part", flags)
         object.__setattr__(self, "spray_on", bool(self.spray_on))
         object.__setattr__(self, "layer", int(self.layer))
+        kind = self.kind or ("spray" if self.spray_on else "transfer")
+        if kind not in STROKE_KINDS:
+            raise ValueError(f"kind must be one of {', '.join(STROKE_KINDS)}, got {kind!r}")
+        if (kind == "transfer") == self.spray_on:
+            raise ValueError(f"a {kind} stroke must have spray_on {kind != 'transfer'}")
+        object.__setattr__(self, "kind", kind)
 
     def __len__(self) -> int:
         return len(self.points)
@@ -195,6 +214,7 @@ class Stroke:
             self.on_part[::-1],
             self.layer,
             self.dwell[::-1],
+            self.kind,
         )
 
     def part(self, index) -> Stroke:
@@ -207,11 +227,12 @@ class Stroke:
             self.on_part[index],
             self.layer,
             self.dwell[index],
+            self.kind,
         )
 
     def with_dwell(self, dwell) -> Stroke:
         """The same stroke with other time factors at its waypoints."""
-        return Stroke(self.points, self.normals, self.tcp, self.spray_on, self.on_part, self.layer, dwell)
+        return Stroke(self.points, self.normals, self.tcp, self.spray_on, self.on_part, self.layer, dwell, self.kind)
 
 
 @dataclass(frozen=True)
@@ -285,6 +306,46 @@ class StationPlan:
     axis_error_deg: np.ndarray
     branch_change: np.ndarray
 
+    def __post_init__(self):
+        object.__setattr__(self, "index", int(self.index))
+        platform = np.array(self.platform_mm, dtype=np.float64, copy=True).reshape(-1)
+        if platform.shape != (3,) or not np.isfinite(platform).all():
+            raise ValueError(f"platform_mm must be three finite numbers, got {self.platform_mm!r}")
+        platform.flags.writeable = False
+        object.__setattr__(self, "platform_mm", platform)
+        strokes = tuple(self.strokes)
+        if not all(isinstance(s, Stroke) for s in strokes):
+            raise ValueError("strokes must be Stroke objects")
+        object.__setattr__(self, "strokes", strokes)
+        n = sum(len(s) for s in strokes)
+        object.__setattr__(self, "q9", _frozen(np.asarray(self.q9, dtype=float).reshape(-1, 9), np.float64, (9,), "q9"))
+        if len(self.q9) != n:
+            raise ValueError(f"q9 must have one row per waypoint ({n}), got {len(self.q9)}")
+        method = np.asarray(self.method, dtype=object).reshape(-1)
+        if len(method) != n:
+            raise ValueError(f"method must have one entry per waypoint ({n}), got {len(method)}")
+        bad = sorted({str(m) for m in method} - set(IK_METHODS))
+        if bad:
+            raise ValueError(f"method must be one of analytic, sqp or empty, got {', '.join(map(repr, bad))}")
+        method = np.array([str(m) for m in method], dtype=object)
+        method.flags.writeable = False
+        object.__setattr__(self, "method", method)
+        for name, dtype in (
+            ("reachable", bool),
+            ("position_error_mm", np.float64),
+            ("axis_error_deg", np.float64),
+            ("branch_change", bool),
+        ):
+            value = _frozen(np.asarray(getattr(self, name)).reshape(-1), dtype, (), name)
+            if len(value) != n:
+                raise ValueError(f"{name} must have one entry per waypoint ({n}), got {len(value)}")
+            object.__setattr__(self, name, value)
+        if (self.reachable != (method != "")).any():
+            raise ValueError("a waypoint is reachable exactly when it has a method (analytic or sqp)")
+
+    def __len__(self) -> int:
+        return len(self.q9)
+
 
 @dataclass(frozen=True)
 class Plan:
@@ -304,3 +365,22 @@ class Plan:
     home_mm: np.ndarray
     unassigned: np.ndarray
     name: str = ""
+
+    def __post_init__(self):
+        stations = tuple(self.stations)
+        if not all(isinstance(st, StationPlan) for st in stations):
+            raise ValueError("stations must be StationPlan objects")
+        object.__setattr__(self, "stations", stations)
+        home = np.array(self.home_mm, dtype=np.float64, copy=True).reshape(-1)
+        if home.shape != (3,) or not np.isfinite(home).all():
+            raise ValueError(f"home_mm must be three finite numbers, got {self.home_mm!r}")
+        home.flags.writeable = False
+        object.__setattr__(self, "home_mm", home)
+        unassigned = np.asarray(self.unassigned, dtype=float).reshape(-1, 3)
+        object.__setattr__(self, "unassigned", _frozen(unassigned, np.float64, (3,), "unassigned"))
+        object.__setattr__(self, "name", str(self.name))
+
+    @property
+    def strokes(self) -> tuple:
+        """Every stroke, station after station, in execution order."""
+        return tuple(s for st in self.stations for s in st.strokes)

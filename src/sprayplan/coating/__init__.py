@@ -50,7 +50,6 @@ from sprayplan.coating.thickness import (
     shot_thickness,
     simulate,
 )
-from sprayplan.coating.tuning import Tuning, TuningConfig, tune_speeds
 
 __all__ = [
     "KINDS",
@@ -66,8 +65,6 @@ __all__ = [
     "SprayPattern",
     "StrokeOverride",
     "SurfaceSamples",
-    "Tuning",
-    "TuningConfig",
     "bell_field",
     "bell_potential",
     "boundary_distance",
@@ -95,7 +92,6 @@ __all__ = [
     "speed_for_target",
     "surface_samples",
     "thickness_colours",
-    "tune_speeds",
     "write_thickness_csv",
     "write_thickness_ply",
 ]

@@ -17,7 +17,7 @@ from scipy.spatial import cKDTree
 
 from sprayplan.coating.thickness import CoatingResult
 from sprayplan.errors import ConfigError
-from sprayplan.io.writers import atomic_output
+from sprayplan.export.files import atomic_output
 
 log = logging.getLogger(__name__)
 

@@ -219,7 +219,7 @@ def gun_samples(
     nodes : bool
         Leave out the strokes' time factors (``Stroke.dwell``: every waypoint's is taken as 1) and return
         instead how each time step depends on them (``GunSamples.node``, ``node_share``): what
-        :mod:`sprayplan.coating.tuning` needs.
+        :mod:`sprayplan.refine.tuning` needs.
 
     Returns
     -------

@@ -1,1 +1,1 @@
-"""Readers and writers: part files in, result files out."""
+"""Part readers with validation: meshes (STL, OBJ, PLY, OFF) and point clouds (XYZ, PCD), any of them gzipped."""

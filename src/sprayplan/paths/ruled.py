@@ -64,7 +64,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sprayplan.errors import ConfigError
-from sprayplan.io.writers import atomic_output
+from sprayplan.export.files import atomic_output
 from sprayplan.paths.ruled_surface import (  # noqa: F401 - re-exported: the curve types are part of this API
     _NO_BREAKS,
     DIRECTIONS,

@@ -12,7 +12,7 @@ clipped to [v / r, v r] with r = ``max_ratio``: at a sharp convex corner the con
 swings round, and no robot should be asked for an unbounded speed (the corner then gets the paint of a gun
 turning at v r). Along straight leads, bridges and flat faces v_tcp = v.
 
-A stroke whose speeds were tuned to the film (``Stroke.dwell``, ``sprayplan.coating.tuning``) divides the
+A stroke whose speeds were tuned to the film (``Stroke.dwell``, ``sprayplan.refine.tuning``) divides the
 segment's speed by the mean of its two waypoints' time factors: v_i / ((w_i + w_{i+1}) / 2).
 """
 

@@ -95,7 +95,7 @@ def pose_rows(poses: np.ndarray, pose_format: str = "rotvec") -> np.ndarray:
 
 def write_table(path, header: list[str], rows: list[list]) -> None:
     """Write a CSV atomically; ``None`` cells are left empty, floats at full useful precision."""
-    from sprayplan.io.writers import atomic_output
+    from sprayplan.export.files import atomic_output
 
     def cell(value):
         if value is None:

@@ -69,11 +69,36 @@ def tool_poses(points: np.ndarray, normals: np.ndarray, standoff_mm: float) -> n
         Homogeneous transforms from the tool frame to the part frame.
     """
     points = np.asarray(points, dtype=float)
-    out = np.zeros((len(points), 4, 4))
+    return poses_at(points + standoff_mm * unit(np.asarray(normals, dtype=float)), normals)
+
+
+def poses_at(tcp: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """(n, 4, 4) gun poses ``tool2part`` with the origin at given gun tip positions and z along -normal, turned
+    about z as seed 000's eq. 5 (Rodrigues from (0, 0, 1)).
+
+    Parameters
+    ----------
+    tcp : (n, 3) float, mm
+        Gun tip positions.
+    normals : (n, 3) float
+        Outward unit normals of the surface the gun points at.
+    """
+    tcp = np.asarray(tcp, dtype=float)
+    out = np.zeros((len(tcp), 4, 4))
     out[:, :3, :3] = rotation_from_z(-np.asarray(normals, dtype=float))
-    out[:, :3, 3] = points + standoff_mm * unit(np.asarray(normals, dtype=float))
+    out[:, :3, 3] = tcp
     out[:, 3, 3] = 1.0
     return out
+
+
+def stroke_poses(stroke) -> np.ndarray:
+    """(n, 4, 4) gun poses along a stroke (``tool2part``): origin at its gun tip positions, z along -normal.
+
+    The roll about the gun's own axis does not change the spray, so it is not tied to the direction of travel:
+    a stroke run backwards keeps its poses, and the flange (offset sideways from the gun axis by T_tool)
+    stays where the station assignment put it.
+    """
+    return poses_at(stroke.tcp, stroke.normals)
 
 
 def stroke_frames(points: np.ndarray, normals: np.ndarray) -> np.ndarray:

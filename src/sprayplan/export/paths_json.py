@@ -15,7 +15,7 @@ import numpy as np
 
 from sprayplan import __version__
 from sprayplan.errors import PartFileError
-from sprayplan.io.writers import atomic_output, read_json_file
+from sprayplan.export.files import atomic_output, read_json_file
 from sprayplan.types import Paths, Stroke
 
 FORMAT = "sprayplan.paths"

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from sprayplan.cli_common import stage as _stage
+from sprayplan.cli.common import stage as _stage
 from sprayplan.errors import ConfigError
 
 
@@ -115,10 +115,10 @@ def cmd_ik(args) -> int:
 def _ik_gantry(args) -> int:
     import numpy as np
 
-    from sprayplan.io.paths_json import read_paths_json
-    from sprayplan.pipeline import gun_poses
+    from sprayplan.export.paths_json import read_paths_json
     from sprayplan.robots.csvio import write_table
     from sprayplan.robots.gantry import Gantry, load_gun, solve_gantry_path
+    from sprayplan.surface.poses import stroke_poses
 
     gantry = Gantry(gun=load_gun(args.tool or "wa101"))
     paths = read_paths_json(args.poses)
@@ -130,10 +130,10 @@ def _ik_gantry(args) -> int:
     gun2world, platform, labels = [], [], []
     platforms = []
     for stroke in paths.strokes:
-        flange = (gun_poses(stroke) @ np.linalg.inv(gantry.gun.gun2flange))[:, :3, 3]
+        flange = (stroke_poses(stroke) @ np.linalg.inv(gantry.gun.gun2flange))[:, :3, 3]
         platforms.append(fixed if fixed is not None else gantry.platform_for(flange) if stroke.spray_on else None)
     for k, stroke in enumerate(paths.strokes):
-        gun2world.append(gun_poses(stroke))
+        gun2world.append(stroke_poses(stroke))
         if platforms[k] is None:  # a transfer: its first half from the stroke before, the rest from the next
             before = platforms[k - 1] if k > 0 else platforms[k + 1]
             after = platforms[k + 1] if k + 1 < len(platforms) else before

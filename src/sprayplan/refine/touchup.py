@@ -15,7 +15,7 @@ same from the simulated film:
    their mean normal (smoothed over five waypoints), and stands ``standoff`` off it. Straight leads of
    ``lead_mm`` extend both ends.
 
-The strokes are returned with ``layer = TOUCH_UP_LAYER``. The main job then runs each one from the nearest
+The strokes are returned with ``kind = "touch-up"``. The main job then runs each one from the nearest
 station and tunes all speeds again; a touch-up's time factors may go down to ``TOUCH_UP_MIN_DWELL``, so a
 pass that turns out to do more harm than good is run fast and paints little.
 
@@ -34,9 +34,6 @@ from scipy.spatial import cKDTree
 from sprayplan.coating.sampling import SurfaceSamples
 from sprayplan.surface import normals as nm
 from sprayplan.types import Stroke
-
-#: ``Stroke.layer`` of a touch-up stroke.
-TOUCH_UP_LAYER = -2
 
 #: The smallest time factor the speed tuning may give a touch-up stroke's waypoints (20 times its speed).
 TOUCH_UP_MIN_DWELL = 0.05
@@ -148,7 +145,7 @@ def _patch_stroke(samples: SurfaceSamples, patch: np.ndarray, standoff: float, s
     pts = np.vstack([lead_in, way_p, lead_out])
     nrm = np.vstack([np.repeat(way_n[:1], count, 0), way_n, np.repeat(way_n[-1:], count, 0)])
     # the waypoints are centroids near the patch, not points of the surface: on_part is False throughout
-    return Stroke(pts, nrm, pts + standoff * nrm, True, np.zeros(len(pts), bool), TOUCH_UP_LAYER)
+    return Stroke(pts, nrm, pts + standoff * nrm, True, np.zeros(len(pts), bool), -1, None, "touch-up")
 
 
 #: Tilts tried for a touch-up's aim about its direction of travel, degrees (``aim_touch_ups``).
@@ -186,6 +183,7 @@ def tilted(stroke: Stroke, degrees: float, standoff_mm: float) -> Stroke:
         stroke.on_part,
         stroke.layer,
         stroke.dwell,
+        stroke.kind,
     )
 
 

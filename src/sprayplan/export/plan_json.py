@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import os
 
 import numpy as np
 
 from sprayplan import __version__
-from sprayplan.io.writers import atomic_output, read_json_file
+from sprayplan.config import job_from_dict, job_to_dict
+from sprayplan.export.files import atomic_output, read_json_file
 from sprayplan.paths.speed import waypoint_speeds
 
 FORMAT = "sprayplan.plan"
@@ -38,7 +38,7 @@ def _round(array, digits):
 
 def tip_speeds(stroke, job) -> np.ndarray:
     """(n,) gun-tip speed on the way to each waypoint of a stroke, mm/s (``sprayplan.paths.speed``)."""
-    settings = job.plan
+    settings = job.motion
     if not stroke.spray_on:
         return np.full(len(stroke), settings.transfer_speed_mm_s)
     return waypoint_speeds(
@@ -55,7 +55,7 @@ def plan_to_dict(plan, job, totals: dict, part_file: str | None = None) -> dict:
     """The JSON-ready form of a plan."""
     from sprayplan.coating import load_preset
 
-    flow = float(load_preset(job.plan.process).flow_ml_min)
+    flow = float(load_preset(job.coating.process).flow_ml_min)
     stations = []
     for place, st in enumerate(plan.stations):
         strokes, start = [], 0
@@ -66,6 +66,7 @@ def plan_to_dict(plan, job, totals: dict, part_file: str | None = None) -> dict:
                 {
                     "index": i,
                     "spray_on": s.spray_on,
+                    "kind": s.kind,
                     "layer": s.layer,
                     "tcp": _round(s.tcp, 4),
                     "tool_axis": _round(-s.normals, 7),
@@ -79,7 +80,7 @@ def plan_to_dict(plan, job, totals: dict, part_file: str | None = None) -> dict:
                     "axis_error_deg": _round(st.axis_error_deg[sl], 6),
                     "branch_change": st.branch_change[sl].tolist(),
                     "flow_ml_min": flow if s.spray_on else 0.0,
-                    "speed_mm_s": job.plan.gun_speed_mm_s if s.spray_on else job.plan.transfer_speed_mm_s,
+                    "speed_mm_s": job.motion.gun_speed_mm_s if s.spray_on else job.motion.transfer_speed_mm_s,
                     "tcp_speed_mm_s": _round(tip_speeds(s, job), 3),
                     "dwell": _round(s.dwell, 6),
                 }
@@ -94,7 +95,7 @@ def plan_to_dict(plan, job, totals: dict, part_file: str | None = None) -> dict:
         "units": {"length": "mm", "angle": "rad", "time": "s", "errors": "mm and deg"},
         "part": plan.name,
         "part_file": part_file,
-        "settings": _clean(dataclasses.asdict(job)),
+        "settings": _clean(job_to_dict(job)),
         "joints": ["q1", "q2", "q3", "q4", "q5", "q6", "tx", "ty", "tz"],
         "home_mm": _round(plan.home_mm, 3),
         "stations": stations,
@@ -159,24 +160,15 @@ def read_plan(path) -> dict:
 
 def plan_from_dict(data: dict):
     """The Plan and JobConfig of a plan.json read with :func:`read_plan` (enough to simulate its film)."""
-    from sprayplan.config import JobConfig, LoadConfig, PathConfig, PlanConfig, TargetsConfig, config_from_dict
     from sprayplan.types import Plan, StationPlan, Stroke
 
-    settings = data["settings"]
-    paths = dict(settings["paths"])
-    if isinstance(paths.get("direction"), list):
-        paths["direction"] = tuple(paths["direction"])
-    if isinstance(paths.get("streamline_deg"), list):
-        paths["streamline_deg"] = tuple(paths["streamline_deg"])
-    job = JobConfig(
-        load=config_from_dict(LoadConfig, settings["load"]),
-        targets=config_from_dict(TargetsConfig, settings["targets"]),
-        paths=config_from_dict(PathConfig, paths),
-        plan=config_from_dict(PlanConfig, {**settings["plan"], "home_mm": tuple(settings["plan"]["home_mm"])}),
-    )
+    job = job_from_dict(data["settings"])
     stations = []
     for st in data["stations"]:
-        strokes, q9 = [], []
+        strokes = []
+        fields = {
+            k: [] for k in ("joints", "reachable", "method", "position_error_mm", "axis_error_deg", "branch_change")
+        }
         for s in st["strokes"]:
             strokes.append(
                 Stroke(
@@ -187,21 +179,32 @@ def plan_from_dict(data: dict):
                     np.array(s["on_part"], bool),
                     int(s["layer"]),
                     np.array(s["dwell"], float) if "dwell" in s else None,
+                    s.get("kind", ""),
                 )
             )
-            q9 += [[np.nan] * 9 if q is None else q for q in s["joints"]]
-        n = len(q9)
+            for key, values in fields.items():
+                values += s[key]
+        n = len(fields["joints"])
         stations.append(
             StationPlan(
                 int(st["station"]),
                 np.array(st["platform_mm"], float),
                 tuple(strokes),
-                np.array(q9, float).reshape(n, 9),
-                np.ones(n, bool),
-                np.full(n, ""),
-                np.zeros(n),
-                np.zeros(n),
-                np.zeros(n, bool),
+                np.array(
+                    [[np.nan] * 9 if q is None else [np.nan if v is None else v for v in q] for q in fields["joints"]],
+                    float,
+                ).reshape(n, 9),
+                np.array(fields["reachable"], bool),
+                np.array(fields["method"], object),
+                _numbers(fields["position_error_mm"]),
+                _numbers(fields["axis_error_deg"]),
+                np.array(fields["branch_change"], bool),
             )
         )
-    return Plan(tuple(stations), np.array(data["home_mm"], float), np.zeros((0, 3)), data.get("part", "")), job
+    unassigned = np.array(data.get("unassigned_points") or np.zeros((0, 3)), float).reshape(-1, 3)
+    return Plan(tuple(stations), np.array(data["home_mm"], float), unassigned, data.get("part", "")), job
+
+
+def _numbers(values) -> np.ndarray:
+    """A float array from JSON numbers, None read as NaN."""
+    return np.array([np.nan if v is None else v for v in values], float)

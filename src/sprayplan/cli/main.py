@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 
 from sprayplan import __version__
-from sprayplan.cli_common import parse_direction, parse_edge_passes, stage
+from sprayplan.cli.common import parse_direction, parse_edge_passes, stage
 from sprayplan.errors import ConfigError, InputError
 
 log = logging.getLogger("sprayplan.cli")
@@ -98,8 +98,8 @@ _stage = stage
 
 
 def _run_targets(part_path: str, output: Path, load_args, config) -> str:
+    from sprayplan.export.files import write_targets_csv
     from sprayplan.io.load import load_part
-    from sprayplan.io.writers import write_targets_csv
     from sprayplan.surface.region import select_region
     from sprayplan.surface.targets import make_targets
 
@@ -126,10 +126,10 @@ def cmd_targets(args) -> int:
 
 
 def cmd_demo(args) -> int:
-    from sprayplan.config import JobConfig, LoadConfig, PlanConfig, TargetsConfig
+    from sprayplan.config import JobConfig, TargetsConfig
     from sprayplan.demo import DEMO_REGION, car_roof
+    from sprayplan.export.files import atomic_output
     from sprayplan.io.stl import write_stl_binary
-    from sprayplan.io.writers import atomic_output
 
     out = Path(args.output)
     roof = car_roof()
@@ -140,8 +140,10 @@ def cmd_demo(args) -> int:
     load_args = argparse.Namespace(units="mm", up="z", region=DEMO_REGION)
     print(_run_targets(str(part_file), out / "targets.csv", load_args, TargetsConfig()))
     # seed 003's film spec, 50 +- 5 um: the plan picks the stroke spacing and gun speed for it
-    job = JobConfig(load=LoadConfig(region=DEMO_REGION), plan=PlanConfig(thickness_um=50.0))
-    print(run_plan(str(part_file), out, job, simulate=True, samples=420))
+    job = JobConfig().replace(
+        load={"region": DEMO_REGION}, coating={"thickness_um": 50.0}, output={"simulate": True, "samples": 420}
+    )
+    print(run_plan(str(part_file), out, job, quiet=getattr(args, "quiet", False)))
     return 0
 
 
@@ -178,7 +180,7 @@ def _path_config(args):
 
 
 def cmd_paths(args) -> int:
-    from sprayplan.io.paths_json import summary, write_paths_json
+    from sprayplan.export.paths_json import summary, write_paths_json
 
     start = time.perf_counter()
     output = Path(args.output)
@@ -227,8 +229,8 @@ def cmd_paths(args) -> int:
     return 0
 
 
-from sprayplan.cli_plan import cmd_plan, cmd_simulate, run_plan  # noqa: E402 - the main job's commands
-from sprayplan.cli_robots import cmd_fk, cmd_ik  # noqa: E402 - the robot commands live in their own module
+from sprayplan.cli.plan import cmd_plan, cmd_simulate, run_plan  # noqa: E402 - the main job's commands
+from sprayplan.cli.robots import cmd_fk, cmd_ik  # noqa: E402 - the robot commands live in their own module
 
 
 def _add_edge_options(group) -> None:
@@ -386,7 +388,8 @@ def build_parser() -> argparse.ArgumentParser:
     group.add_argument("--up", choices=["z", "y", "x"])
     group.add_argument("--region")
     group = plan_cmd.add_argument_group("plan")
-    group.add_argument("--robot", help="gantry-ur5 (the default and only choice for now)")
+    group.add_argument("--robot", help="gantry-ur5 (default) or gantry-ur5e: seed 000's gantry and its arm")
+    group.add_argument("--seed", type=int, help="random seed of the station cover and the tours (default 0)")
     group.add_argument(
         "--mode", choices=["paths", "points"], help="slicing strokes (default) or the seed's target points"
     )

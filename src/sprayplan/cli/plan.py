@@ -1,0 +1,114 @@
+"""The main job on the command line: ``sprayplan plan`` and ``sprayplan simulate`` (see ``cli.main``)."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+from sprayplan.cli.common import ProgressDisplay, parse_direction, parse_edge_passes, stage
+from sprayplan.errors import ConfigError
+
+log = logging.getLogger("sprayplan.cli")
+
+
+def _job_config(args):
+    """The job's settings: defaults, then the TOML file (-c), then the flags given on the command line."""
+    from sprayplan.config import JobConfig, job_from_toml
+
+    job = job_from_toml(args.config) if args.config else JobConfig()
+    given = lambda *keys: {k: getattr(args, k) for k in keys if getattr(args, k, None) is not None}
+    paths = given("spacing_mm", "spray_radius_mm", "overlap", "standoff_mm", "step_mm")
+    if args.direction is not None:
+        paths["direction"] = parse_direction(args.direction)
+    if args.edge_passes is not None:
+        paths["edge_passes"] = parse_edge_passes(args.edge_passes)
+    if "spacing_mm" in paths and "overlap" in paths:
+        raise ConfigError("give either --spacing-mm or --overlap, not both")
+    changes = {
+        "load": given("units", "up", "region"),
+        "paths": paths,
+        "ordering": given("tour"),
+        "kinematics": {"robot": args.robot} if args.robot is not None else {},
+        "motion": given("speed_along"),
+        "coating": given("process", "thickness_um", "tolerance_um"),
+        "tuning": {"tune_speed": False} if getattr(args, "no_tune_speed", False) else {},
+        "output": {**({"simulate": True} if args.simulate else {}), **given("samples")},
+    }
+    if getattr(args, "seed", None) is not None:
+        changes["stations"] = {"seed": args.seed}
+        changes["ordering"] = changes["ordering"] | {"seed": args.seed}
+    if args.mode is not None:
+        changes["mode"] = args.mode
+    return job.replace(**{k: v for k, v in changes.items() if v or k == "mode"})
+
+
+def run_plan(part_path: str, outdir: Path, job, quiet: bool = False) -> str:
+    """Run the main job (``job.run_job``) with a progress display and write its files; returns the summary."""
+    from sprayplan.job import run_job
+
+    display = ProgressDisplay(quiet=quiet)
+    try:
+        result = run_job(part_path, job, outdir=outdir, progress=display)
+    except BaseException:
+        display.close(finished=False)
+        raise
+    display.close()
+    return summary_line(result, outdir)
+
+
+def summary_line(result, outdir) -> str:
+    """What ``sprayplan plan`` prints: the plan's counts and lengths, and its film when it has one."""
+    totals = result.totals
+    line = (
+        f"{totals['stations']} stations, {totals['strokes']} strokes, {totals['waypoints']} waypoints "
+        f"({totals['unreachable_waypoints']} unreachable, {totals['unassigned_points']} unassigned), spray "
+        f"{totals['spray_length_mm'] / 1000:.2f} m, transfer {totals['transfer_length_mm'] / 1000:.2f} m, gantry "
+        f"{totals['platform_travel_mm'] / 1000:.2f} m, cycle {totals['cycle_time_s']:.0f} s, planned in "
+        f"{totals['planning_time_s']:.1f} s -> {outdir}/plan.json"
+    )
+    if result.film is not None:
+        from sprayplan.export.film import film_report
+
+        report = film_report(result.film, result.job, result.job.output.samples, result.chosen)
+        line += "\n" + _coating_line(report, outdir)
+    return line
+
+
+def _coating_line(report: dict, outdir) -> str:
+    painted = report["painted"]
+    return (
+        f"film: mean {painted['mean_um']:.1f} um, std/mean {painted['cv']:.3f}, min {painted['min_um']:.1f}, "
+        f"max {painted['max_um']:.1f}, {100 * painted['share_in_spec']:.1f}% of the painted area in "
+        f"{report['spec']['target_um']:.0f} +- {report['spec']['tolerance_um']:.0f} um -> {outdir}/coating.json"
+    )
+
+
+def cmd_simulate(args) -> int:
+    from sprayplan.coating.stage import simulate_plan
+    from sprayplan.export.film import film_report, write_coating
+    from sprayplan.export.plan_json import plan_from_dict, read_plan
+    from sprayplan.io.load import load_part
+    from sprayplan.surface.region import select_region
+
+    outdir = Path(args.outdir)
+    data = read_plan(outdir / "plan.json")
+    result, job = plan_from_dict(data)
+    if args.thickness_um is not None or args.tolerance_um is not None:
+        changes = {k: getattr(args, k) for k in ("thickness_um", "tolerance_um") if getattr(args, k) is not None}
+        job = job.replace(coating=changes)
+    part_file = args.part or data.get("part_file")
+    if not part_file:
+        raise ConfigError("plan.json does not name its part file: give it with --part")
+    part = select_region(load_part(part_file, units=job.load.units, up=job.load.up), job.load.region)
+    with stage("coating"):
+        film = simulate_plan(part, result, job)
+    report = film_report(film, job, args.samples)
+    write_coating(outdir, film, job, report)
+    print(_coating_line(report, outdir))
+    return 0
+
+
+def cmd_plan(args) -> int:
+    job = _job_config(args)
+    print(run_plan(args.part, Path(args.output), job, quiet=getattr(args, "quiet", False)))
+    return 0

@@ -1,0 +1,296 @@
+"""The main job, one straight line: ``run_job(part_or_path, JobConfig) -> JobResult``.
+
+The stages run in the order of :data:`STAGES`; each is a short function here of the previous stages' result
+(a :class:`JobState`) and its own config section, calling the stage's module:
+
+=============  ======================================================  ===========================
+stage          what it does                                            module
+=============  ======================================================  ===========================
+load           the part file -> a ``Part`` in mm, z up                 ``io.load``
+region         the part cut to ``[load] region``                       ``surface.region``
+film target    spacing and gun speed for ``[coating] thickness_um``    ``coating.stage``
+paths          spray strokes (paths mode) or target points (points)    ``paths.planner``, ``surface.targets``
+stations       gantry stations, their tour, the work of each           ``stations.stage``
+ordering       each station's strokes in order, with transfers         ``ordering.stage``
+kinematics     the nine axes at every waypoint                         ``robots.stage``
+refine         speeds tuned to the film, touch-ups, added stations     ``refine.stage``
+film           the film the final plan leaves                          ``coating.stage``
+totals         lengths, counts, cycle time                             ``export.summary``
+=============  ======================================================  ===========================
+
+Writing the files (plan.json, waypoints.csv, the film files) is ``export.write_job``; ``run_job`` does it
+last when given an output folder.
+
+Errors: bad input raised inside a stage comes out as a :class:`~sprayplan.errors.StageError` (an
+``InputError``) whose message names the stage and the part; any other exception keeps its type and gains a
+note naming them. Progress: ``progress(stage, 0, 0)`` as each stage starts, and ``progress(stage, done,
+total)`` from the long stages as they work (stations ordered and solved, tuning rounds).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from sprayplan.config import JobConfig
+from sprayplan.errors import InputError, StageError
+from sprayplan.progress import Progress, no_progress
+from sprayplan.types import Part, Plan
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class JobState:
+    """What the stages have made so far (each stage returns a copy with its own result filled in).
+
+    Attributes
+    ----------
+    job : JobConfig
+        The settings; the ``film target`` stage replaces the spacing and gun speed for a film target.
+    source : str or Part
+        A part file's path, or a part given in memory.
+    part : Part or None
+        The part in mm, z up, cut to its region.
+    chosen : dict
+        The spacing and speed chosen for a film target ({} without one).
+    strokes : tuple of Stroke
+        The spray work: strokes (paths mode) or one-waypoint strokes at the targets (points mode).
+    layout, ordered
+        The stations' and the ordering's results (``stations.stage.StationLayout``,
+        ``ordering.stage.OrderedStations``).
+    plan : Plan or None
+    tuning : dict
+        The refine stage's summary ({} when it did not run).
+    film : coating.CoatingResult or None
+        The final plan's film (None when not simulated).
+    totals : dict
+    timings_s : dict
+        Wall seconds of each stage run.
+    """
+
+    job: JobConfig
+    source: object
+    part: Part | None = None
+    chosen: dict = field(default_factory=dict)
+    strokes: tuple = ()
+    layout: object = None
+    ordered: object = None
+    plan: Plan | None = None
+    tuning: dict = field(default_factory=dict)
+    film: object = None
+    totals: dict = field(default_factory=dict)
+    timings_s: dict = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        """The part's name (its file) for messages."""
+        if self.part is not None:
+            return self.part.name
+        return self.source.name if isinstance(self.source, Part) else os.fspath(self.source)
+
+    @property
+    def part_file(self) -> str | None:
+        """The part's file when the job was given one."""
+        return None if isinstance(self.source, Part) else os.fspath(self.source)
+
+    def gantry(self):
+        """The job's robot (``robots.stage.gantry_for``)."""
+        from sprayplan.robots.stage import gantry_for
+
+        return gantry_for(self.job.kinematics)
+
+
+#: The result of :func:`run_job`: the last state, every stage's result in it.
+JobResult = JobState
+
+
+def _load(state: JobState, progress: Progress) -> JobState:
+    if isinstance(state.source, Part):
+        return dataclasses.replace(state, part=state.source)
+    from sprayplan.io.load import load_part
+
+    load = state.job.load
+    return dataclasses.replace(state, part=load_part(state.source, units=load.units, up=load.up))
+
+
+def _region(state: JobState, progress: Progress) -> JobState:
+    from sprayplan.surface.region import select_region
+
+    return dataclasses.replace(state, part=select_region(state.part, state.job.load.region))
+
+
+def _film_target(state: JobState, progress: Progress) -> JobState:
+    from sprayplan.coating.stage import meet_thickness
+
+    job, chosen = meet_thickness(state.job)
+    if chosen:
+        log.info(
+            "for %.4g um: spacing %.4g mm, gun speed %.4g mm/s",
+            chosen["target_um"],
+            chosen["spacing_mm"],
+            chosen["gun_speed_mm_s"],
+        )
+    return dataclasses.replace(state, job=job, chosen=chosen)
+
+
+def _paths(state: JobState, progress: Progress) -> JobState:
+    job = state.job
+    if job.mode == "paths":
+        from sprayplan.paths.planner import plan_paths
+
+        strokes = plan_paths(state.part, job.paths).spray_strokes
+    else:
+        from sprayplan.stations.stage import target_strokes
+        from sprayplan.surface.targets import make_targets
+
+        strokes = target_strokes(make_targets(state.part, job.targets), job.paths.standoff_mm)
+    if not strokes:
+        raise InputError(f"{state.name}: nothing to paint")
+    return dataclasses.replace(state, strokes=tuple(strokes))
+
+
+def _stations(state: JobState, progress: Progress) -> JobState:
+    from sprayplan.stations.stage import stations_stage
+
+    return dataclasses.replace(state, layout=stations_stage(state.strokes, state.job, state.gantry(), state.name))
+
+
+def _ordering(state: JobState, progress: Progress) -> JobState:
+    from sprayplan.ordering.stage import ordering_stage
+
+    return dataclasses.replace(state, ordered=ordering_stage(state.layout, state.job, progress))
+
+
+def _kinematics(state: JobState, progress: Progress) -> JobState:
+    from sprayplan.robots.stage import kinematics_stage
+
+    plan = kinematics_stage(state.ordered, state.job, state.gantry(), state.part.name, progress)
+    return dataclasses.replace(state, plan=plan)
+
+
+def _refine(state: JobState, progress: Progress) -> JobState:
+    from sprayplan.refine.stage import tune_plan
+
+    plan, summary, film = tune_plan(state.part, state.plan, state.job, progress)
+    return dataclasses.replace(state, plan=plan, tuning=summary, film=film)
+
+
+def _film(state: JobState, progress: Progress) -> JobState:
+    job = state.job
+    if state.film is not None or not (job.output.simulate or job.film_target):
+        return state  # a tuned plan's film is known already (the tuning's deposit matrix)
+    from sprayplan.coating.stage import simulate_plan
+
+    return dataclasses.replace(state, film=simulate_plan(state.part, state.plan, job, progress))
+
+
+def _totals(state: JobState, progress: Progress) -> JobState:
+    from sprayplan.export.summary import plan_totals
+
+    totals = plan_totals(state.plan, state.job)
+    if state.chosen:
+        totals["chosen_for_thickness"] = state.chosen
+    if state.tuning:
+        totals["speed_tuning"] = state.tuning
+    return dataclasses.replace(state, totals=totals)
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One stage of the main job: its name and the function from the state before it to the state after."""
+
+    name: str
+    run: Callable[[JobState, Progress], JobState]
+
+
+#: The main job's stages, in order.
+STAGES = (
+    Stage("load", _load),
+    Stage("region", _region),
+    Stage("film target", _film_target),
+    Stage("paths", _paths),
+    Stage("stations", _stations),
+    Stage("ordering", _ordering),
+    Stage("kinematics", _kinematics),
+    Stage("refine", _refine),
+    Stage("film", _film),
+    Stage("totals", _totals),
+)
+
+
+def run_job(
+    source, job: JobConfig | None = None, outdir=None, progress: Progress | None = None, until: str | None = None
+) -> JobResult:
+    """Run the main job on a part: every stage of :data:`STAGES` in order, then write the files.
+
+    Parameters
+    ----------
+    source : str, os.PathLike or Part
+        A part file (read with ``[load] units`` and ``up``), or a part already in memory (in mm, z up; its
+        ``[load] region`` is still applied).
+    job : JobConfig, optional
+        Every setting; default ``JobConfig()``.
+    outdir : str or os.PathLike, optional
+        When given, plan.json and waypoints.csv (and the film files when there is a film) are written there
+        (``export.write_job``), each atomically.
+    progress : callable, optional
+        ``progress(stage, done, total)``.
+    until : str, optional
+        Stop after this stage (a name in :data:`STAGES`; ``"kinematics"`` gives the plan without refinement,
+        film or totals); nothing is written.
+
+    Returns
+    -------
+    JobResult
+        The plan, its film (None without a target or ``[output] simulate``), its totals, the settings used,
+        and every stage's time.
+
+    Raises
+    ------
+    StageError
+        Bad input found by a stage; the message names the stage and the part. Unreachable waypoints are
+        not errors: they are flagged in the plan.
+    """
+    job = JobConfig() if job is None else job
+    if not isinstance(job, JobConfig):
+        raise InputError(f"job must be a JobConfig, got {type(job).__name__}")
+    names = [stage.name for stage in STAGES]
+    if until is not None and until not in names:
+        raise InputError(f"until must be one of {', '.join(names)}, got {until!r}")
+    progress = progress or no_progress
+    state = JobState(job=job, source=source)
+    start = time.perf_counter()
+    for stage in STAGES:
+        state = _run_stage(stage, state, progress)
+        if stage.name == until:
+            return state
+    totals = {**state.totals, "planning_time_s": round(time.perf_counter() - start, 3)}
+    state = dataclasses.replace(state, totals=totals)
+    if outdir is not None:
+        from sprayplan.export.job_files import write_job
+
+        state = _run_stage(Stage("outputs", lambda s, p: (write_job(outdir, s), s)[1]), state, progress)
+    return state
+
+
+def _run_stage(stage: Stage, state: JobState, progress: Progress) -> JobState:
+    progress(stage.name, 0, 0)
+    began = time.perf_counter()
+    log.info("%s ...", stage.name)
+    try:
+        after = stage.run(state, progress)
+    except StageError:
+        raise
+    except InputError as exc:
+        raise StageError(stage.name, state.name, exc) from exc
+    except Exception as exc:
+        exc.add_note(f"sprayplan: in the {stage.name} stage of {state.name}")
+        raise
+    seconds = time.perf_counter() - began
+    log.info("%s done in %.2f s", stage.name, seconds)
+    return dataclasses.replace(after, timings_s={**after.timings_s, stage.name: round(seconds, 3)})

@@ -1,0 +1,146 @@
+"""The ``refine`` stage of the main job: speeds tuned to the film, touch-up rounds, added stations.
+
+With a film target and ``[tuning] tune_speed``, the finished plan's time factors are fitted to its simulated
+film (``tuning.tune_speeds``); then, for ``touch_up_rounds`` rounds, touch-up strokes are aimed at the patches
+still under-painted (``touchup``), run from the planned stations or from new ones (``extend``), and every
+speed is tuned again. Only the appended strokes' columns of the deposit matrix are computed in a round.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from scipy import sparse
+
+from sprayplan.coating.stage import plan_paths_in_order, process_for
+from sprayplan.coating.thickness import deposit_matrix
+from sprayplan.config import JobConfig
+from sprayplan.progress import Progress, counted
+from sprayplan.refine.added_stations import reach_share
+from sprayplan.refine.extend import ADDED_STROKE_STATIONS, with_added_strokes
+from sprayplan.refine.touchup import TOUCH_UP_MIN_DWELL, aim_touch_ups, touch_up_strokes
+from sprayplan.refine.tuning import tune_speeds, tuned_film
+from sprayplan.robots.stage import gantry_for
+from sprayplan.surface.poses import stroke_poses
+from sprayplan.types import Paths, Plan
+
+
+def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None) -> tuple[Plan, dict, object]:
+    """With a film target and ``tune_speed``: the plan with a time factor at every waypoint chosen from the
+    simulated film (``coating.tune_speeds``), and, for ``touch_up_rounds`` rounds, touch-up strokes aimed at
+    the patches still under-painted (``coating.touchup``), run from the nearest station, after which all
+    speeds are tuned again. Returns the plan and a summary (the film predicted before and after, the
+    factors' range, the touch-up strokes added) and the tuned plan's film (a ``CoatingResult``, what
+    :func:`simulate_plan` gives for it, taken from the tuning's deposit matrix). The plan's own strokes keep
+    their geometry and joints. Without a target or with ``tune_speed`` off: the plan unchanged, {} and None."""
+    settings = job.tuning
+    if job.coating.thickness_um is None or not settings.tune_speed or not plan.stations:
+        return plan, {}, None
+    target = job.coating.thickness_um
+    tolerance = job.coating.tolerance
+    process = process_for(job)
+    config = settings.tuning()
+    coating = job.coating.simulation(job.motion)
+    radius = process.pattern.radius_mm
+    rounds = counted(progress, "refine", settings.touch_up_rounds + 1)
+
+    def tuned(plan_, earlier=None):
+        paths = plan_paths_in_order(plan_, job.paths.standoff_mm, job.paths.spacing or 0.0)
+        lower = np.concatenate(
+            [np.full(len(s), TOUCH_UP_MIN_DWELL if s.kind == "touch-up" else settings.min_dwell) for s in paths.strokes]
+        )
+        deposit = None if earlier is None else extended_deposit(part, plan_, *earlier, process, coating)
+        return tune_speeds(
+            part, paths, process, target, tolerance, config=config, coating=coating, lower=lower, deposit=deposit
+        )
+
+    tuning = tuned(plan)
+    rounds()
+    first = tuning.summary(target, tolerance)
+    planned_stations = len(plan.stations)
+    for _ in range(settings.touch_up_rounds):
+        extra = touch_up_strokes(
+            tuning.samples,
+            tuning.after_um,
+            tuning.tuned,
+            target,
+            tolerance,
+            standoff_mm=job.paths.standoff_mm,
+            step_mm=job.paths.step_mm,
+            lead_mm=radius,
+            min_area_mm2=radius * radius / 4.0,
+        )
+        if not extra:
+            break
+        spare = settings.touch_up_stations - (len(plan.stations) - planned_stations)
+        if settings.touch_up_aim:
+            extra = aim_touch_ups(
+                part,
+                extra,
+                tuning.samples,
+                tuning.after_um,
+                tuning.tuned,
+                target,
+                tolerance,
+                process=process,
+                coating=coating,
+                standoff_mm=job.paths.standoff_mm,
+                reach=_reach_from(plan, job, spare > 0),
+            )
+        before = len(tuning.paths.strokes)
+        previous, plan = plan, with_added_strokes(plan, extra, job, new_stations=spare)
+        if sum(len(st.strokes) for st in plan.stations) == before:
+            break  # the arm reaches none of them
+        tuning = tuned(plan, (previous, tuning.samples, tuning.deposit_mm))
+        rounds()
+    strokes = iter(tuning.paths.strokes)
+    stations = tuple(dataclasses.replace(st, strokes=tuple(next(strokes) for _ in st.strokes)) for st in plan.stations)
+    summary = tuning.summary(target, tolerance)
+    summary["before"] = first["before"]
+    summary["touch_up_strokes"] = sum(1 for s in tuning.paths.strokes if s.kind == "touch-up")
+    film = dataclasses.replace(tuned_film(tuning, process, coating), name=plan.name)
+    return dataclasses.replace(plan, stations=stations), summary, film
+
+
+def _reach_from(plan: Plan, job: JobConfig, new_stations: bool):
+    """A function of a stroke: the largest share of its waypoints the arm reaches exactly from one of the
+    stations ``extend.with_added_strokes`` offers it to (the nearest ``ADDED_STROKE_STATIONS``) or, with
+    ``new_stations``, from a new station at the plan's gantry height (whether the budget of new stations
+    then runs out is not foreseen)."""
+    gantry = gantry_for(job.kinematics)
+    platforms = np.array([st.platform_mm for st in plan.stations])
+    height = float(np.median(platforms[:, 2])) if new_stations else None
+    to_flange = np.linalg.inv(gantry.gun.gun2flange)
+
+    def reach(stroke):
+        poses = stroke_poses(stroke)
+        # the stations with_added_strokes offers the stroke to: the nearest to its flange positions
+        centre = (poses @ to_flange)[:, :2, 3].mean(axis=0)
+        order = np.argsort(np.linalg.norm(platforms[:, :2] - centre, axis=1), kind="stable")
+        return reach_share(gantry, poses, platforms[order[:ADDED_STROKE_STATIONS]], height)
+
+    return reach
+
+
+def extended_deposit(part, plan: Plan, earlier: Plan, samples, deposit_mm, process, coating):
+    """The deposit matrix of ``plan`` (``coating.deposit_matrix``) from that of ``earlier``, a plan whose
+    stations ``plan`` extends with strokes appended at their ends and new stations inserted into the visiting
+    order (stations matched by ``index``): only the added strokes' columns are computed, on the earlier
+    samples (the film of a time step does not depend on the other strokes). Returns (samples, matrix)."""
+    added, is_new = [], []
+    before = {st.index: len(st.strokes) for st in earlier.stations}
+    for st in plan.stations:
+        for j, stroke in enumerate(st.strokes):
+            appended = j >= before.get(st.index, 0)
+            is_new.append(np.full(len(stroke), appended))
+            if appended:
+                added.append(stroke)
+    is_new = np.concatenate(is_new)
+    if not added:
+        return samples, deposit_mm
+    _, new_mm = deposit_matrix(part, Paths(tuple(added), 0.0, 0.0, plan.name), process, config=coating, samples=samples)
+    # columns: the earlier plan's waypoints, then the appended ones; put each where it is in the new plan
+    position = np.concatenate([np.flatnonzero(~is_new), np.flatnonzero(is_new)])
+    stacked = sparse.hstack([deposit_mm, new_mm]).tocsc()
+    return samples, stacked[:, np.argsort(position)].tocsr()
