@@ -41,3 +41,7 @@ class ConfigError(InputError):
 
 class RegionError(InputError):
     """A region expression cannot be parsed, or it selects nothing of the part."""
+
+
+class DataError(InputError):
+    """An array or value handed to a function is malformed: not numbers, the wrong shape, NaN or inf, too few."""
