@@ -8,7 +8,7 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from sprayplan.config import PathConfig
-from sprayplan.errors import ConfigError
+from sprayplan.errors import ConfigError, DataError
 from sprayplan.io.load import load_part
 from sprayplan.paths import cloud_normals as cn
 from sprayplan.paths import cloud_slicing as cs
@@ -273,7 +273,7 @@ def test_slice_edge_cases_and_errors():
         cs.slice_cloud(points, [0, 0, 1], [0.0], 1.0, gap_mm=-1.0)
     with pytest.raises(ConfigError):
         cs.slice_cloud(points, [0, 0, 1], [0.0], 1.0, gap_mm=15.0, travel=[0, 0, 2])
-    with pytest.raises(ConfigError):
+    with pytest.raises(DataError):
         cs.slice_cloud(points[:, :2], [0, 0, 1], [0.0], 1.0, gap_mm=15.0)
 
 

@@ -15,7 +15,9 @@ from sprayplan.config import PathConfig
 from sprayplan.errors import ConfigError, InputError
 from sprayplan.export.paths_json import read_paths_json, write_paths_json
 from sprayplan.io.load import load_part
-from sprayplan.paths.planner import plan_paths, point_segment_distance, slicing_frame, surface_covariance
+from sprayplan.paths.frame import slicing_frame, surface_covariance
+from sprayplan.paths.mesh_sections import point_segment_distance
+from sprayplan.paths.planner import plan_paths
 from sprayplan.surface.filling import sample_uniform
 from sprayplan.surface.region import select_region
 from sprayplan.types import Part
@@ -437,7 +439,7 @@ def test_closed_surfaces_have_no_edge_to_pass():
     paths = plan_paths(part, PathConfig(spacing_mm=40.0, direction="z"))
     assert all(s.on_part.any() for s in paths.spray_strokes)
     # with no edge pass to take over, the march closes the far end with a last layer (here at the pole)
-    from sprayplan.paths.planner import layer_offsets
+    from sprayplan.paths.frame import layer_offsets
 
     def samples(offset):  # a flat strip across the planes: sections are lines at y = offset
         return np.column_stack([np.linspace(0, 100, 11), np.full(11, offset), np.zeros(11)])
@@ -458,7 +460,7 @@ def test_closed_surfaces_have_no_edge_to_pass():
 
 
 def test_boundaries_of_meshes_and_clouds():
-    from sprayplan.paths.cloud_planner import cloud_boundary
+    from sprayplan.paths.cloud_sections import cloud_boundary
     from sprayplan.paths.edges import mesh_boundary
 
     part = plate(0.0, 200.0, 0.0, 100.0, 10.0)

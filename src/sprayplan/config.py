@@ -588,7 +588,7 @@ class RefineConfig(Section):
         Film errors up to this many tolerances cost nothing in the tuning (its dead band): larger favours
         the share in spec over uniformity; 0 <= band < 1.
     smoothing, iterations, loss, painted_fraction
-        The least-squares fit's settings (``refine.tuning.TuningConfig``).
+        The least-squares fit's settings (``refine.tuning.TuningConfig``; ``refine.stage.tuning_settings``).
     touch_up_rounds : int
         With speeds tuned: rounds of touch-up strokes, each aimed at a patch the tuned plan still leaves
         under-painted (a lip or flange that faces away from every stroke), run from the nearest station and
@@ -628,20 +628,6 @@ class RefineConfig(Section):
         _within(RefineConfig, "painted_fraction", self.painted_fraction, 0, 1)
         _within(RefineConfig, "touch_up_rounds", self.touch_up_rounds, 0, 10)
         _within(RefineConfig, "touch_up_stations", self.touch_up_stations, 0, 20)
-
-    def tuning(self):
-        """The speed tuning's own settings (``refine.tuning.TuningConfig``)."""
-        from sprayplan.refine.tuning import TuningConfig
-
-        return TuningConfig(
-            min_dwell=self.min_dwell,
-            max_dwell=self.max_dwell,
-            smoothing=self.smoothing,
-            iterations=self.iterations,
-            loss=self.loss,
-            painted_fraction=self.painted_fraction,
-            band=self.band,
-        )
 
 
 @dataclass(frozen=True)

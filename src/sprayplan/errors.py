@@ -64,3 +64,7 @@ class StageError(InputError):
         message = str(cause)
         where = stage if not part or part in message else f"{stage}: {part}"
         super().__init__(f"{where}: {message}")
+
+
+class DataError(InputError):
+    """An array or value handed to a function is malformed: not numbers, the wrong shape, NaN or inf, too few."""

@@ -42,12 +42,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sprayplan.checks import check_points
 from sprayplan.errors import ConfigError
 from sprayplan.ordering.metrics import (
     check_distance_matrix,
     check_ends,
     check_metric,
-    check_points,
     check_time_limit,
     distance_matrix,
     matrix_path_length,
@@ -382,7 +382,7 @@ def ga_tour(
     GAResult
         Best order, its length, the best-length history and the generations run.
     """
-    pts = check_points(points)
+    pts = check_points(points, dim=(2, 3), empty_list=True)
     check_metric(metric)
     return ga_tour_matrix(
         distance_matrix(pts, metric),

@@ -20,42 +20,10 @@ import math
 
 import numpy as np
 
+from sprayplan.checks import check_points
 from sprayplan.errors import ConfigError, InputError
 
 METRICS = ("euclidean", "manhattan")
-
-
-def check_points(points, name: str = "points") -> np.ndarray:
-    """A float copy of ``points`` after checking it is a finite ``(n, 2)`` or ``(n, 3)`` array.
-
-    Parameters
-    ----------
-    points : (n, 2) or (n, 3) float
-        Point coordinates; ``n`` may be 0.
-    name : str
-        The argument's name, for the error message.
-
-    Returns
-    -------
-    points : (n, d) float
-        A new array.
-
-    Raises
-    ------
-    InputError
-        If the shape is not ``(n, 2)`` or ``(n, 3)`` or a value is not finite.
-    """
-    try:
-        out = np.array(points, dtype=float, copy=True)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be an (n, 2) or (n, 3) array of numbers") from None
-    if out.ndim == 1 and out.size == 0:
-        out = out.reshape(0, 2)
-    if out.ndim != 2 or out.shape[1] not in (2, 3):
-        raise InputError(f"{name} must have shape (n, 2) or (n, 3), got {out.shape}")
-    if not np.all(np.isfinite(out)):
-        raise InputError(f"{name} must be finite numbers (found NaN or inf)")
-    return out
 
 
 def check_metric(metric: str) -> str:
@@ -97,7 +65,7 @@ def distance_matrix(points, metric: str = "euclidean") -> np.ndarray:
     matrix : (n, n) float
         Symmetric, zero on the diagonal. Built in row blocks so that the temporary arrays stay small.
     """
-    pts = check_points(points)
+    pts = check_points(points, dim=(2, 3), empty_list=True)
     check_metric(metric)
     n = len(pts)
     out = np.empty((n, n))
@@ -138,7 +106,7 @@ def tour_length(points, order, closed: bool = True, metric: str = "euclidean") -
     length : float
         In the unit of the coordinates. 0 for fewer than two points.
     """
-    pts = check_points(points)
+    pts = check_points(points, dim=(2, 3), empty_list=True)
     idx = check_order(order, len(pts))
     if len(idx) < 2:
         return 0.0

@@ -28,10 +28,11 @@ import logging
 
 import numpy as np
 
+from sprayplan.checks import check_points
 from sprayplan.errors import ConfigError, InputError
 from sprayplan.ordering.exact import held_karp
 from sprayplan.ordering.genetic import GA_DEFAULT, evolve_permutations
-from sprayplan.ordering.metrics import check_points, check_time_limit, distance_matrix, pair_distances
+from sprayplan.ordering.metrics import check_time_limit, distance_matrix, pair_distances
 from sprayplan.ordering.tour import METHODS, solve_tour_matrix
 
 logger = logging.getLogger(__name__)
@@ -42,8 +43,8 @@ STROKE_METHODS = METHODS
 
 
 def _check_strokes(starts, ends, start_point):
-    s = check_points(starts, "starts")
-    e = check_points(ends, "ends")
+    s = check_points(starts, "starts", dim=(2, 3), empty_list=True)
+    e = check_points(ends, "ends", dim=(2, 3), empty_list=True)
     if s.shape != e.shape:
         raise InputError(f"starts and ends must have the same shape, got {s.shape} and {e.shape}")
     p = None

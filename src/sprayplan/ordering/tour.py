@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sprayplan.checks import check_points
 from sprayplan.errors import ConfigError
 from sprayplan.ordering.backends import fast_tsp_available, fast_tsp_tour
 from sprayplan.ordering.exact import EXACT_MAX_N, exact_tour
@@ -44,7 +45,6 @@ from sprayplan.ordering.metrics import (
     check_distance_matrix,
     check_ends,
     check_metric,
-    check_points,
     check_time_limit,
     distance_matrix,
     matrix_path_length,
@@ -241,7 +241,7 @@ def solve_tour(
         For an unknown method or metric, bad ``start`` / ``end`` / ``time_limit_s``, or ``method="exact"``
         with more than :data:`EXACT_MAX_N` points.
     """
-    pts = check_points(points)
+    pts = check_points(points, dim=(2, 3), empty_list=True)
     check_metric(metric)
     return _solve(distance_matrix(pts, metric), method, closed, start, end, time_limit_s, seed)
 

@@ -10,9 +10,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sprayplan.checks import check_count, check_points
 from sprayplan.errors import ConfigError
-from sprayplan.paths.cloud_slicing import _count
-from sprayplan.paths.cloudprep import check_points
 from sprayplan.surface.normals import pca_fit, unit
 
 WEIGHTINGS = ("area", "inverse_area")
@@ -72,7 +71,7 @@ def neighbour_triangle_normals(
     """
     query = check_points(query, "query")
     points = check_points(points)
-    k = _count(k, "k", 3)
+    k = check_count(k, "k", 3)
     if weighting not in WEIGHTINGS:
         raise ConfigError(f"weighting must be one of {', '.join(WEIGHTINGS)}, got {weighting!r}")
     min_fan_angle_rad = float(min_fan_angle_rad)
@@ -174,7 +173,7 @@ def plane_fit_normals(query: np.ndarray, points: np.ndarray, k: int = 12) -> np.
     """
     query = check_points(query, "query")
     points = check_points(points)
-    k = _count(k, "k", 3)
+    k = check_count(k, "k", 3)
     if len(points) < 3:
         raise ConfigError("plane fit normals need at least 3 cloud points")
     if len(query) == 0:

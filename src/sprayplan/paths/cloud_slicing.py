@@ -47,8 +47,8 @@ from scipy import sparse
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
+from sprayplan.checks import check_count, check_points, check_positive
 from sprayplan.errors import ConfigError
-from sprayplan.paths.cloudprep import check_points
 
 log = logging.getLogger(__name__)
 
@@ -103,19 +103,21 @@ def slice_cloud(
 
     Raises
     ------
+    DataError
+        Bad points.
     ConfigError
-        Bad points, a zero normal, a travel direction along the normal, or non-positive sizes.
+        A zero normal, a travel direction along the normal, or non-positive sizes.
     """
     points = check_points(points)
     normal = _unit_vector(plane_normal, "plane_normal")
     offsets = np.atleast_1d(np.asarray(offsets, dtype=float))
     if offsets.ndim != 1 or not np.isfinite(offsets).all():
         raise ConfigError(f"offsets must be a finite 1-D sequence, got shape {offsets.shape}")
-    half_thickness_mm = _positive(half_thickness_mm, "half_thickness_mm")
-    gap_mm = _positive(gap_mm, "gap_mm")
-    smooth_points = _count(smooth_points, "smooth_points", 1)
-    min_points = _count(min_points, "min_points", 1)
-    k = _count(k, "k", 1)
+    half_thickness_mm = check_positive(half_thickness_mm, "half_thickness_mm")
+    gap_mm = check_positive(gap_mm, "gap_mm")
+    smooth_points = check_count(smooth_points, "smooth_points", 1)
+    min_points = check_count(min_points, "min_points", 1)
+    k = check_count(k, "k", 1)
     u, v = plane_frame(points, normal, travel)
     height = points @ normal
     sections = []
@@ -349,16 +351,3 @@ def _unit_vector(vector, name: str) -> np.ndarray:
     if out.shape != (3,) or not np.isfinite(out).all() or np.linalg.norm(out) == 0:
         raise ConfigError(f"{name} must be a finite non-zero 3-vector, got {vector!r}")
     return out / np.linalg.norm(out)
-
-
-def _positive(value, name: str) -> float:
-    value = float(value)
-    if not (np.isfinite(value) and value > 0):
-        raise ConfigError(f"{name} must be a positive number, got {value}")
-    return value
-
-
-def _count(value, name: str, least: int) -> int:
-    if isinstance(value, bool) or int(value) != value or value < least:
-        raise ConfigError(f"{name} must be an integer >= {least}, got {value!r}")
-    return int(value)

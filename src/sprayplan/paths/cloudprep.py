@@ -30,6 +30,7 @@ import logging
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sprayplan.checks import check_points, check_positive
 from sprayplan.errors import ConfigError
 from sprayplan.surface.filling import poisson_disk_select
 
@@ -40,23 +41,6 @@ SPACE_SAMPLING_TOLERANCE_MM = 0.4
 
 #: Query points per block in :func:`smooth` (bounds the memory of the neighbour arrays).
 _BLOCK = 20_000
-
-
-def check_points(points, name: str = "points") -> np.ndarray:
-    """``points`` as a new finite ``(n, 3)`` float array; :class:`ConfigError` naming the expected shape."""
-    out = np.array(points, dtype=float, copy=True)
-    if out.ndim != 2 or out.shape[1] != 3:
-        raise ConfigError(f"{name} must have shape (n, 3), got {out.shape}")
-    if not np.isfinite(out).all():
-        raise ConfigError(f"{name} must be finite")
-    return out
-
-
-def _positive(value, name: str) -> float:
-    value = float(value)
-    if not (np.isfinite(value) and value > 0):
-        raise ConfigError(f"{name} must be a positive number, got {value}")
-    return value
 
 
 def remove_outliers(points: np.ndarray, k: int = 16, std_ratio: float = 2.0) -> np.ndarray:
@@ -81,13 +65,15 @@ def remove_outliers(points: np.ndarray, k: int = 16, std_ratio: float = 2.0) -> 
 
     Raises
     ------
+    DataError
+        ``points`` not (n, 3) and finite.
     ConfigError
-        ``points`` not (n, 3) and finite, ``k < 1`` or ``std_ratio <= 0``.
+        ``k < 1`` or ``std_ratio <= 0``.
     """
     points = check_points(points)
     if int(k) != k or k < 1:
         raise ConfigError(f"outlier k must be a positive integer, got {k}")
-    std_ratio = _positive(std_ratio, "outlier std_ratio")
+    std_ratio = check_positive(std_ratio, "outlier std_ratio")
     n = len(points)
     kk = int(min(k, n - 1))
     if kk < 1:
@@ -128,11 +114,13 @@ def smooth(points: np.ndarray, radius_mm: float, iterations: int = 1, *, max_nei
 
     Raises
     ------
+    DataError
+        Bad ``points``.
     ConfigError
-        Bad ``points``, a non-positive radius, a negative number of iterations or ``max_neighbours < 5``.
+        A non-positive radius, a negative number of iterations or ``max_neighbours < 5``.
     """
     points = check_points(points)
-    radius_mm = _positive(radius_mm, "smoothing radius_mm")
+    radius_mm = check_positive(radius_mm, "smoothing radius_mm")
     if int(iterations) != iterations or iterations < 0:
         raise ConfigError(f"smoothing iterations must be a non-negative integer, got {iterations}")
     if int(max_neighbours) != max_neighbours or max_neighbours < 5:
@@ -201,7 +189,7 @@ def space_sample(points: np.ndarray, tolerance_mm: float = SPACE_SAMPLING_TOLERA
         Indices of the kept points, increasing.
     """
     points = check_points(points)
-    tolerance_mm = _positive(tolerance_mm, "space sampling tolerance_mm")
+    tolerance_mm = check_positive(tolerance_mm, "space sampling tolerance_mm")
     if len(points) == 0:
         return np.zeros(0, dtype=np.int64)
     return poisson_disk_select(points, tolerance_mm).astype(np.int64)
@@ -233,11 +221,13 @@ def fill_gaps(polyline: np.ndarray, max_gap_mm: float, step_mm: float, *, closed
 
     Raises
     ------
+    DataError
+        Bad ``polyline``.
     ConfigError
-        Bad ``polyline``, a non-positive step or a negative ``max_gap_mm``.
+        A non-positive step or a negative ``max_gap_mm``.
     """
     polyline = check_points(polyline, "polyline")
-    step_mm = _positive(step_mm, "fill step_mm")
+    step_mm = check_positive(step_mm, "fill step_mm")
     max_gap_mm = float(max_gap_mm)
     if not (np.isfinite(max_gap_mm) and max_gap_mm >= 0):
         raise ConfigError(f"fill max_gap_mm must be a non-negative number, got {max_gap_mm}")

@@ -11,8 +11,9 @@ import math
 
 import numpy as np
 
+from sprayplan.checks import check_points
 from sprayplan.errors import ConfigError
-from sprayplan.paths.polyline import _check_points, _norm
+from sprayplan.paths.polyline import _norm
 
 #: Sign reference for a best-fit plane normal (mostly +z, then +y, then +x; no axis-aligned or 45-degree normal
 #: is perpendicular to it), so that an automatically chosen normal does not flip with rounding.
@@ -123,7 +124,7 @@ def curvature(points, closed: bool = False, endpoint: str = "circle", plane_norm
     (n,) float, 1/mm
         Signed curvature at each point.
     """
-    pts = _check_points(points)
+    pts = check_points(points)
     if endpoint not in ENDPOINT_METHODS:
         raise ConfigError(f"endpoint must be one of {', '.join(ENDPOINT_METHODS)}, got {endpoint!r}")
     n = len(pts)

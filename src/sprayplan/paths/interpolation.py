@@ -10,10 +10,9 @@ import math
 
 import numpy as np
 
+from sprayplan.checks import check_points, check_positive
 from sprayplan.errors import ConfigError, InputError
 from sprayplan.paths.polyline import (
-    _check_points,
-    _check_positive,
     _norm,
     _pieces,
     _unit,
@@ -54,7 +53,7 @@ def _segment_arcs(pts: np.ndarray, collinear_tol_rad: float):
 
 def _interpolation(pts: np.ndarray, step_mm: float, method: str, collinear_tol_rad: float):
     """Output points, their segment index and their arc-length fraction along that segment."""
-    step = _check_positive(step_mm, "step_mm")
+    step = check_positive(step_mm, "step_mm")
     if method not in INTERPOLATION_METHODS:
         raise ConfigError(f"method must be one of {', '.join(INTERPOLATION_METHODS)}, got {method!r}")
     tol = float(collinear_tol_rad)
@@ -110,7 +109,7 @@ def interpolate(points, step_mm: float, method: str = "line", *, collinear_tol_r
     (m, 3) float, mm
         The path with the input points and the inserted ones, in order.
     """
-    return _interpolation(_check_points(points), step_mm, method, collinear_tol_rad)[0]
+    return _interpolation(check_points(points), step_mm, method, collinear_tol_rad)[0]
 
 
 def _slerp(n0: np.ndarray, n1: np.ndarray, frac: np.ndarray, direction: np.ndarray) -> np.ndarray:
@@ -161,8 +160,8 @@ def interpolate_with_normals(
     normals : (m, 3) float
         Unit normals.
     """
-    pts = _check_points(points)
-    nrm = _check_points(normals, "normals")
+    pts = check_points(points)
+    nrm = check_points(normals, "normals")
     if nrm.shape != pts.shape:
         raise InputError(f"normals must have the shape of points {pts.shape}, got {nrm.shape}")
     if np.any(_norm(nrm) == 0):

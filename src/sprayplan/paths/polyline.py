@@ -23,6 +23,7 @@ import math
 
 import numpy as np
 
+from sprayplan.checks import check_points, check_positive
 from sprayplan.errors import ConfigError, InputError
 
 logger = logging.getLogger(__name__)
@@ -33,26 +34,6 @@ _PIECE_SLACK = 1e-9
 
 
 # --------------------------------------------------------------------------------------------------- helpers
-
-
-def _check_points(points, name: str = "points") -> np.ndarray:
-    """A float copy of ``points`` after checking it is a finite (n, 3) array."""
-    out = np.array(points, dtype=float, copy=True)
-    if out.ndim != 2 or out.shape[1] != 3:
-        raise InputError(f"{name} must have shape (n, 3), got {out.shape}")
-    if not np.all(np.isfinite(out)):
-        raise InputError(f"{name} must be finite numbers (found NaN or inf)")
-    return out
-
-
-def _check_positive(value, name: str) -> float:
-    try:
-        out = float(value)
-    except (TypeError, ValueError):
-        raise ConfigError(f"{name} must be a positive number, got {value!r}") from None
-    if not (math.isfinite(out) and out > 0):
-        raise ConfigError(f"{name} must be a positive number, got {value!r}")
-    return out
 
 
 def _check_angle(value, name: str) -> float:
@@ -99,7 +80,7 @@ def polyline_length(points, closed: bool = False) -> float:
     float, mm
         Sum of the segment lengths (the numerator of seed 003 eq. 13); 0 for fewer than two points.
     """
-    pts = _closed_chain(_check_points(points), closed)
+    pts = _closed_chain(check_points(points), closed)
     return float(_norm(np.diff(pts, axis=0)).sum()) if len(pts) > 1 else 0.0
 
 
@@ -143,7 +124,7 @@ def streamline(
     (m,) int
         Increasing indices into ``points`` of the kept points.
     """
-    pts = _check_points(points)
+    pts = check_points(points)
     lo = _check_angle(alpha_min_rad, "alpha_min_rad")
     hi = _check_angle(alpha_max_rad, "alpha_max_rad")
     if lo > hi:
@@ -234,7 +215,7 @@ def resample(
     t : (m,) float
         Parameter in [0, 1] along that segment: ``sample = (1 - t) P_i + t P_{i+1}``.
     """
-    pts = _check_points(points)
+    pts = check_points(points)
     if (step_mm is None) == (count is None):
         raise ConfigError("give exactly one of step_mm and count")
     if len(pts) < 2:
@@ -248,7 +229,7 @@ def resample(
             raise ConfigError(f"count must be a whole number >= {least}, got {count!r}")
         num = int(count) if closed else int(count) - 1
     else:
-        num = int(_pieces(total, _check_positive(step_mm, "step_mm")))
+        num = int(_pieces(total, check_positive(step_mm, "step_mm")))
         if closed:
             num = max(num, 3)
     m = num if closed else num + 1

@@ -12,8 +12,9 @@ from itertools import pairwise
 
 import numpy as np
 
+from sprayplan.checks import check_points
 from sprayplan.errors import ConfigError
-from sprayplan.paths.polyline import _check_angle, _check_points, _norm
+from sprayplan.paths.polyline import _check_angle, _norm
 
 
 def _backward_difference(p0: np.ndarray, p1: np.ndarray, p2: np.ndarray) -> np.ndarray:
@@ -71,7 +72,7 @@ def one_sided_derivatives(points, closed: bool = False) -> tuple[np.ndarray, np.
     d_minus, d_plus : (n, 3) float, dimensionless
         Backward and forward tangents, close to unit length.
     """
-    pts = _check_points(points)
+    pts = check_points(points)
     n = len(pts)
     d_minus = np.full((n, 3), np.nan)
     d_plus = np.full((n, 3), np.nan)
@@ -110,7 +111,7 @@ def feature_points(points, length_threshold: float, angle_threshold_rad: float, 
     (k,) int
         Increasing indices of the sharp points.
     """
-    pts = _check_points(points)
+    pts = check_points(points)
     length = float(length_threshold)
     if not (math.isfinite(length) and length >= 0):
         raise ConfigError(f"length_threshold must be a number >= 0, got {length_threshold!r}")
@@ -143,7 +144,7 @@ def split_at(points, indices, closed: bool = False) -> list[np.ndarray]:
     list of (m_i, 3) float, mm
         New arrays (never views of the input).
     """
-    pts = _check_points(points)
+    pts = check_points(points)
     n = len(pts)
     idx = np.asarray(indices).reshape(-1)
     if idx.size and not np.issubdtype(idx.dtype, np.integer):

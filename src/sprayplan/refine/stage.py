@@ -15,15 +15,28 @@ from scipy import sparse
 
 from sprayplan.coating.stage import plan_paths_in_order, process_for
 from sprayplan.coating.thickness import deposit_matrix
-from sprayplan.config import JobConfig
+from sprayplan.config import JobConfig, RefineConfig
 from sprayplan.progress import Progress, counted
 from sprayplan.refine.added_stations import reach_share
 from sprayplan.refine.extend import ADDED_STROKE_STATIONS, with_added_strokes
 from sprayplan.refine.touchup import TOUCH_UP_MIN_DWELL, aim_touch_ups, touch_up_strokes
-from sprayplan.refine.tuning import tune_speeds, tuned_film
+from sprayplan.refine.tuning import TuningConfig, tune_speeds, tuned_film
 from sprayplan.robots.stage import gantry_for
 from sprayplan.surface.poses import stroke_poses
 from sprayplan.types import Paths, Plan
+
+
+def tuning_settings(settings: RefineConfig) -> TuningConfig:
+    """The speed tuning's own settings (``tuning.TuningConfig``) from the job's ``[tuning]`` section."""
+    return TuningConfig(
+        min_dwell=settings.min_dwell,
+        max_dwell=settings.max_dwell,
+        smoothing=settings.smoothing,
+        iterations=settings.iterations,
+        loss=settings.loss,
+        painted_fraction=settings.painted_fraction,
+        band=settings.band,
+    )
 
 
 def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None) -> tuple[Plan, dict, object]:
@@ -40,7 +53,7 @@ def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None
     target = job.coating.thickness_um
     tolerance = job.coating.tolerance
     process = process_for(job)
-    config = settings.tuning()
+    config = tuning_settings(settings)
     coating = job.coating.simulation(job.motion)
     radius = process.pattern.radius_mm
     rounds = counted(progress, "refine", settings.touch_up_rounds + 1)

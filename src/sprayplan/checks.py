@@ -1,0 +1,86 @@
+"""Checks of the arrays and numbers handed to sprayplan's functions: one message for one fault.
+
+A bad point array (not numbers, the wrong shape, NaN or inf, too few points) is a :class:`DataError` that
+names the argument and the shape it must have; a size that must be a positive number is a
+:class:`ConfigError`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sprayplan.errors import ConfigError, DataError
+
+
+def _allowed(dim) -> tuple[int, ...] | None:
+    return None if dim is None else (dim,) if isinstance(dim, int) else tuple(dim)
+
+
+def check_points(
+    points, name: str = "points", dim: int | tuple[int, ...] | None = 3, min_count: int = 0, *, empty_list: bool = False
+) -> np.ndarray:
+    """A new float64 ``(n, d)`` array of ``points`` after checking it holds ``min_count`` or more finite points.
+
+    Parameters
+    ----------
+    points : array_like, (n, d)
+    name : str
+        The argument's name, for the message.
+    dim : int, tuple of int or None
+        The allowed numbers of coordinates ``d`` (None: any).
+    min_count : int
+        The fewest points allowed (0: an empty ``(0, d)`` array is fine).
+    empty_list : bool
+        Also take an empty 1-D input (``[]``) as zero points of the first allowed dimension.
+
+    Returns
+    -------
+    (n, d) float64
+        A copy: the caller may write to it.
+
+    Raises
+    ------
+    DataError
+        ``"{name} must be an {shape} array of finite numbers, got ..."``: not numbers, another shape, a NaN
+        or inf, or fewer than ``min_count`` points.
+    """
+    allowed = _allowed(dim)
+    shape = "(n, d)" if allowed is None else " or ".join(f"(n, {d})" for d in allowed)
+
+    def fault(got: str) -> DataError:
+        need = f" with at least {min_count} point{'s' * (min_count != 1)}" if min_count > 0 else ""
+        return DataError(f"{name} must be an {shape} array of finite numbers{need}, got {got}")
+
+    try:
+        out = np.array(points, dtype=np.float64, copy=True)
+    except (TypeError, ValueError):
+        raise fault("something that is not numbers") from None
+    if empty_list and out.ndim == 1 and out.size == 0:
+        out = out.reshape(0, allowed[0] if allowed else 0)
+    if out.ndim != 2 or out.shape[1] not in (allowed or range(1, out.shape[1] + 1)):
+        raise fault(f"shape {out.shape}")
+    if not np.isfinite(out).all():
+        raise fault("NaN or inf")
+    if len(out) < min_count:
+        raise fault(f"{len(out)} point" + ("" if len(out) == 1 else "s"))
+    return out
+
+
+def check_positive(value, name: str) -> float:
+    """``value`` as a float after checking it is a finite number > 0; :class:`ConfigError` naming ``name``."""
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name} must be a positive number, got {value!r}") from None
+    if not (math.isfinite(out) and out > 0):
+        raise ConfigError(f"{name} must be a positive number, got {value!r}")
+    return out
+
+
+def check_count(value, name: str, least: int) -> int:
+    """``value`` as an int after checking it is a whole number >= ``least``; :class:`ConfigError` naming ``name``."""
+    if isinstance(value, bool) or int(value) != value or value < least:
+        raise ConfigError(f"{name} must be an integer >= {least}, got {value!r}")
+    return int(value)
