@@ -89,6 +89,10 @@ def test_every_implementation_is_a_robot(name, tool):
     assert robot.within_limits(np.zeros((3, robot.dof))).shape == (3,)
 
 
+def test_a_bare_model_is_not_a_robot():
+    assert not isinstance(load_robot("ur5"), Robot)  # a D-H table has no fk or ik of its own
+
+
 def test_dof_and_linear_axes():
     assert [make(n, t).dof for n, t in CASES] == [6, 6, 6, 6, 5, 9, 9, 6]
     gantry = robot_from_name("gantry-ur5")

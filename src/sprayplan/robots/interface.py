@@ -216,9 +216,11 @@ def _ur_solutions(model: RobotModel, flange2base: np.ndarray) -> IKSolutions:
     n = len(flange2base)
     finite = _finite(flange2base)
     sols = ur_ik(model, flange2base)
-    q = nearest_equivalent(sols.q, sols.q, model.lower, model.upper)  # fewest turns into the limits
-    valid = sols.valid & model.within_limits(q.reshape(-1, 6), LIMIT_TOL).reshape(n, 8)
-    reason = np.full((n, 8), "", dtype=object)
+    q, valid = sols.q, sols.valid
+    if np.any(model.lower > -math.pi) or np.any(model.upper < math.pi):  # (-pi, pi] may leave the limits
+        q = nearest_equivalent(q, q, model.lower, model.upper)  # the fewest turns into the limits
+        valid = valid & model.within_limits(q.reshape(-1, 6), LIMIT_TOL).reshape(n, 8)
+    reason = np.full((n, 8), "", dtype="<U16")
     reason[~valid] = "out of reach"
     if np.any(model.upper - model.lower < TAU):  # some turn may not fit: tell the limits from the reach
         wide = dataclasses.replace(model, lower=np.full(6, -TAU), upper=np.full(6, TAU))
@@ -228,7 +230,7 @@ def _ur_solutions(model: RobotModel, flange2base: np.ndarray) -> IKSolutions:
     return IKSolutions(
         q=q,
         valid=valid,
-        reason=reason.astype(str),
+        reason=reason,
         singular=sols.wrist_singular & valid,
         axis_error_rad=np.zeros((n, 8)),
         branch_labels=BRANCH_LABELS,
@@ -450,14 +452,14 @@ class GantryRobot:
         arm = _ur_solutions(self.gantry.robot, flange)
         in_travel = _within(safe, self.travel_mm) & finite
         valid = arm.valid & in_travel[:, None]
-        reason = arm.reason.astype(object)
+        reason = arm.reason.astype("<U20")
         reason[~in_travel & finite] = "gantry travel limit"
         reason[~finite] = "non-finite pose"
         q = np.concatenate([arm.q, np.broadcast_to(safe[:, None, :], (n, 8, 3))], axis=2)
         return IKSolutions(
             q=np.where(valid[..., None], q, 0.0),
             valid=valid,
-            reason=reason.astype(str),
+            reason=reason,
             singular=arm.singular & valid,
             axis_error_rad=arm.axis_error_rad.copy(),
             branch_labels=arm.branch_labels,
