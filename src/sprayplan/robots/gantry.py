@@ -186,8 +186,20 @@ class Gantry:
 
     def platform_z_for(self, z_mm: float) -> float:
         """The gantry height that puts points at height ``z_mm`` in the middle of the working cylinder."""
+        return float(self.platform_beside([[0.0, 0.0, z_mm]], [0.0, 0.0])[0, 2])
+
+    def platform_beside(self, points: np.ndarray, across=(0.0, 1.0)) -> np.ndarray:
+        """One platform position per world point, (n, 3) mm: half the cylinder's radius beside it along
+        ``across`` (a unit vector in plan, (2,) or (n, 2)), at the height that puts the point in the middle of
+        the working cylinder. Outside the non-recommended core and inside the cylinder, as :meth:`platform_for`
+        places a stroke's station."""
+        points = np.atleast_2d(np.asarray(points, dtype=float))
+        across = np.broadcast_to(np.asarray(across, dtype=float), (len(points), 2))
         shoulder_to_mid = (self.workspace.wall_mm + self.workspace.reach_mm * math.sin(self.workspace.theta)) / 2
-        return float(z_mm - shoulder_to_mid + self.robot.d[0])
+        out = np.empty((len(points), 3))
+        out[:, :2] = points[:, :2] + across * (self.workspace.radius_mm / 2.0)
+        out[:, 2] = points[:, 2] - shoulder_to_mid + self.robot.d[0]
+        return out
 
     def platform_for(self, points: np.ndarray) -> np.ndarray:
         """A platform position (3,) for painting a group of world points (a stroke) from one place.
@@ -208,8 +220,27 @@ class Gantry:
         across = np.array([-along[1], along[0]])
         if across[np.argmax(np.abs(across))] < 0:
             across = -across
-        xy = centre[:2] + across * self.workspace.radius_mm / 2.0
-        return np.array([xy[0], xy[1], self.platform_z_for(centre[2])])
+        return self.platform_beside(centre, across)[0]
+
+
+#: The arms :func:`build_gantry` hangs from the gantry: the UR-type presets of :mod:`sprayplan.robots.model`.
+GANTRY_ARMS = ("ur5", "ur5e", "ur5-seed")
+
+
+def build_gantry(arm: str = "ur5", tool: str = "wa101") -> Gantry:
+    """The nine-axis gantry with a UR-type arm preset and a gun preset, with seed 000's working cylinder.
+
+    ``build_gantry()`` is the seed's machine, ``Gantry(robot=load_robot("ur5"), gun=load_gun("wa101"))``.
+    The working cylinder's reach (850 mm) is the UR5's; the UR5e's is the same.
+
+    Raises
+    ------
+    ConfigError
+        An arm that is not one of :data:`GANTRY_ARMS`, or an unknown tool.
+    """
+    if arm not in GANTRY_ARMS:
+        raise ConfigError(f"unknown gantry arm {arm!r}: use one of {', '.join(GANTRY_ARMS)}")
+    return Gantry(robot=load_robot(arm), gun=load_gun(tool))
 
 
 def pose_errors(achieved: np.ndarray, wanted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

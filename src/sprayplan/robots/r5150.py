@@ -6,6 +6,7 @@ a3 190, d5 115 mm, alpha1 = alpha4 = pi/2). This module gives
 - :func:`r5150_position`: seed 001's eq. 3 (table 3, rows 10-12), the tool-tip position in closed form;
 - :func:`r5150_orientation`: table 3, rows 1-9, the (n, o, a) columns of the tool rotation;
 - :func:`r5150_ik`: the geometric inverse kinematics of eqs. 4-8 for a position, a pitch and a roll;
+- :func:`r5150_pitch_roll`: the position, pitch and roll nearest a full pose (what five axes can reach of it);
 - the seed's table 4 (case 1) and table 5 (case 2) as arrays, and :func:`check_seed_table`, the forward
   kinematics residual of such a table.
 
@@ -344,6 +345,53 @@ def r5150_ik(
         use = ~reachable & ok_d
         q[use], reachable[use], reason[use], branch[use] = q_d[use], True, "", "down"
     return R5150Solution(q=q, reachable=reachable, reason=reason.astype(str), elbow=branch.astype(str))
+
+
+
+def r5150_pitch_roll(tool2base) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The position, pitch and roll that bring the R5150's tool nearest a full pose (the input of :func:`r5150_ik`).
+
+    Five axes reach a position and an approach vector only in the arm's vertical plane (azimuth
+    ``theta1 = atan2(py, px)``, as :func:`r5150_ik` takes it), with any roll about it. From the wanted rotation
+    ``R``: ``R = Rz(theta1) Rx(pi/2) Rz(pitch) Rx(pi/2) Rz(roll)`` when the pose is reachable, so with
+    ``F = Rz(theta1) Rx(pi/2)`` and ``a' = F^T a`` (the wanted approach vector in frame 1, whose x-y plane is
+    the arm plane) the pitch is ``atan2(a'_x, -a'_y)``: the in-plane direction nearest the wanted axis, so the
+    remaining axis error is the angle between the axis and the plane, ``asin(|a'_z|)``. The roll is the angle
+    about the reached axis that minimises the remaining rotation: with ``M = (F Rz(pitch) Rx(pi/2))^T R``,
+    ``roll = atan2(M_yx - M_xy, M_xx + M_yy)``. A reachable pose is returned exactly.
+
+    Parameters
+    ----------
+    tool2base : (4, 4) or (n, 4, 4) float, mm
+        Wanted tool poses in the robot base frame.
+
+    Returns
+    -------
+    position : (n, 3) float, mm
+    pitch, roll : (n,) float, rad
+    """
+    poses = np.asarray(tool2base, dtype=float)
+    if poses.shape == (4, 4):
+        poses = poses[None]
+    if poses.ndim != 3 or poses.shape[1:] != (4, 4):
+        raise InputError(f"tool2base must have shape (4, 4) or (n, 4, 4), got {poses.shape}")
+    n = len(poses)
+    theta1 = np.arctan2(poses[:, 1, 3], poses[:, 0, 3])
+    c, s = np.cos(theta1), np.sin(theta1)
+    first = np.zeros((n, 3, 3))  # Rz(theta1) Rx(pi/2)
+    first[:, 0, 0], first[:, 0, 2] = c, s
+    first[:, 1, 0], first[:, 1, 2] = s, -c
+    first[:, 2, 1] = 1.0
+    rest = first.transpose(0, 2, 1) @ poses[:, :3, :3]
+    pitch = np.arctan2(rest[:, 0, 2], -rest[:, 1, 2])
+    cp, sp = np.cos(pitch), np.sin(pitch)
+    second = np.zeros((n, 3, 3))  # Rz(pitch) Rx(pi/2)
+    second[:, 0, 0], second[:, 0, 2] = cp, sp
+    second[:, 1, 0], second[:, 1, 2] = sp, -cp
+    second[:, 2, 1] = 1.0
+    m = second.transpose(0, 2, 1) @ rest
+    roll = np.arctan2(m[:, 1, 0] - m[:, 0, 1], m[:, 0, 0] + m[:, 1, 1])
+    return poses[:, :3, 3].copy(), pitch, roll
 
 
 # ------------------------------------------------------------------------------------------- seed tables
