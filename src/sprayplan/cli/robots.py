@@ -117,10 +117,10 @@ def _ik_gantry(args) -> int:
 
     from sprayplan.export.paths_json import read_paths_json
     from sprayplan.robots.csvio import write_table
-    from sprayplan.robots.gantry import Gantry, load_gun, solve_gantry_path
+    from sprayplan.robots.gantry import build_gantry, solve_gantry_path
     from sprayplan.surface.poses import stroke_poses
 
-    gantry = Gantry(gun=load_gun(args.tool or "wa101"))
+    gantry = build_gantry("ur5", args.tool or "wa101")
     paths = read_paths_json(args.poses)
     fixed = None
     if args.platform and args.platform != "auto":

@@ -14,8 +14,7 @@ import numpy as np
 from sprayplan.config import JobConfig, KinematicsConfig
 from sprayplan.ordering.stage import OrderedStations
 from sprayplan.progress import Progress, counted
-from sprayplan.robots.gantry import Gantry, GantryPath, load_gun, solve_gantry_path
-from sprayplan.robots.model import load_robot
+from sprayplan.robots.gantry import Gantry, GantryPath, build_gantry, solve_gantry_path
 from sprayplan.surface.poses import stroke_poses
 from sprayplan.types import Plan, StationPlan
 
@@ -25,7 +24,7 @@ HOME_JOINTS = np.array([0.0, -math.pi / 2, 0.0, -math.pi / 2, 0.0, 0.0])
 
 def gantry_for(config: KinematicsConfig) -> Gantry:
     """The job's robot: the gantry carrying the configured arm, with the configured gun."""
-    return Gantry(robot=load_robot(config.arm), gun=load_gun(config.tool))
+    return build_gantry(config.arm, config.tool)
 
 
 def solve_strokes(gantry: Gantry, strokes, platform_mm, config: KinematicsConfig, start_q=None) -> GantryPath:
