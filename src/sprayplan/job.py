@@ -24,7 +24,8 @@ last when given an output folder.
 Errors: bad input raised inside a stage comes out as a :class:`~sprayplan.errors.StageError` (an
 ``InputError``) whose message names the stage and the part; any other exception keeps its type and gains a
 note naming them. Progress: ``progress(stage, 0, 0)`` as each stage starts, and ``progress(stage, done,
-total)`` from the long stages as they work (stations ordered and solved, tuning rounds).
+total)`` from the long stages as they work (layers sliced, stations ordered and solved, film batches, the
+tuning's solver evaluations).
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from dataclasses import dataclass, field
 
 from sprayplan.config import JobConfig
 from sprayplan.errors import InputError, StageError
-from sprayplan.progress import Progress, no_progress
+from sprayplan.progress import Progress, no_progress, per_stage
 from sprayplan.types import Part, Plan
 
 log = logging.getLogger(__name__)
@@ -143,7 +144,7 @@ def _paths(state: JobState, progress: Progress) -> JobState:
     if job.mode == "paths":
         from sprayplan.paths.planner import plan_paths
 
-        strokes = plan_paths(state.part, job.paths).spray_strokes
+        strokes = plan_paths(state.part, job.paths, per_stage(progress, "paths")).spray_strokes
     else:
         from sprayplan.stations.stage import target_strokes
         from sprayplan.surface.targets import make_targets

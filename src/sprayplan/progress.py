@@ -29,3 +29,11 @@ def counted(progress: Progress | None, stage: str, total: int):
         progress(stage, done, total)
 
     return step
+
+
+def per_stage(progress: Progress | None, stage: str):
+    """A ``progress(done, total)`` callback for a stage's library function, reporting under ``stage``; None
+    when there is nothing to report to."""
+    if progress is None:
+        return None
+    return lambda done, total: progress(stage, done, total)

@@ -85,8 +85,8 @@ class ProgressDisplay:
         if self._bar is None or (total and self._bar.total != total):
             self._close_bar()
             self._bar = tqdm(total=total or None, desc=stage, leave=False, unit="", dynamic_ncols=True)
-        self._bar.n = done
-        self._bar.refresh()
+        if done > self._bar.n:
+            self._bar.update(done - self._bar.n)  # redrawn at most every tqdm's mininterval (0.1 s)
 
     def _close_bar(self) -> None:
         if self._bar is not None:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 
 from sprayplan.config import JobConfig
+from sprayplan.progress import Progress, per_stage
 from sprayplan.types import Paths, Plan
 
 
@@ -50,9 +51,12 @@ def plan_paths_in_order(plan: Plan, standoff_mm: float, spacing_mm: float) -> Pa
     return Paths(plan.strokes, standoff_mm, spacing_mm, plan.name)
 
 
-def simulate_plan(part, plan: Plan, job: JobConfig, progress=None):
-    """The film a plan leaves on the part (``coating.simulate`` with the job's process and speeds)."""
+def simulate_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None):
+    """The film a plan leaves on the part (``coating.simulate`` with the job's process and speeds); progress
+    per batch of gun samples under the stage ``film``."""
     from sprayplan.coating.thickness import simulate
 
     paths = plan_paths_in_order(plan, job.paths.standoff_mm, job.paths.spacing or 0.0)
-    return simulate(part, paths, process_for(job), config=job.coating.simulation(job.motion))
+    return simulate(
+        part, paths, process_for(job), config=job.coating.simulation(job.motion), progress=per_stage(progress, "film")
+    )

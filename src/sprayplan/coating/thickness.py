@@ -44,7 +44,7 @@ from __future__ import annotations
 import logging
 import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -222,6 +222,7 @@ def simulate(
     overrides: Mapping[int, StrokeOverride] | Sequence[StrokeOverride | None] | None = None,
     config: CoatingConfig | None = None,
     targets: Targets | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> CoatingResult:
     """Dry film thickness left on a part by a plan.
 
@@ -238,6 +239,8 @@ def simulate(
     config : CoatingConfig, optional
     targets : Targets, optional
         Compute at these points instead of the mesh vertices.
+    progress : callable, optional
+        ``progress(done, total)`` after each batch of gun samples.
 
     Returns
     -------
@@ -249,7 +252,7 @@ def simulate(
     thickness = np.zeros(n)
     deposit = np.zeros(len(paths.strokes))
     if setup.occlusion is not None:
-        parts = _in_batches(setup, lambda pairs: _summed(pairs, setup, len(paths.strokes)))
+        parts = _in_batches(setup, lambda pairs: _summed(pairs, setup, len(paths.strokes)), progress)
         thickness = np.sum([p[0] for p in parts], axis=0) if parts else np.zeros(n)
         deposit = np.sum([p[1] for p in parts], axis=0) if parts else np.zeros(len(paths.strokes))
         log.debug(
@@ -282,6 +285,7 @@ def deposit_matrix(
     overrides: Mapping[int, StrokeOverride] | Sequence[StrokeOverride | None] | None = None,
     config: CoatingConfig | None = None,
     samples: SurfaceSamples | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> tuple[SurfaceSamples, sparse.csr_matrix]:
     """The film as a linear function of the waypoints' time factors (``Stroke.dwell``).
 
@@ -293,7 +297,7 @@ def deposit_matrix(
 
     ``samples``: the surface samples of an earlier call on the same part (its first result), to add columns
     for more strokes without sampling the part again; by default the part is sampled as :func:`simulate`
-    does.
+    does. ``progress(done, total)`` is called after each batch of gun samples.
     """
     config = CoatingConfig() if config is None else config
     setup = _setup(part, paths, process, overrides, config, None, nodes=True, samples=samples)
@@ -312,7 +316,7 @@ def deposit_matrix(
             keep = batch.data != 0.0
             return batch.row[keep], batch.col[keep], batch.data[keep]
 
-        entries = _in_batches(setup, one)
+        entries = _in_batches(setup, one, progress)
     if entries:
         rows, cols, vals = (np.concatenate([e[k] for e in entries]) for k in range(3))
     else:
@@ -373,9 +377,10 @@ def _setup(part, paths, process, overrides, config: CoatingConfig, targets, node
     return _Setup(samples, guns, times, flows, pattern, tree, reach, occlusion, int(config.batch), workers)
 
 
-def _in_batches(setup: _Setup, reduce) -> list:
+def _in_batches(setup: _Setup, reduce, progress=None) -> list:
     """``reduce(pairs)`` over batches of ``setup.batch`` gun samples, on ``setup.workers`` threads (numpy
-    releases the GIL in its array loops); ``pairs`` is :func:`_pairs`'s (sample, gun, film) of the batch."""
+    releases the GIL in its array loops); ``pairs`` is :func:`_pairs`'s (sample, gun, film) of the batch.
+    ``progress(done, total)`` after each batch, from the calling thread."""
     guns = setup.guns
     samples = setup.samples
     origin = samples.points.mean(axis=0)
@@ -395,8 +400,19 @@ def _in_batches(setup: _Setup, reduce) -> list:
     starts = range(0, len(guns.position), setup.batch)
     if setup.workers > 1 and len(starts) > 1:
         with ThreadPoolExecutor(max_workers=setup.workers) as pool:
-            return list(pool.map(one, starts))
-    return [one(start) for start in starts]
+            results = pool.map(one, starts)
+            out = []
+            for result in results:  # in order, as each batch is done
+                out.append(result)
+                if progress is not None:
+                    progress(len(out), len(starts))
+            return out
+    out = []
+    for start in starts:
+        out.append(one(start))
+        if progress is not None:
+            progress(len(out), len(starts))
+    return out
 
 
 def _pairs(setup: _Setup, vt: np.ndarray, gt: np.ndarray, sl: slice):

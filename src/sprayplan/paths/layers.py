@@ -57,7 +57,7 @@ class SectionSource(Protocol):
         """A few words on the sections for the log (e.g. the slab's width)."""
 
 
-def build_layers(source: SectionSource, config: PathConfig) -> list[list[Piece]]:
+def build_layers(source: SectionSource, config: PathConfig, progress=None) -> list[list[Piece]]:
     """Resampled pieces of every slicing layer, in layer order, edge passes included.
 
     Parameters
@@ -65,6 +65,8 @@ def build_layers(source: SectionSource, config: PathConfig) -> list[list[Piece]]
     source : SectionSource
         The part's sections (a mesh's or a cloud's).
     config : PathConfig
+    progress : callable, optional
+        ``progress(done, total)`` after each layer's sections.
 
     Returns
     -------
@@ -81,6 +83,8 @@ def build_layers(source: SectionSource, config: PathConfig) -> list[list[Piece]]
     for offset in offsets:
         pieces = [section_pieces(p, n, closed, travel, config) for p, n, closed in source.sections(offset)]
         layers.append(in_travel_order(pieces, travel))
+        if progress is not None:
+            progress(len(layers), len(offsets))
     counts = edge_pass_counts(lo, hi, offsets, config, source.samples, source.distance)
     log.info(
         "%s: %d layers along (%.3f, %.3f, %.3f)%s, edge passes %d + %d",

@@ -26,7 +26,7 @@ from sprayplan.types import Part, Paths, Stroke
 log = logging.getLogger(__name__)
 
 
-def plan_paths(part: Part, config: PathConfig | None = None) -> Paths:
+def plan_paths(part: Part, config: PathConfig | None = None, progress=None) -> Paths:
     """Spray strokes over a part, in execution order.
 
     Parameters
@@ -34,6 +34,8 @@ def plan_paths(part: Part, config: PathConfig | None = None) -> Paths:
     part : Part
         A mesh or a point cloud (after ``load`` and ``region``), mm.
     config : PathConfig, optional
+    progress : callable, optional
+        ``progress(done, total)`` after each slicing layer.
 
     Returns
     -------
@@ -48,7 +50,7 @@ def plan_paths(part: Part, config: PathConfig | None = None) -> Paths:
     """
     config = PathConfig() if config is None else config
     source = MeshSections(part, config.spacing) if part.is_mesh else cloud_sections(part, config)
-    layers = build_layers(source, config) if source is not None else []
+    layers = build_layers(source, config, progress) if source is not None else []
     if not any(layers):
         raise InputError(f"{part.name}: no section of the part to paint (spacing {config.spacing:.4g} mm)")
     strokes = order_strokes(layers, config)

@@ -16,7 +16,7 @@ from scipy import sparse
 from sprayplan.coating.stage import plan_paths_in_order, process_for
 from sprayplan.coating.thickness import deposit_matrix
 from sprayplan.config import JobConfig, RefineConfig
-from sprayplan.progress import Progress, counted
+from sprayplan.progress import Progress, per_stage
 from sprayplan.refine.added_stations import reach_share
 from sprayplan.refine.extend import ADDED_STROKE_STATIONS, with_added_strokes
 from sprayplan.refine.touchup import TOUCH_UP_MIN_DWELL, aim_touch_ups, touch_up_strokes
@@ -56,7 +56,7 @@ def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None
     config = tuning_settings(settings)
     coating = job.coating.simulation(job.motion)
     radius = process.pattern.radius_mm
-    rounds = counted(progress, "refine", settings.touch_up_rounds + 1)
+    report = per_stage(progress, "refine")
 
     def tuned(plan_, earlier=None):
         paths = plan_paths_in_order(plan_, job.paths.standoff_mm, job.paths.spacing or 0.0)
@@ -65,11 +65,19 @@ def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None
         )
         deposit = None if earlier is None else extended_deposit(part, plan_, *earlier, process, coating)
         return tune_speeds(
-            part, paths, process, target, tolerance, config=config, coating=coating, lower=lower, deposit=deposit
+            part,
+            paths,
+            process,
+            target,
+            tolerance,
+            config=config,
+            coating=coating,
+            lower=lower,
+            deposit=deposit,
+            progress=report,
         )
 
     tuning = tuned(plan)
-    rounds()
     first = tuning.summary(target, tolerance)
     planned_stations = len(plan.stations)
     for _ in range(settings.touch_up_rounds):
@@ -106,7 +114,6 @@ def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None
         if sum(len(st.strokes) for st in plan.stations) == before:
             break  # the arm reaches none of them
         tuning = tuned(plan, (previous, tuning.samples, tuning.deposit_mm))
-        rounds()
     strokes = iter(tuning.paths.strokes)
     stations = tuple(dataclasses.replace(st, strokes=tuple(next(strokes) for _ in st.strokes)) for st in plan.stations)
     summary = tuning.summary(target, tolerance)

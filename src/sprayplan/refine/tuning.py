@@ -158,6 +158,7 @@ def tune_speeds(
     coating: CoatingConfig | None = None,
     lower: np.ndarray | None = None,
     deposit: tuple[SurfaceSamples, sparse.csr_matrix] | None = None,
+    progress=None,
 ) -> Tuning:
     """Time factors at the waypoints of ``paths`` that bring the simulated film to ``target_um``.
 
@@ -179,6 +180,9 @@ def tune_speeds(
     deposit : (SurfaceSamples, csr_matrix), optional
         The samples and deposit matrix of these paths when already known (``deposit_matrix``'s result, mm);
         otherwise computed.
+    progress : callable, optional
+        ``progress(done, total)``: after each batch of the deposit matrix (when computed here), then after
+        each of the solver's evaluations (``total`` = ``config.iterations``, its most).
 
     Returns
     -------
@@ -187,7 +191,9 @@ def tune_speeds(
     config = TuningConfig() if config is None else config
     if not (math.isfinite(target_um) and target_um > 0 and math.isfinite(tolerance_um) and tolerance_um > 0):
         raise ConfigError(f"need target_um > 0 and tolerance_um > 0, got {target_um}, {tolerance_um}")
-    samples, deposit_mm = deposit_matrix(part, paths, process, config=coating) if deposit is None else deposit
+    if deposit is None:
+        deposit = deposit_matrix(part, paths, process, config=coating, progress=progress)
+    samples, deposit_mm = deposit
     if deposit_mm.shape[1] != sum(len(s) for s in paths.strokes):
         raise ConfigError(f"the deposit matrix has {deposit_mm.shape[1]} columns, the paths other waypoints")
     matrix = deposit_mm * 1000.0  # um
@@ -202,7 +208,9 @@ def tune_speeds(
     if low.shape != (matrix.shape[1],) or not (low > 0).all() or (low > 1.0).any():
         raise ConfigError(f"lower must hold one bound in (0, 1] per waypoint ({matrix.shape[1]})")
     if tuned.any() and free.any():
-        dwell[free] = _solve(matrix, samples.area_mm2, tuned, free, starts, target_um, tolerance_um, config, low)
+        dwell[free] = _solve(
+            matrix, samples.area_mm2, tuned, free, starts, target_um, tolerance_um, config, low, progress
+        )
     after = np.asarray(matrix @ dwell).ravel()
     strokes = tuple(s.with_dwell(dwell[a : a + len(s)]) for s, a in zip(paths.strokes, starts))
     log.info(
@@ -250,7 +258,9 @@ def tuned_film(tuning: Tuning, process: Process, coating: CoatingConfig | None =
     )
 
 
-def _solve(matrix, area, tuned, free, starts, target, tol, config: TuningConfig, low: np.ndarray) -> np.ndarray:
+def _solve(
+    matrix, area, tuned, free, starts, target, tol, config: TuningConfig, low: np.ndarray, progress=None
+) -> np.ndarray:
     rows = np.flatnonzero(tuned)
     cols = np.flatnonzero(free)
     weight = area[rows] / area[rows].mean()
@@ -295,6 +305,16 @@ def _solve(matrix, area, tuned, free, starts, target, tol, config: TuningConfig,
         return out
 
     residual, jacobian = _residuals(system, target_vec, n_fit, float(config.band))
+    if progress is not None:
+        evaluations = 0
+        plain = residual
+
+        def residual(x):
+            nonlocal evaluations
+            evaluations += 1
+            progress(min(evaluations, int(config.iterations)), int(config.iterations))
+            return plain(x)
+
     result = least_squares(
         residual,
         np.ones(len(cols)),

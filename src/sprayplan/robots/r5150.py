@@ -347,7 +347,6 @@ def r5150_ik(
     return R5150Solution(q=q, reachable=reachable, reason=reason.astype(str), elbow=branch.astype(str))
 
 
-
 def r5150_pitch_roll(tool2base) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The position, pitch and roll that bring the R5150's tool nearest a full pose (the input of :func:`r5150_ik`).
 
