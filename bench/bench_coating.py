@@ -36,7 +36,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
-DATA = ROOT.parent / "shared" / "testdata" / "meshes"
+from _data import meshes_dir  # noqa: E402 - bench/ is on sys.path when run as a script
 
 from sprayplan.coating import (  # noqa: E402
     CoatingConfig,
@@ -114,7 +114,7 @@ def section_speed(repeat: int) -> None:
 def section_occlusion(repeat: int) -> None:
     print("## 2. Occlusion on reach_curved_part.ply (seed000_circle, chosen spacing, surface speed)\n")
     process, choice = seed_process()
-    part = load_part(DATA / "reach_curved_part.ply", units="m")
+    part = load_part(meshes_dir() / "reach_curved_part.ply", units="m")
     paths = plan_paths(part, PathConfig(spacing_mm=choice.spacing_mm))
     runs = {}
     samples = 0
@@ -165,12 +165,12 @@ def section_uniformity() -> None:
     )
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     parts = {
-        "reach_curved_part": (load_part(DATA / "reach_curved_part.ply", units="m"), "auto"),
+        "reach_curved_part": (load_part(meshes_dir() / "reach_curved_part.ply", units="m"), "auto"),
         "demo roof z > 1000": (select_region(car_roof(), "z > 1000"), "auto"),
-        "noether_raw_scan_mesh": (load_part(DATA / "noether_raw_scan_mesh.ply", units="m"), "auto"),
-        "noether_raw_scan_mesh, direction x": (load_part(DATA / "noether_raw_scan_mesh.ply", units="m"), "x"),
+        "noether_raw_scan_mesh": (load_part(meshes_dir() / "noether_raw_scan_mesh.ply", units="m"), "auto"),
+        "noether_raw_scan_mesh, direction x": (load_part(meshes_dir() / "noether_raw_scan_mesh.ply", units="m"), "x"),
         "tray top (z > 3.1)": (
-            select_region(load_part(DATA / "tray_bottom_mm_ascii.stl", up="y"), "z > 3.1"),
+            select_region(load_part(meshes_dir() / "tray_bottom_mm_ascii.stl", up="y"), "z > 3.1"),
             "auto",
         ),
     }
@@ -220,9 +220,9 @@ def section_plan_film(repeat: int = 3) -> None:
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name, part in (
         ("demo roof z > 1000", select_region(car_roof(), "z > 1000")),
-        ("reach_curved_part", load_part(DATA / "reach_curved_part.ply", units="m")),
-        ("noether_raw_scan_mesh", load_part(DATA / "noether_raw_scan_mesh.ply", units="m")),
-        ("tray top (z > 3.1)", select_region(load_part(DATA / "tray_bottom_mm_ascii.stl", up="y"), "z > 3.1")),
+        ("reach_curved_part", load_part(meshes_dir() / "reach_curved_part.ply", units="m")),
+        ("noether_raw_scan_mesh", load_part(meshes_dir() / "noether_raw_scan_mesh.ply", units="m")),
+        ("tray top (z > 3.1)", select_region(load_part(meshes_dir() / "tray_bottom_mm_ascii.stl", up="y"), "z > 3.1")),
     ):
         job, _ = meet_thickness(JobConfig().replace(coating={"thickness_um": 50.0}))
         result = plan(part, job)
@@ -257,7 +257,7 @@ def section_tuning() -> None:
     print("|---|---|---|---|---|")
     for name, part in (
         ("demo roof z > 1000", select_region(car_roof(), "z > 1000")),
-        ("reach_curved_part", load_part(DATA / "reach_curved_part.ply", units="m")),
+        ("reach_curved_part", load_part(meshes_dir() / "reach_curved_part.ply", units="m")),
     ):
         paths = plan_paths(part, PathConfig(spacing_mm=choice.spacing_mm))
         for evaluations in (10, 20, 30, 50):
@@ -296,8 +296,8 @@ def section_touch_ups() -> None:
         ("+ dead band 0.3 tolerances (the default)", {}),
     )
     for name, part in (
-        ("reach_curved_part", load_part(DATA / "reach_curved_part.ply", units="m")),
-        ("noether_raw_scan_mesh", load_part(DATA / "noether_raw_scan_mesh.ply", units="m")),
+        ("reach_curved_part", load_part(meshes_dir() / "reach_curved_part.ply", units="m")),
+        ("noether_raw_scan_mesh", load_part(meshes_dir() / "noether_raw_scan_mesh.ply", units="m")),
         ("demo roof z > 1000", select_region(car_roof(), "z > 1000")),
     ):
         base, _ = meet_thickness(JobConfig().replace(coating={"thickness_um": 50.0}))

@@ -17,9 +17,8 @@ import statistics
 import subprocess
 import sys
 import time
-from pathlib import Path
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "testdata" / "meshes"
+from _data import meshes_dir  # bench/ is on sys.path when run as a script
 
 CASES = {
     "DTC hull, 116k faces, 50 mm": ("dtc_ship_hull_ascii.stl.gz", "m", 0, "mesh", 50.0),
@@ -40,7 +39,7 @@ def run_one(name: str) -> dict:
     from sprayplan.types import Part
 
     file, units, subdivisions, kind, spacing = CASES[name]
-    part = load_part(DATA / file, units=units)
+    part = load_part(meshes_dir() / file, units=units)
     if subdivisions:
         import trimesh
 

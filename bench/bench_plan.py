@@ -28,7 +28,7 @@ try:
 except ImportError:
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "testdata" / "meshes"
+from _data import meshes_dir  # bench/ is on sys.path when run as a script
 
 
 def end_to_end(repeat: int) -> None:
@@ -36,7 +36,7 @@ def end_to_end(repeat: int) -> None:
         subprocess.run([sys.executable, "-m", "sprayplan", "demo", "-o", tmp], check=True, capture_output=True)
         cases = {
             "demo roof (z > 1000)": [f"{tmp}/roof.stl", "--region", "z > 1000"],
-            "DTC hull (116k faces, 6.3 m)": [str(DATA / "dtc_ship_hull_ascii.stl.gz"), "--units", "m"],
+            "DTC hull (116k faces, 6.3 m)": [str(meshes_dir() / "dtc_ship_hull_ascii.stl.gz"), "--units", "m"],
         }
         print("| part | runs (s) | median s | result |")
         print("|---|---|---|---|")

@@ -21,13 +21,15 @@ import sys
 import time
 from pathlib import Path
 
+from _data import meshes_dir  # bench/ is on sys.path when run as a script
+
 METHODS = {
     "even + face normals": dict(fill="even", normals="face", compress="none"),
     "even + PCA normals": dict(fill="even", normals="pca", compress="none"),
     "DFS point filling (seed)": dict(fill="point", compress="none"),
     "DFS line filling (seed)": dict(fill="line", compress="none"),
 }
-DEFAULT_PART = Path(__file__).resolve().parents[2] / "shared" / "testdata" / "meshes" / "dtc_ship_hull_ascii.stl.gz"
+DEFAULT_PART = "dtc_ship_hull_ascii.stl.gz"  # in the shared data's meshes/ (bench/_data.py)
 
 
 def run_one(part_path: str, units: str, method: str, spacing: float) -> dict:
@@ -68,12 +70,14 @@ def run_one(part_path: str, units: str, method: str, spacing: float) -> dict:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--part", default=str(DEFAULT_PART))
+    parser.add_argument("--part", help=f"default: {DEFAULT_PART} from the shared test data")
     parser.add_argument("--units", default="m")
     parser.add_argument("--spacing-mm", type=float, default=5.0)
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--one", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.part is None:
+        args.part = str(meshes_dir() / DEFAULT_PART)
     if args.one:
         print(json.dumps(run_one(args.part, args.units, args.one, args.spacing_mm)))
         return 0

@@ -138,10 +138,14 @@ def test_joint_values_put_the_gun_where_the_plan_says(reach_plan):
             assert error.max() <= 5.0 + 1e-6
 
 
-def test_every_hull_point_is_assigned_or_reported(testdata):
-    hull = load_part(testdata / "meshes" / "dtc_ship_hull_ascii.stl.gz", units="m")
+def test_every_car_body_point_is_assigned_or_reported(testdata):
+    # a large, whole-body part: half of the BMW body (x > 0: 2.45 x 2.09 x 1.24 m of bonnet or boot, roof,
+    # doors, sills, bumper), too big for one station, with surfaces facing every way
+    from sprayplan.surface.region import select_region
+
+    car = select_region(load_part(testdata / "meshes" / "bmw_m6_body_m_yup.ply", units="m", up="y"), "x > 0")
     job = JobConfig(paths=PathConfig(spacing_mm=150.0, step_mm=60.0))
-    result = plan(hull, job)
+    result = plan(car, job)
     totals = plan_totals(result, job)
     # every waypoint of the sliced strokes is either in a station's strokes or listed as unassigned (a stroke
     # handed from one station to the next repeats the hand-over waypoint, so compare sets)
@@ -152,10 +156,11 @@ def test_every_hull_point_is_assigned_or_reported(testdata):
 
     planned = rows([s.points for st in result.stations for s in st.strokes if s.spray_on])
     unassigned = rows([result.unassigned]) if len(result.unassigned) else set()
-    sliced = rows([s.points for s in plan_paths(hull, job.paths).spray_strokes])
+    sliced = rows([s.points for s in plan_paths(car, job.paths).spray_strokes])
     assert planned | unassigned == sliced and not planned & unassigned
     assert totals["stations"] >= 4
-    # the hull's underside faces down: the hanging robot cannot paint it, and says so waypoint by waypoint
+    # the sills, bumper and lower body face sideways and down: the hanging robot cannot paint all of them,
+    # and says so waypoint by waypoint
     assert 0 < totals["unreachable_waypoints"] < totals["waypoints"]
 
 

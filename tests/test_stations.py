@@ -57,14 +57,46 @@ def test_the_seed_roof_takes_six_stations_and_every_target_is_in_its_circle():
     assert assignment.recommended.mean() > 0.97
 
 
-def test_fewer_circles_are_not_enough_for_the_roof():
-    # independent check of "fewest circles": 5 circles of radius R cannot cover a 2635 x 1959 rectangle's
-    # corners and centre together; count any arrangement from the cover's own search space: with 2 rows the
-    # row height is at least 979.5 mm, so a circle spans at most sqrt((2R)^2 - 979.5^2) = 1075.8 mm along the
-    # length and 2635 mm needs 3 per row; with 1 row the height would exceed 2R
-    assert 1959 / 1 > 2 * R
-    span = math.sqrt((2 * R) ** 2 - (1959 / 2) ** 2)
-    assert math.ceil(2635 / span) == 3
+def fewest_circles_of_the_model(length, width, radius, max_rows=12, steps=4000):
+    """Brute force over the cover's model (figure 16, eq. 30): m rows of height h (m h >= width, h < 2R), each
+    of ceil(length / l) circles with l = sqrt((2R)^2 - h^2); the smallest m * n over m and a fine grid of h."""
+    best = math.inf
+    for rows in range(1, max_rows + 1):
+        for h in np.linspace(width / rows, 2 * radius, steps, endpoint=False):
+            if h <= 0 or h >= 2 * radius:
+                continue
+            best = min(best, rows * math.ceil(length / math.sqrt(4 * radius**2 - h * h) - 1e-9))
+    return best
+
+
+# by hand (R = 727.6, 2R = 1455.2): 1400 x 1000 and 3000 x 500 fit one row (l = 1057.2 and 1366.6 mm: 2 and 3
+# circles); 2000 x 2000 needs 2 rows of h = 1000 (l = 1057.2: 2 each); 4200 x 1500 needs 2 rows of h = 750
+# (l = 1247.0: 4 each; 3 rows of h = 500 would take 3 x 4)
+@pytest.mark.parametrize(
+    "length, width, fewest",
+    [(2635.0, 1959.0, 6), (1400.0, 1000.0, 2), (3000.0, 500.0, 3), (4200.0, 1500.0, 8), (2000.0, 2000.0, 4)],
+)
+def test_fewer_circles_are_not_enough(length, width, fewest):
+    # the roof (2635 x 1959, table 2) by hand: one row cannot span its width, and with 2 rows the row height is
+    # at least 979.5 mm, so a circle spans at most sqrt((2R)^2 - 979.5^2) = 1075.8 mm along the length and
+    # 2635 mm needs 3 per row: 6, not 5
+    if (length, width) == (2635.0, 1959.0):
+        assert width / 1 > 2 * R
+        assert math.ceil(length / math.sqrt((2 * R) ** 2 - (width / 2) ** 2)) == 3
+    assert fewest_circles_of_the_model(length, width, R) == fewest
+    # the library's cover: the fewest circles of its model, no more (a wasteful layout fails here) ...
+    rng = np.random.default_rng(3)
+    corners = np.array([[0.0, 0.0], [length, 0.0], [0.0, width], [length, width]])
+    xy = np.vstack([rng.random((400, 2)) * [length, width], corners]) + [300.0, 200.0]
+    cover = circle_cover(xy, R, CORE)
+    assert len(cover.centres) == cover.rows * cover.per_row == fewest
+    # ... and no fewer: every point of the whole envelope rectangle, not only the targets, lies in some circle
+    rect = cover.rectangle
+    assert rect.length_mm * rect.width_mm == pytest.approx(length * width, rel=1e-6)
+    u, v = np.meshgrid(np.linspace(0, rect.length_mm, 80), np.linspace(0, rect.width_mm, 80))
+    grid = rect.to_world(np.stack([u.ravel(), v.ravel()], axis=1))
+    nearest = np.linalg.norm(grid[:, None, :] - cover.centres[None], axis=2).min(axis=1)
+    assert nearest.max() <= R + 1e-6
 
 
 def test_greedy_assignment_prefers_the_annulus_and_reports_the_unreachable():

@@ -137,14 +137,21 @@ def test_even_sampling_on_a_real_part(testdata):
 # ---------------------------------------------------------------- normals and orientation (section 2.3)
 
 
-def test_scrambled_winding_is_restored_on_the_hull(testdata):
-    hull = load_part(testdata / "meshes" / "dtc_ship_hull_ascii.stl.gz", units="m")
+# closed, non-convex solids: the tray (a 3.175 mm plate with 23 through holes) and featuretype (pockets and
+# bosses); both files are wound outward, as trimesh's positive volume for them says
+CLOSED_SOLIDS = [("tray_bottom_mm_ascii.stl", "mm"), ("featuretype_binary.stl", "in")]
+
+
+@pytest.mark.parametrize("name, units", CLOSED_SOLIDS)
+def test_scrambled_winding_is_restored_on_a_closed_solid(testdata, name, units):
+    solid = load_part(testdata / "meshes" / name, units=units)
+    assert trimesh.Trimesh(solid.vertices, solid.faces, process=False).volume > 0
     rng = np.random.default_rng(0)
-    flip = rng.random(len(hull.faces)) < 0.3
-    scrambled = np.where(flip[:, None], hull.faces[:, ::-1], hull.faces)
-    faces, normals = nm.outward_face_normals(hull.vertices, scrambled)
-    np.testing.assert_array_equal(normals, nm.face_normals(hull.vertices, hull.faces))
-    assert trimesh.Trimesh(hull.vertices, faces, process=False).volume > 0
+    flip = rng.random(len(solid.faces)) < 0.3
+    scrambled = np.where(flip[:, None], solid.faces[:, ::-1], solid.faces)
+    faces, normals = nm.outward_face_normals(solid.vertices, scrambled)
+    np.testing.assert_array_equal(normals, nm.face_normals(solid.vertices, solid.faces))
+    assert trimesh.Trimesh(solid.vertices, faces, process=False).volume > 0
 
 
 def test_scrambled_open_sheet_faces_up():
@@ -154,29 +161,32 @@ def test_scrambled_open_sheet_faces_up():
     assert (normals[:, 2] > 0).all()
 
 
-def test_every_hull_target_normal_is_its_outward_face_normal(testdata):
+def test_every_closed_solid_target_normal_is_its_outward_face_normal(testdata):
     # a closed manifold whose faces are consistently wound (every edge traversed once each way) and whose
     # signed volume is positive has every face normal pointing out: check both for all faces, then that
-    # every target takes its face's normal
-    hull = load_part(testdata / "meshes" / "dtc_ship_hull_ascii.stl.gz", units="m")
-    faces, face_n = nm.outward_face_normals(hull.vertices, hull.faces)
+    # every target takes its face's normal (the tray: a closed manifold of genus 23 as loaded)
+    tray = load_part(testdata / "meshes" / "tray_bottom_mm_ascii.stl")
+    faces, face_n = nm.outward_face_normals(tray.vertices, tray.faces)
     directed = np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2)
     forward = {tuple(e) for e in directed.tolist()}
     assert len(forward) == len(directed)
     assert all((b, a) in forward for a, b in forward)
-    assert trimesh.Trimesh(hull.vertices, faces, process=False).volume > 0
-    targets = make_targets(hull, TargetsConfig(spacing_mm=20.0))
+    assert trimesh.Trimesh(tray.vertices, faces, process=False).volume > 0
+    targets = make_targets(tray, TargetsConfig(spacing_mm=5.0))
+    assert len(targets) > 3000
     np.testing.assert_array_equal(targets.normals, face_n[targets.face_index])
 
 
-def test_hull_targets_point_out_of_the_solid(testdata):
-    hull = load_part(testdata / "meshes" / "dtc_ship_hull_ascii.stl.gz", units="m")
-    targets = make_targets(hull, TargetsConfig(spacing_mm=40.0))
+@pytest.mark.parametrize("name, units", CLOSED_SOLIDS)
+def test_closed_solid_targets_point_out_of_the_solid(testdata, name, units):
+    solid = load_part(testdata / "meshes" / name, units=units)
+    targets = make_targets(solid, TargetsConfig(spacing_mm=5.0))
     pick = np.random.default_rng(2).choice(len(targets), 160, replace=False)
     p, n = targets.points[pick], targets.normals[pick]
-    eps = 0.5  # mm; the hull is 6 m long, its thinnest parts are tens of mm thick
-    outside = winding_number(p + eps * n, hull.triangles)
-    inside = winding_number(p - eps * n, hull.triangles)
+    # 0.5 mm: well inside the tray's 3.175 mm plate; an offset through a wall would fail the test, not pass it
+    eps = 0.5
+    outside = winding_number(p + eps * n, solid.triangles)
+    inside = winding_number(p - eps * n, solid.triangles)
     np.testing.assert_allclose(outside, 0.0, atol=1e-6)
     np.testing.assert_allclose(inside, 1.0, atol=1e-6)
 
