@@ -104,3 +104,27 @@ def test_the_command_line_names_the_stage_in_one_line(testdata, tmp_path, capsys
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and err.startswith("sprayplan: error: region: ")
     assert not (tmp_path / "out" / "plan.json").exists()
+
+
+def test_every_stage_result_is_frozen_and_read_only(both_routes):
+    import dataclasses
+
+    *_, result, _ = both_routes
+    arrays = [
+        result.part.vertices,
+        result.strokes[0].points,
+        result.layout.platform_mm,
+        result.layout.unassigned,
+        result.plan.stations[0].q9,
+        result.plan.stations[0].method,
+        result.plan.stations[0].reachable,
+        result.plan.home_mm,
+        result.film.thickness_mm,
+        result.film.points,
+    ]
+    for array in arrays:
+        with pytest.raises(ValueError, match="read-only"):
+            array[0] = array[0]
+    for frozen in (result, result.layout, result.ordered, result.plan, result.plan.stations[0], result.film):
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            frozen.name = "changed"  # type: ignore[misc]

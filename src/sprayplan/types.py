@@ -22,6 +22,15 @@ def _frozen(array, dtype, shape_tail: tuple[int, ...], name: str) -> np.ndarray:
     return out
 
 
+def read_only(result) -> None:
+    """Make every numpy array field of a frozen dataclass read-only (in place, without a copy): for the
+    stage results that are built from arrays their stage owns (film, samples, tuning, joints)."""
+    for name in getattr(result, "__dataclass_fields__", {}):
+        value = getattr(result, name)
+        if isinstance(value, np.ndarray):
+            value.flags.writeable = False
+
+
 @dataclass(frozen=True)
 class Part:
     """A part in the part frame, in mm, z up.

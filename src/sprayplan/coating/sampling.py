@@ -17,7 +17,7 @@ from sprayplan.coating.process import Process, StrokeOverride
 from sprayplan.errors import ConfigError, InputError
 from sprayplan.paths.speed import segment_speeds
 from sprayplan.surface import normals as nm
-from sprayplan.types import Part, Paths, Targets
+from sprayplan.types import Part, Paths, Targets, read_only
 
 
 @dataclass(frozen=True)
@@ -39,6 +39,9 @@ class SurfaceSamples:
     normals: np.ndarray
     area_mm2: np.ndarray
     faces: np.ndarray
+
+    def __post_init__(self):
+        read_only(self)
 
 
 @dataclass(frozen=True)

@@ -58,7 +58,7 @@ from sprayplan.coating.process import Process, StrokeOverride
 from sprayplan.coating.sampling import GunSamples, SurfaceSamples, gun_samples, surface_samples
 from sprayplan.errors import ConfigError
 from sprayplan.surface import normals as nm
-from sprayplan.types import Part, Paths, Targets
+from sprayplan.types import Part, Paths, Targets, read_only
 
 log = logging.getLogger(__name__)
 
@@ -160,6 +160,9 @@ class CoatingResult:
     stroke_deposit_mm3: np.ndarray
     process: Process
     name: str = ""
+
+    def __post_init__(self):
+        read_only(self)
 
     @property
     def thickness_um(self) -> np.ndarray:

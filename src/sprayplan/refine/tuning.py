@@ -41,7 +41,7 @@ from sprayplan.coating.sampling import SurfaceSamples, gun_samples
 from sprayplan.coating.thickness import CoatingConfig, CoatingResult, deposit_matrix
 from sprayplan.config import MIN_DWELL
 from sprayplan.errors import ConfigError
-from sprayplan.types import Part, Paths
+from sprayplan.types import Part, Paths, read_only
 
 log = logging.getLogger(__name__)
 
@@ -125,6 +125,9 @@ class Tuning:
     tuned: np.ndarray
     samples: SurfaceSamples
     deposit_mm: sparse.csr_matrix
+
+    def __post_init__(self):
+        read_only(self)
 
     def summary(self, target_um: float, tolerance_um: float) -> dict:
         """Area-weighted std / mean and share in spec of the tuned samples, before and after; the range of

@@ -33,6 +33,7 @@ from scipy.optimize import minimize
 
 from sprayplan.errors import ConfigError
 from sprayplan.robots.model import RobotModel, fk, load_robot
+from sprayplan.types import read_only
 
 log = logging.getLogger(__name__)
 
@@ -399,6 +400,9 @@ class GantryPath:
     branch: np.ndarray
     branch_change: np.ndarray
     jump: np.ndarray
+
+    def __post_init__(self):
+        read_only(self)
 
 
 def solve_gantry_path(

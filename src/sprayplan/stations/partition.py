@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sprayplan.errors import ConfigError, InputError
+from sprayplan.types import read_only
 
 
 def principal_angle(xy: np.ndarray) -> float:
@@ -258,6 +259,9 @@ class StationAssignment:
 
     station: np.ndarray
     recommended: np.ndarray
+
+    def __post_init__(self):
+        read_only(self)
 
 
 def assign_greedy(
