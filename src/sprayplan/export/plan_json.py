@@ -1,4 +1,5 @@
-"""plan.json and waypoints.csv: the main job's output (schema in docs/plan-json.md)."""
+"""plan.json and waypoints.csv: the main job's output (schema in docs/plan-json.md; read back by
+``export.plan_read``)."""
 
 from __future__ import annotations
 
@@ -114,7 +115,9 @@ def plan_to_dict(plan, job, totals: dict, part_file: str | None = None, film: di
                     "dwell": _floats(s.dwell),
                 }
             )
-        stations.append({"order": place, "station": st.index, "platform_mm": _floats(st.platform_mm), "strokes": strokes})
+        stations.append(
+            {"order": place, "station": st.index, "platform_mm": _floats(st.platform_mm), "strokes": strokes}
+        )
     return {
         "format": FORMAT,
         "version": VERSION,
@@ -185,23 +188,3 @@ def write_waypoints_csv(path, plan, job) -> None:
                     )
                     handle.write(",".join(cells) + "\n")
                 start += n
-
-
-# Reading: plan_read.py (re-exported here).
-from sprayplan.export.plan_read import PlanFile, plan_file_from_dict, plan_from_dict, read_plan, read_plan_file  # noqa: E402
-
-__all__ = [
-    "FORMAT",
-    "VERSION",
-    "READS",
-    "PlanFile",
-    "film_summary",
-    "plan_file_from_dict",
-    "plan_from_dict",
-    "plan_to_dict",
-    "read_plan",
-    "read_plan_file",
-    "tip_speeds",
-    "write_plan",
-    "write_waypoints_csv",
-]

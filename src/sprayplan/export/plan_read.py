@@ -15,6 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from sprayplan.errors import ConfigError, PartFileError
+from sprayplan.export.files import read_json_file
+from sprayplan.export.plan_json import FORMAT, READS
 from sprayplan.types import Plan, StationPlan, Stroke
 
 _MISSING = object()
@@ -46,9 +48,6 @@ class PlanFile:
 
 def read_plan(path) -> dict:
     """Read a plan.json (as a dict), checking its format and version (``plan_json.READS``)."""
-    from sprayplan.export.files import read_json_file
-    from sprayplan.export.plan_json import FORMAT, READS
-
     return read_json_file(path, FORMAT, "plan", READS)
 
 
@@ -80,9 +79,7 @@ def plan_file_from_dict(data: dict, name: str = "plan.json") -> PlanFile:
         job = job_from_dict(r.get(data, "settings", dict))
     except (ConfigError, TypeError, ValueError) as exc:
         raise PartFileError(name, f"settings: {exc}") from None
-    stations = tuple(
-        _station(r, st, f"stations[{i}]") for i, st in enumerate(r.get(data, "stations", list))
-    )
+    stations = tuple(_station(r, st, f"stations[{i}]") for i, st in enumerate(r.get(data, "stations", list)))
     home = r.floats(r.get(data, "home_mm", list), "home_mm", (), length=3)
     unassigned = r.floats(r.get(data, "unassigned_points", list), "unassigned_points", (3,))
     plan = r.build(Plan, "", stations, home, unassigned, r.get(data, "part", str))
