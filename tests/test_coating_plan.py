@@ -67,14 +67,34 @@ def test_film_files_are_written_and_agree(planned):
     assert table[:, 3].min() >= 0.0
 
 
+def _numbers(value, where=""):
+    """Every leaf of a JSON value by its path."""
+    if isinstance(value, dict):
+        return {k: v for key, item in value.items() for k, v in _numbers(item, f"{where}.{key}").items()}
+    if isinstance(value, list):
+        return {k: v for i, item in enumerate(value) for k, v in _numbers(item, f"{where}[{i}]").items()}
+    return {where: value}
+
+
 def test_simulate_reproduces_the_plans_film(planned, capsys):
     before = json.loads((planned / "coating.json").read_text())
     assert main(["simulate", str(planned), "--samples", "420"]) == 0
     assert "film: mean" in capsys.readouterr().out
     after = json.loads((planned / "coating.json").read_text())
-    # the same film from the plan read back, up to plan.json's rounding (0.1 um positions, 1e-7 normals)
-    assert after["painted"]["mean_um"] == pytest.approx(before["painted"]["mean_um"], rel=1e-4)
-    assert after["painted"]["cv"] == pytest.approx(before["painted"]["cv"], rel=1e-4)
+    # the plan reads back bit for bit (tests/test_plan_files.py), so the same plan is simulated: the same
+    # report, key for key; what does not depend on the film's thickness (the spec, the samples and their areas,
+    # the measuring points, stroke times, flows and wet paint) is identical
+    before.pop("chosen")  # the film target's choice, known to the planning run only
+    before, after = _numbers(before), _numbers(after)
+    assert list(before) == list(after)
+    film = ("_um", ".cv", "share_in_spec", "share_below", "share_above", "deposit_ml", "_on_part_ml", "on_part")
+    same = [k for k in before if k.startswith(".spec") or not k.endswith(film)]
+    assert len(same) > 200 and {k: before[k] for k in same} == {k: after[k] for k in same}
+    # the thickness differs in the last digits only: the planning run's film is the tuning's deposit matrix
+    # times the time factors (refine.tuning.tuned_film), simulate's is accumulated gun step by gun step
+    # (coating.thickness.simulate), the same sums in another order (measured: at most 5e-8 relative)
+    for key in set(before) - set(same):
+        assert after[key] == pytest.approx(before[key], rel=1e-7, abs=0.0), key
 
 
 def test_simulate_without_a_plan_fails_cleanly(tmp_path, capsys):

@@ -116,9 +116,34 @@ def test_waypoints_csv_matches_plan(reach_plan):
     out, data = reach_plan
     table = np.genfromtxt(out / "waypoints.csv", delimiter=",", names=True)
     assert len(table) == data["totals"]["waypoints"]
-    first = data["stations"][0]["strokes"][0]
-    # plan.json rounds positions to 0.1 um (4 decimals), waypoints.csv keeps 10 significant digits
-    np.testing.assert_allclose([table["x"][0], table["y"][0], table["z"][0]], first["tcp"][0], atol=5e-5)
+    number = lambda values: np.array([np.nan if v is None else v for v in values], float)
+    rows = [
+        (place, i, k, s)
+        for place, st in enumerate(data["stations"])
+        for i, s in enumerate(st["strokes"])
+        for k in range(len(s["tcp"]))
+    ]
+    assert [tuple(r[:3]) for r in rows] == list(zip(table["station"], table["stroke"], table["waypoint"]))
+    assert (table["spray_on"] == [s["spray_on"] for *_, s in rows]).all()
+    assert (table["reachable"] == [s["reachable"][k] for _, _, k, s in rows]).all()
+    # plan.json keeps every float; waypoints.csv 10 significant digits (6 for the errors and speeds)
+    for names, key, digits in (
+        (("x", "y", "z"), "tcp", 10),
+        (("ax", "ay", "az"), "tool_axis", 10),
+        (("q1", "q2", "q3", "q4", "q5", "q6", "tx", "ty", "tz"), "joints", 10),
+    ):
+        wanted = np.array([s[key][k] for _, _, k, s in rows], float)
+        if key == "joints":
+            wanted[table["reachable"] != 1] = np.nan  # empty cells where unreachable
+        got = np.column_stack([table[n] for n in names])
+        np.testing.assert_allclose(got, wanted, rtol=10.0 ** (1 - digits), atol=1e-12)
+    for name, key in (
+        ("position_error_mm", "position_error_mm"),
+        ("axis_error_deg", "axis_error_deg"),
+        ("speed_mm_s", "tcp_speed_mm_s"),
+    ):
+        wanted = number([s[key][k] for _, _, k, s in rows])
+        np.testing.assert_allclose(table[name], wanted, rtol=1e-5, atol=1e-12)
     reachable = table["reachable"] == 1
     assert np.isnan(table["q1"][~reachable]).all() and np.isfinite(table["q1"][reachable]).all()
 

@@ -86,17 +86,17 @@ def _coating_line(report: dict, outdir) -> str:
 def cmd_simulate(args) -> int:
     from sprayplan.coating.stage import simulate_plan
     from sprayplan.export.film import film_report, write_coating
-    from sprayplan.export.plan_json import plan_from_dict, read_plan
+    from sprayplan.export.plan_read import read_plan_file
     from sprayplan.io.load import load_part
     from sprayplan.surface.region import select_region
 
     outdir = Path(args.outdir)
-    data = read_plan(outdir / "plan.json")
-    result, job = plan_from_dict(data)
+    read = read_plan_file(outdir / "plan.json")  # checked whole before anything is written
+    result, job = read.plan, read.job
     if args.thickness_um is not None or args.tolerance_um is not None:
         changes = {k: getattr(args, k) for k in ("thickness_um", "tolerance_um") if getattr(args, k) is not None}
         job = job.replace(coating=changes)
-    part_file = args.part or data.get("part_file")
+    part_file = args.part or read.part_file
     if not part_file:
         raise ConfigError("plan.json does not name its part file: give it with --part")
     part = select_region(load_part(part_file, units=job.load.units, up=job.load.up), job.load.region)

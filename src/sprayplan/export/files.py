@@ -46,13 +46,14 @@ def read_targets_csv(path: str | os.PathLike) -> Targets:
     return Targets(table[:, :3], table[:, 3:6])
 
 
-def read_json_file(path: str | os.PathLike, fmt: str, what: str) -> dict:
-    """Read a sprayplan JSON file and check its ``"format"``.
+def read_json_file(path: str | os.PathLike, fmt: str, what: str, versions: tuple[int, ...] | None = None) -> dict:
+    """Read a sprayplan JSON file and check its ``"format"`` (and its ``"version"`` when ``versions`` is given).
 
     Raises
     ------
     PartFileError
-        When the file is missing, not JSON, or not of that format (``what`` names it in the message).
+        When the file is missing, not JSON, not of that format, or of a version not in ``versions`` (``what``
+        names it in the message, which lists the versions read).
     """
     import json
 
@@ -64,6 +65,12 @@ def read_json_file(path: str | os.PathLike, fmt: str, what: str) -> dict:
         raise PartFileError(name, "no such file") from None
     except (OSError, ValueError) as exc:
         raise PartFileError(name, f"not a readable JSON file ({exc})") from None
+    reads = "" if versions is None else f", version {' or '.join(map(str, versions))}"
     if not isinstance(data, dict) or data.get("format") != fmt:
-        raise PartFileError(name, f'not a sprayplan {what} file (expected "format": "{fmt}")')
+        raise PartFileError(name, f'not a sprayplan {what} file (expected "format": "{fmt}"{reads})')
+    version = data.get("version")
+    if versions is not None and not (type(version) is int and version in versions):
+        raise PartFileError(
+            name, f"{what} file version {version!r}: this sprayplan reads version {' or '.join(map(str, versions))}"
+        )
     return data

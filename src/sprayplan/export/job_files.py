@@ -1,4 +1,5 @@
-"""The files of a finished job: plan.json and waypoints.csv, and the film files when the plan has a film."""
+"""The files of a finished job: plan.json and waypoints.csv, and the film files when the plan has a film (whose
+summary plan.json keeps)."""
 
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ def write_job(outdir, result) -> list[str]:
     report = None
     if result.film is not None:  # computed before any file is written: a failure leaves nothing behind
         report = film_report(result.film, job, job.output.samples, result.chosen)
-    written = write_plan(outdir, result.plan, job, result.totals, result.part_file)
+    written = write_plan(outdir, result.plan, job, result.totals, result.part_file, report)
     if report is not None:
         written += write_coating(outdir, result.film, job, report)
     return written

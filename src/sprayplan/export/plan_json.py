@@ -1,4 +1,5 @@
-"""plan.json and waypoints.csv: the main job's output (schema in docs/plan-json.md)."""
+"""plan.json and waypoints.csv: the main job's output (schema in docs/plan-json.md; read back by
+``export.plan_read``)."""
 
 from __future__ import annotations
 
@@ -8,32 +9,57 @@ import os
 import numpy as np
 
 from sprayplan import __version__
-from sprayplan.config import job_from_dict, job_to_dict
-from sprayplan.export.files import atomic_output, read_json_file
+from sprayplan.config import job_to_dict
+from sprayplan.export.files import atomic_output
 from sprayplan.paths.speed import waypoint_speeds
 
 FORMAT = "sprayplan.plan"
-VERSION = 1
+#: 2: the settings by stage (``config.job_to_dict``) instead of one [plan] table; floats at full precision;
+#: every field of the Plan (``q9`` of unreachable waypoints included) and a ``film`` summary.
+VERSION = 2
+#: The versions :func:`read_plan` reads.
+READS = (2,)
+
+JOINTS = ["q1", "q2", "q3", "q4", "q5", "q6", "tx", "ty", "tz"]
 
 
 def _clean(value):
-    """JSON-ready: tuples to lists, NaN to None."""
+    """JSON-ready: tuples to lists, numpy scalars to Python ones, NaN and inf to None."""
     if isinstance(value, dict):
         return {k: _clean(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
         return [_clean(v) for v in value]
-    if isinstance(value, float) and not np.isfinite(value):
-        return None
+    if isinstance(value, np.ndarray):
+        return _clean(value.tolist())
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if np.isfinite(value) else None
     return value
 
 
-def _round(array, digits):
-    """Rounded nested lists, with None for NaN."""
-    rounded = np.round(np.asarray(array, dtype=float), digits)
-    missing = ~np.isfinite(rounded)
-    if not missing.any():
-        return rounded.tolist()
-    return np.where(missing, None, rounded.astype(object)).tolist()
+def _floats(array):
+    """Nested lists of Python floats at full precision (``json`` writes their repr, which reads back to the same
+    bits), with None for NaN and inf."""
+    array = np.asarray(array, dtype=np.float64)
+    finite = np.isfinite(array)
+    if finite.all():
+        return array.tolist()
+    return np.where(finite, array.astype(object), None).tolist()
+
+
+def film_summary(report: dict) -> dict:
+    """The compact form of a film report (``export.film.film_report``) kept in plan.json: the process, the spec,
+    the statistics of the painted and of all samples (and the interior and measuring points when reported,
+    without the points' indices) and the paint totals; not the per-stroke table."""
+    out = {}
+    for key in ("process", "spec", "painted", "all", "interior", "measuring_points", "paint"):
+        if key in report:
+            value = report[key]
+            out[key] = {k: v for k, v in value.items() if k != "indices"} if isinstance(value, dict) else value
+    return _clean(out)
 
 
 def tip_speeds(stroke, job) -> np.ndarray:
@@ -51,8 +77,12 @@ def tip_speeds(stroke, job) -> np.ndarray:
     )
 
 
-def plan_to_dict(plan, job, totals: dict, part_file: str | None = None) -> dict:
-    """The JSON-ready form of a plan."""
+def plan_to_dict(plan, job, totals: dict, part_file: str | None = None, film: dict | None = None) -> dict:
+    """The JSON-ready form of a plan: everything :func:`plan_file_from_dict` reads back, and the derived keys a
+    robot program wants (``tool_axis``, ``flow_ml_min``, ``speed_mm_s``, ``tcp_speed_mm_s``).
+
+    ``film`` is the film report (``export.film.film_report``) or a summary of one (:func:`film_summary`).
+    """
     from sprayplan.coating import load_preset
 
     flow = float(load_preset(job.coating.process).flow_ml_min)
@@ -68,25 +98,25 @@ def plan_to_dict(plan, job, totals: dict, part_file: str | None = None) -> dict:
                     "spray_on": s.spray_on,
                     "kind": s.kind,
                     "layer": s.layer,
-                    "tcp": _round(s.tcp, 4),
-                    "tool_axis": _round(-s.normals, 7),
-                    "points": _round(s.points, 4),
-                    "normals": _round(s.normals, 7),
+                    "tcp": _floats(s.tcp),
+                    "tool_axis": _floats(-s.normals),
+                    "points": _floats(s.points),
+                    "normals": _floats(s.normals),
                     "on_part": s.on_part.tolist(),
-                    "joints": _round(st.q9[sl], 7),
+                    "joints": _floats(st.q9[sl]),
                     "reachable": st.reachable[sl].tolist(),
                     "method": st.method[sl].tolist(),
-                    "position_error_mm": _round(st.position_error_mm[sl], 6),
-                    "axis_error_deg": _round(st.axis_error_deg[sl], 6),
+                    "position_error_mm": _floats(st.position_error_mm[sl]),
+                    "axis_error_deg": _floats(st.axis_error_deg[sl]),
                     "branch_change": st.branch_change[sl].tolist(),
                     "flow_ml_min": flow if s.spray_on else 0.0,
                     "speed_mm_s": job.motion.gun_speed_mm_s if s.spray_on else job.motion.transfer_speed_mm_s,
-                    "tcp_speed_mm_s": _round(tip_speeds(s, job), 3),
-                    "dwell": _round(s.dwell, 6),
+                    "tcp_speed_mm_s": _floats(tip_speeds(s, job)),
+                    "dwell": _floats(s.dwell),
                 }
             )
         stations.append(
-            {"order": place, "station": st.index, "platform_mm": _round(st.platform_mm, 3), "strokes": strokes}
+            {"order": place, "station": st.index, "platform_mm": _floats(st.platform_mm), "strokes": strokes}
         )
     return {
         "format": FORMAT,
@@ -96,28 +126,36 @@ def plan_to_dict(plan, job, totals: dict, part_file: str | None = None) -> dict:
         "part": plan.name,
         "part_file": part_file,
         "settings": _clean(job_to_dict(job)),
-        "joints": ["q1", "q2", "q3", "q4", "q5", "q6", "tx", "ty", "tz"],
-        "home_mm": _round(plan.home_mm, 3),
+        "joints": list(JOINTS),
+        "home_mm": _floats(plan.home_mm),
         "stations": stations,
-        "unassigned_points": _round(plan.unassigned, 4) if len(plan.unassigned) else [],
+        "unassigned_points": _floats(plan.unassigned),
         "totals": _clean(totals),
+        "film": None if film is None else film_summary(film),
     }
 
 
-def write_plan(outdir, plan, job, totals: dict, part_file: str | None = None) -> list[str]:
+def write_plan(outdir, plan, job, totals: dict, part_file: str | None = None, film: dict | None = None) -> list[str]:
     """Write OUTDIR/plan.json and OUTDIR/waypoints.csv (atomically); returns the paths written.
 
-    ``part_file`` (the part's file, made absolute) lets ``sprayplan simulate OUTDIR`` load the part again.
+    ``part_file`` (the part's file, made absolute) lets ``sprayplan simulate OUTDIR`` load the part again;
+    ``film`` (the film report or its summary) is kept in plan.json as a summary.
     """
     outdir = os.fspath(outdir)
-    data = plan_to_dict(plan, job, totals, None if part_file is None else os.path.abspath(part_file))
+    data = plan_to_dict(plan, job, totals, None if part_file is None else os.path.abspath(part_file), film)
     plan_path = os.path.join(outdir, "plan.json")
     with atomic_output(plan_path, "w", encoding="utf-8") as handle:
-        json.dump(data, handle, separators=(",", ":"))
+        json.dump(data, handle, separators=(",", ":"), allow_nan=False)
         handle.write("\n")
     csv_path = os.path.join(outdir, "waypoints.csv")
+    write_waypoints_csv(csv_path, plan, job)
+    return [plan_path, csv_path]
+
+
+def write_waypoints_csv(path, plan, job) -> None:
+    """Write waypoints.csv: one row per waypoint, for people (docs/plan-json.md)."""
     header = "station,stroke,waypoint,spray_on,x,y,z,ax,ay,az,q1,q2,q3,q4,q5,q6,tx,ty,tz,reachable,position_error_mm,axis_error_deg,speed_mm_s\n"
-    with atomic_output(csv_path, "w", newline="") as handle:
+    with atomic_output(path, "w", newline="") as handle:
         handle.write(header)
         for place, st in enumerate(plan.stations):
             start = 0
@@ -150,61 +188,3 @@ def write_plan(outdir, plan, job, totals: dict, part_file: str | None = None) ->
                     )
                     handle.write(",".join(cells) + "\n")
                 start += n
-    return [plan_path, csv_path]
-
-
-def read_plan(path) -> dict:
-    """Read a plan.json (as a dict), checking its format."""
-    return read_json_file(path, FORMAT, "plan")
-
-
-def plan_from_dict(data: dict):
-    """The Plan and JobConfig of a plan.json read with :func:`read_plan` (enough to simulate its film)."""
-    from sprayplan.types import Plan, StationPlan, Stroke
-
-    job = job_from_dict(data["settings"])
-    stations = []
-    for st in data["stations"]:
-        strokes = []
-        fields = {
-            k: [] for k in ("joints", "reachable", "method", "position_error_mm", "axis_error_deg", "branch_change")
-        }
-        for s in st["strokes"]:
-            strokes.append(
-                Stroke(
-                    np.array(s["points"], float),
-                    np.array(s["normals"], float),
-                    np.array(s["tcp"], float),
-                    bool(s["spray_on"]),
-                    np.array(s["on_part"], bool),
-                    int(s["layer"]),
-                    np.array(s["dwell"], float) if "dwell" in s else None,
-                    s.get("kind", ""),
-                )
-            )
-            for key, values in fields.items():
-                values += s[key]
-        n = len(fields["joints"])
-        stations.append(
-            StationPlan(
-                int(st["station"]),
-                np.array(st["platform_mm"], float),
-                tuple(strokes),
-                np.array(
-                    [[np.nan] * 9 if q is None else [np.nan if v is None else v for v in q] for q in fields["joints"]],
-                    float,
-                ).reshape(n, 9),
-                np.array(fields["reachable"], bool),
-                np.array(fields["method"], object),
-                _numbers(fields["position_error_mm"]),
-                _numbers(fields["axis_error_deg"]),
-                np.array(fields["branch_change"], bool),
-            )
-        )
-    unassigned = np.array(data.get("unassigned_points") or np.zeros((0, 3)), float).reshape(-1, 3)
-    return Plan(tuple(stations), np.array(data["home_mm"], float), unassigned, data.get("part", "")), job
-
-
-def _numbers(values) -> np.ndarray:
-    """A float array from JSON numbers, None read as NaN."""
-    return np.array([np.nan if v is None else v for v in values], float)
