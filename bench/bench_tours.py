@@ -35,10 +35,10 @@ try:
 except ImportError:
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
+from _data import testdata_dir  # bench/ is on sys.path when run as a script
+
 from sprayplan.ordering import GA_SEED, GAParams, default_time_limit, ga_tour, read_tsplib, solve_tour, tour_length
 from sprayplan.ordering.backends import fast_tsp_available
-
-from _data import testdata_dir  # bench/ is on sys.path when run as a script
 
 COMMAND = "python bench/bench_tours.py"
 INSTANCES = ["berlin52", "kroA100", "ch150", "a280", "pcb442", "pr1002"]

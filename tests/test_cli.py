@@ -9,7 +9,7 @@ import pytest
 
 from sprayplan import __version__
 from sprayplan.cli import main
-from sprayplan.io.stl import write_stl_binary
+from sprayplan.export.stl import write_stl_binary
 
 
 def run(capsys, *argv):

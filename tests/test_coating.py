@@ -32,12 +32,11 @@ from sprayplan.coating import (
     shot_thickness,
     simulate,
     simulate_droplets,
-    write_thickness_csv,
-    write_thickness_ply,
 )
 from sprayplan.coating.droplet import acceleration, integrate
 from sprayplan.config import PathConfig
 from sprayplan.errors import ConfigError, InputError
+from sprayplan.export.film import write_thickness_csv, write_thickness_ply
 from sprayplan.io.load import load_part
 from sprayplan.paths.planner import plan_paths
 from sprayplan.types import Part, Paths, Stroke, Targets

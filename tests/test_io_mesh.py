@@ -12,8 +12,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from sprayplan.errors import ConfigError, PartFileError
+from sprayplan.export.stl import write_stl_binary
 from sprayplan.io.load import load_part
-from sprayplan.io.stl import parse_stl, write_stl_binary
+from sprayplan.io.stl import parse_stl
 
 # (file, units, triangles in the file (tests/data/MANIFEST.md), largest side in mm after conversion)
 MESHES = [

@@ -11,6 +11,7 @@ import pytest
 from scipy.optimize import least_squares
 
 from sprayplan.errors import PartFileError
+from sprayplan.export.tables import write_table_csv
 from sprayplan.paths.ruled import (
     Arc,
     Line,
@@ -21,7 +22,6 @@ from sprayplan.paths.ruled import (
     RuledSurface,
     cartesian_table,
     ruled_paths,
-    write_table_csv,
 )
 from sprayplan.paths.ruled_toml import load_ruled
 from sprayplan.robots.r5150 import table4_joints, table4_points

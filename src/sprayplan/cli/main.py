@@ -129,7 +129,7 @@ def cmd_demo(args) -> int:
     from sprayplan.config import JobConfig, TargetsConfig
     from sprayplan.demo import DEMO_REGION, car_roof
     from sprayplan.export.files import atomic_output
-    from sprayplan.io.stl import write_stl_binary
+    from sprayplan.export.stl import write_stl_binary
 
     out = Path(args.output)
     roof = car_roof()
@@ -185,7 +185,8 @@ def cmd_paths(args) -> int:
     start = time.perf_counter()
     output = Path(args.output)
     if args.ruled:
-        from sprayplan.paths.ruled import ruled_paths, write_table_csv
+        from sprayplan.export.tables import write_table_csv
+        from sprayplan.paths.ruled import ruled_paths
         from sprayplan.paths.ruled_toml import load_ruled
 
         if args.part:

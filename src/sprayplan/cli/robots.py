@@ -1,4 +1,4 @@
-"""The robot commands of the command line: ``sprayplan fk`` and ``sprayplan ik`` (see ``cli.py``)."""
+"""The robot commands of the command line: ``sprayplan fk`` and ``sprayplan ik`` (see ``cli.main``)."""
 
 from __future__ import annotations
 
@@ -20,7 +20,8 @@ def _tool_offset(args, robot):
 
 
 def cmd_fk(args) -> int:
-    from sprayplan.robots.csvio import POSE_COLUMNS, pose_rows, read_joints, write_table
+    from sprayplan.export.tables import pose_rows, write_table
+    from sprayplan.io.tables import POSE_COLUMNS, read_joints
     from sprayplan.robots.model import fk
 
     robot = _robot(args.robot)
@@ -61,7 +62,8 @@ def _r5150_ik(robot, poses):
 def cmd_ik(args) -> int:
     import numpy as np
 
-    from sprayplan.robots.csvio import read_poses, write_table
+    from sprayplan.export.tables import write_table
+    from sprayplan.io.tables import read_poses
 
     if args.robot == "gantry-ur5":
         return _ik_gantry(args)
@@ -116,7 +118,7 @@ def _ik_gantry(args) -> int:
     import numpy as np
 
     from sprayplan.export.paths_json import read_paths_json
-    from sprayplan.robots.csvio import write_table
+    from sprayplan.export.tables import write_table
     from sprayplan.robots.gantry import build_gantry, solve_gantry_path
     from sprayplan.surface.poses import stroke_poses
 

@@ -1,7 +1,7 @@
 """The ``coating`` stage: spray patterns, film thickness from a plan, reports, spacing, and the droplet model.
 
 Modules: ``patterns`` (deposition models), ``process`` (process parameters and TOML presets), ``thickness``
-(film on a part from a plan, with ``sampling`` and ``occlusion``), ``report`` (statistics against a spec, CSV / PLY output),
+(film on a part from a plan, with ``sampling`` and ``occlusion``), ``report`` (statistics against a spec),
 ``spacing`` (stroke spacing and gun speed for a target), ``fitting`` (patterns from measurements or
 simulations), ``droplet`` (electrostatic rotary-bell droplets, seed 003 section 4).
 """
@@ -29,9 +29,6 @@ from sprayplan.coating.process import (
 from sprayplan.coating.report import (
     boundary_distance,
     coating_report,
-    thickness_colours,
-    write_thickness_csv,
-    write_thickness_ply,
 )
 from sprayplan.coating.sampling import GunSamples, SurfaceSamples, gun_samples, surface_samples
 from sprayplan.coating.spacing import (
@@ -91,7 +88,4 @@ __all__ = [
     "simulate_droplets",
     "speed_for_target",
     "surface_samples",
-    "thickness_colours",
-    "write_thickness_csv",
-    "write_thickness_ply",
 ]

@@ -7,7 +7,9 @@ import os
 
 import numpy as np
 
+from sprayplan.coating.thickness import CoatingResult
 from sprayplan.config import JobConfig
+from sprayplan.export.files import atomic_output
 
 
 def film_report(result, job: JobConfig, samples: int | None = None, chosen: dict | None = None) -> dict:
@@ -25,9 +27,6 @@ def film_report(result, job: JobConfig, samples: int | None = None, chosen: dict
 def write_coating(outdir, result, job: JobConfig, report: dict) -> list[str]:
     """Write OUTDIR/thickness.ply, thickness.csv and coating.json (the report, :func:`film_report`); returns
     the paths written."""
-    from sprayplan.coating.report import write_thickness_csv, write_thickness_ply
-    from sprayplan.export.files import atomic_output
-
     target = job.coating.thickness_um if job.coating.thickness_um is not None else 50.0
     outdir = os.fspath(outdir)
     paths = [os.path.join(outdir, name) for name in ("thickness.ply", "thickness.csv", "coating.json")]
@@ -51,3 +50,83 @@ def _finite(value):
     if isinstance(value, np.ndarray):
         return _finite(value.tolist())
     return value
+
+
+def write_thickness_csv(path: str | os.PathLike, result: CoatingResult) -> None:
+    """Write ``x,y,z,thickness_um`` (mm, um), one row per surface sample."""
+    table = np.column_stack([result.points, result.thickness_um])
+    with atomic_output(path, "w", newline="") as handle:
+        handle.write("x,y,z,thickness_um\n")
+        np.savetxt(handle, table, fmt=["%.6f", "%.6f", "%.6f", "%.4f"], delimiter=",")
+
+
+def thickness_colours(thickness_um: np.ndarray, target_um: float = 50.0, tolerance_um: float = 5.0) -> np.ndarray:
+    """(n, 3) uint8: blue (bare) -> cyan (thin) -> green (in spec) -> yellow -> red (twice the target)."""
+    t = np.clip(np.asarray(thickness_um, float) / (2.0 * target_um), 0.0, 1.0)
+    stops = np.array(
+        [
+            0.0,
+            0.5 * (target_um - tolerance_um) / target_um,
+            0.5,
+            0.5 * (target_um + tolerance_um) / target_um + 0.1,
+            1.0,
+        ]
+    )
+    stops = np.maximum.accumulate(np.clip(stops, 0.0, 1.0))
+    colours = np.array([[40, 40, 200], [0, 200, 220], [0, 190, 0], [240, 220, 0], [220, 0, 0]], float)
+    return np.stack([np.interp(t, stops, colours[:, k]) for k in range(3)], axis=1).round().astype(np.uint8)
+
+
+def write_thickness_ply(
+    path: str | os.PathLike, result: CoatingResult, target_um: float = 50.0, tolerance_um: float = 5.0
+) -> None:
+    """Write a binary little-endian PLY: vertices with ``nx ny nz``, ``thickness_um`` (float) and a colour.
+
+    Faces are written when the samples are mesh vertices. Viewers that do not know the ``thickness_um``
+    property show the colour (see :func:`thickness_colours`); MeshLab and CloudCompare also list it as a
+    scalar field.
+    """
+    n = len(result.points)
+    faces = np.asarray(result.faces, dtype=np.int32).reshape(-1, 3)
+    vertex = np.empty(
+        n,
+        dtype=[
+            ("x", "<f4"),
+            ("y", "<f4"),
+            ("z", "<f4"),
+            ("nx", "<f4"),
+            ("ny", "<f4"),
+            ("nz", "<f4"),
+            ("thickness_um", "<f4"),
+            ("red", "u1"),
+            ("green", "u1"),
+            ("blue", "u1"),
+        ],
+    )
+    for k, name in enumerate("xyz"):
+        vertex[name] = result.points[:, k]
+        vertex["n" + name] = result.normals[:, k]
+    vertex["thickness_um"] = result.thickness_um
+    rgb = thickness_colours(result.thickness_um, target_um, tolerance_um)
+    vertex["red"], vertex["green"], vertex["blue"] = rgb[:, 0], rgb[:, 1], rgb[:, 2]
+    header = [
+        "ply",
+        "format binary_little_endian 1.0",
+        "comment sprayplan coating: dry film thickness in um per vertex, lengths in mm",
+        f"element vertex {n}",
+        *[f"property float {name}" for name in ("x", "y", "z", "nx", "ny", "nz", "thickness_um")],
+        "property uchar red",
+        "property uchar green",
+        "property uchar blue",
+    ]
+    if len(faces):
+        header += [f"element face {len(faces)}", "property list uchar int vertex_indices"]
+    header.append("end_header")
+    with atomic_output(path, "wb") as handle:
+        handle.write(("\n".join(header) + "\n").encode("ascii"))
+        handle.write(vertex.tobytes())
+        if len(faces):
+            table = np.empty(len(faces), dtype=[("count", "u1"), ("index", "<i4", (3,))])
+            table["count"] = 3
+            table["index"] = faces
+            handle.write(table.tobytes())

@@ -13,8 +13,8 @@ import numpy as np
 
 from sprayplan.errors import PartFileError
 
-_BINARY_HEADER = 80
-_BINARY_RECORD = np.dtype([("normal", "<f4", (3,)), ("vertices", "<f4", (3, 3)), ("attr", "<u2")])  # 50 bytes a facet
+BINARY_HEADER_BYTES = 80
+BINARY_RECORD = np.dtype([("normal", "<f4", (3,)), ("vertices", "<f4", (3, 3)), ("attr", "<u2")])  # 50 bytes a facet
 _VERTEX = re.compile(rb"vertex[ \t]+(\S+)[ \t]+(\S+)[ \t]+(\S+)")
 _FACET = re.compile(rb"\bfacet\b")
 _ENDFACET = re.compile(rb"\bendfacet\b")
@@ -44,9 +44,9 @@ def parse_stl(data: bytes, path: str = "<bytes>") -> np.ndarray:
     """
     if len(data) == 0:
         raise PartFileError(path, "file is empty")
-    if len(data) >= _BINARY_HEADER + 4:
-        count = int(np.frombuffer(data, "<u4", count=1, offset=_BINARY_HEADER)[0])
-        expected = _BINARY_HEADER + 4 + _BINARY_RECORD.itemsize * count
+    if len(data) >= BINARY_HEADER_BYTES + 4:
+        count = int(np.frombuffer(data, "<u4", count=1, offset=BINARY_HEADER_BYTES)[0])
+        expected = BINARY_HEADER_BYTES + 4 + BINARY_RECORD.itemsize * count
         # A binary file is recognised by its size, whatever its header says: many exporters write "solid" there.
         if len(data) == expected:
             return _binary(data, count, path)
@@ -64,7 +64,7 @@ def parse_stl(data: bytes, path: str = "<bytes>") -> np.ndarray:
 
 
 def _binary(data: bytes, count: int, path: str) -> np.ndarray:
-    records = np.frombuffer(data, _BINARY_RECORD, count=count, offset=_BINARY_HEADER + 4)
+    records = np.frombuffer(data, BINARY_RECORD, count=count, offset=BINARY_HEADER_BYTES + 4)
     triangles = records["vertices"].astype(np.float64)
     _check_finite(triangles, path, lambda i: f"facet {i + 1}")
     return triangles
@@ -119,29 +119,3 @@ def _line_of_vertex(data: bytes, index: int) -> int:
         if i == index:
             return data.count(b"\n", 0, match.start()) + 1
     return 0  # pragma: no cover - index always exists
-
-
-def write_stl_binary(triangles: np.ndarray, header: bytes = b"sprayplan") -> bytes:
-    """Encode triangles as a binary STL (normals from the winding).
-
-    Parameters
-    ----------
-    triangles : (m, 3, 3) float
-        Vertex coordinates.
-    header : bytes
-        Up to 80 bytes for the header; padded with spaces.
-
-    Returns
-    -------
-    bytes
-        The file's content.
-    """
-    triangles = np.asarray(triangles, dtype=np.float64)
-    records = np.zeros(len(triangles), _BINARY_RECORD)
-    with np.errstate(invalid="ignore", over="ignore"):
-        normal = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
-        length = np.linalg.norm(normal, axis=1, keepdims=True)
-    records["normal"] = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
-    records["vertices"] = triangles
-    head = header[:_BINARY_HEADER].ljust(_BINARY_HEADER, b" ")
-    return head + np.uint32(len(triangles)).tobytes() + records.tobytes()

@@ -58,13 +58,11 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 from dataclasses import dataclass
 
 import numpy as np
 
 from sprayplan.errors import ConfigError
-from sprayplan.export.files import atomic_output
 from sprayplan.paths.ruled_surface import (  # noqa: F401 - re-exported: the curve types are part of this API
     _NO_BREAKS,
     DIRECTIONS,
@@ -264,12 +262,3 @@ def cartesian_table(paths: Paths) -> np.ndarray:
     """
     rows = [stroke.tcp for stroke in paths.spray_strokes]
     return np.vstack(rows) if rows else np.zeros((0, 3))
-
-
-def write_table_csv(path: str | os.PathLike, paths: Paths) -> None:
-    """Write :func:`cartesian_table` as CSV with the header ``n,x,y,z``, rows numbered from 1 (mm)."""
-    table = cartesian_table(paths)
-    with atomic_output(path, "w", newline="") as handle:
-        handle.write("n,x,y,z\n")
-        for n, row in enumerate(table, start=1):
-            handle.write(f"{n}," + ",".join(np.format_float_positional(x, precision=6, trim="-") for x in row) + "\n")

@@ -1,4 +1,4 @@
-"""CSV files of joint vectors and poses for ``sprayplan fk`` and ``sprayplan ik``.
+"""CSV files of joint vectors and poses read by ``sprayplan fk`` and ``sprayplan ik`` (written by ``export.tables``).
 
 Joints: a header ``q1,q2,...`` (rad), one row per joint vector. Poses: a header ``x,y,z,rx,ry,rz`` (mm, and a
 rotation vector in rad as a UR pendant shows it) or, with ``matrix``, ``x,y,z,r11,r12,r13,r21,r22,r23,r31,r32,
@@ -83,28 +83,3 @@ def read_poses(path, pose_format: str = "rotvec") -> np.ndarray:
             raise PartFileError(os.fspath(path), f"pose {bad[0] + 1}: the 3x3 part is not a rotation matrix")
         out[:, :3, :3] = u @ vt
     return out
-
-
-def pose_rows(poses: np.ndarray, pose_format: str = "rotvec") -> np.ndarray:
-    """(n, 6) or (n, 12) rows for writing poses."""
-    position = poses[:, :3, 3]
-    if pose_format == "rotvec":
-        return np.hstack([position, Rotation.from_matrix(poses[:, :3, :3]).as_rotvec()])
-    return np.hstack([position, poses[:, :3, :3].reshape(-1, 9)])
-
-
-def write_table(path, header: list[str], rows: list[list]) -> None:
-    """Write a CSV atomically; ``None`` cells are left empty, floats at full useful precision."""
-    from sprayplan.export.files import atomic_output
-
-    def cell(value):
-        if value is None:
-            return ""
-        if isinstance(value, (float, np.floating)):
-            return f"{float(value):.10g}"
-        return str(value)
-
-    with atomic_output(path, "w", newline="") as handle:
-        handle.write(",".join(header) + "\n")
-        for row in rows:
-            handle.write(",".join(cell(v) for v in row) + "\n")
