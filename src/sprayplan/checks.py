@@ -84,3 +84,18 @@ def check_count(value, name: str, least: int) -> int:
     if isinstance(value, bool) or int(value) != value or value < least:
         raise ConfigError(f"{name} must be an integer >= {least}, got {value!r}")
     return int(value)
+
+
+#: Smallest time factor of a waypoint (``Stroke.dwell``) the speed tuning may choose, and 1 / this the largest:
+#: a gun 20 times faster or slower than planned is a different plan, not a correction.
+MIN_DWELL = 0.05
+
+
+def check_dwell_bounds(min_dwell, max_dwell, where: str = "") -> None:
+    """Raise a one-line ``ConfigError`` unless ``MIN_DWELL <= min_dwell <= 1 <= max_dwell <= 1 / MIN_DWELL``
+    (the bounds of the speed tuning's time factors); ``where`` starts the message (a config section)."""
+    if not (MIN_DWELL <= min_dwell <= 1.0 <= max_dwell <= 1.0 / MIN_DWELL):
+        lead = f"{where}: " if where else ""
+        raise ConfigError(
+            f"{lead}need {MIN_DWELL} <= min_dwell <= 1 <= max_dwell <= {1 / MIN_DWELL:g}, got {min_dwell}, {max_dwell}"
+        )

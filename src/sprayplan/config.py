@@ -10,12 +10,9 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
+from sprayplan.checks import MIN_DWELL, check_dwell_bounds  # noqa: F401 - MIN_DWELL is part of this API
 from sprayplan.errors import ConfigError
 from sprayplan.errors import PartFileError as _PartFileError
-
-#: Smallest time factor of a waypoint (``Stroke.dwell``) the speed tuning may choose, and 1 / this the largest:
-#: a gun 20 times faster or slower than planned is a different plan, not a correction.
-MIN_DWELL = 0.05
 
 FILL_MODES = ("even", "point", "line")
 UNITS = ("mm", "cm", "m", "in")
@@ -615,11 +612,7 @@ class RefineConfig(Section):
     touch_up_stations: int = 4
 
     def _check(self):
-        if not (MIN_DWELL <= self.min_dwell <= 1.0 <= self.max_dwell <= 1.0 / MIN_DWELL):
-            raise ConfigError(
-                f"tuning: need {MIN_DWELL} <= min_dwell <= 1 <= max_dwell <= {1 / MIN_DWELL:g}, got "
-                f"{self.min_dwell}, {self.max_dwell}"
-            )
+        check_dwell_bounds(self.min_dwell, self.max_dwell, "tuning")
         if not 0 <= self.band < 1:
             raise _fail(RefineConfig, "band", "a number in [0, 1)", self.band)
         _at_least(RefineConfig, "smoothing", self.smoothing, 0)

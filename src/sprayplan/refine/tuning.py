@@ -36,10 +36,10 @@ import numpy as np
 from scipy import sparse
 from scipy.optimize import least_squares
 
+from sprayplan.checks import check_dwell_bounds
 from sprayplan.coating.process import Process
 from sprayplan.coating.sampling import SurfaceSamples, gun_samples
 from sprayplan.coating.thickness import CoatingConfig, CoatingResult, deposit_matrix
-from sprayplan.config import MIN_DWELL
 from sprayplan.errors import ConfigError
 from sprayplan.types import Part, Paths, read_only
 
@@ -79,11 +79,7 @@ class TuningConfig:
     band: float = 0.3
 
     def __post_init__(self):
-        if not (MIN_DWELL <= self.min_dwell <= 1.0 <= self.max_dwell <= 1.0 / MIN_DWELL):
-            raise ConfigError(
-                f"need {MIN_DWELL} <= min_dwell <= 1 <= max_dwell <= {1 / MIN_DWELL:g}, got {self.min_dwell}, "
-                f"{self.max_dwell}"
-            )
+        check_dwell_bounds(self.min_dwell, self.max_dwell)
         if not (math.isfinite(self.smoothing) and self.smoothing >= 0):
             raise ConfigError(f"smoothing must be a number >= 0, got {self.smoothing}")
         if int(self.iterations) < 1:
