@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sprayplan.checks import check_input_file
 from sprayplan.errors import PartFileError
 
 __all__ = ["parse_xyz", "read_xyz"]
@@ -41,19 +42,25 @@ _NORMAL_NAMES = (("nx", "ny", "nz"), ("normal_x", "normal_y", "normal_z"))
 
 
 def read_file_bytes(path: str | os.PathLike) -> bytes:
-    """Read a whole file, turning every reason it cannot be read into a PartFileError."""
+    """Read a whole input file, turning every reason it cannot be read into a PartFileError.
+
+    Every reader of an input file goes through here (or through :func:`sprayplan.checks.check_input_file`,
+    which this calls first): a folder, a named pipe, a socket or a device is refused by ``os.stat`` before
+    anything opens it, so a FIFO given as a part cannot block the command.
+    """
+    name = check_input_file(path)
     try:
-        return Path(path).read_bytes()
-    except FileNotFoundError:
-        raise PartFileError(path, "file not found") from None
+        return Path(name).read_bytes()
+    except FileNotFoundError:  # removed between the check and the read
+        raise PartFileError(name, "no such file (file not found)") from None
     except IsADirectoryError:
-        raise PartFileError(path, "is a directory, not a file") from None
+        raise PartFileError(name, "is a folder (directory), not a regular file") from None
     except PermissionError:
-        raise PartFileError(path, "cannot read the file: permission denied") from None
+        raise PartFileError(name, "cannot read the file: permission denied") from None
     except OSError as exc:
-        raise PartFileError(path, f"cannot read the file ({exc.strerror or exc})") from None
-    except ValueError as exc:  # e.g. a path with an embedded NUL byte
-        raise PartFileError(path, f"not a usable file name ({exc})") from None
+        raise PartFileError(name, f"cannot read the file ({exc.strerror or exc})") from None
+    except MemoryError:
+        raise PartFileError(name, "the file is too large to read into memory") from None
 
 
 def _show(token: bytes) -> str:
