@@ -150,3 +150,15 @@ def check_input_file(path, error=None) -> str:
     else:
         kind = "is not a regular file"
     raise make(name, f"{kind}, not a regular file")
+
+
+#: A normal stored in a file shorter than this (or not finite) has no direction.
+MIN_NORMAL_LENGTH = 1e-9
+
+
+def first_bad_normal(normals: np.ndarray) -> int | None:
+    """The index of the first normal of zero (below ``MIN_NORMAL_LENGTH``) or non-finite length, or None."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        length = np.sqrt(np.einsum("ij,ij->i", normals, normals))
+    bad = ~(np.isfinite(length) & (length >= MIN_NORMAL_LENGTH))
+    return int(np.argmax(bad)) if bad.any() else None

@@ -12,6 +12,8 @@ Decisions worth knowing
 -----------------------
 * XYZ: a NaN or infinite value in a column that is used (x, y, z or a normal) is an error with its line
   number; values in ignored columns are not checked.
+* XYZ and PCD: a stored normal of zero length (below ``checks.MIN_NORMAL_LENGTH``) or with a NaN or infinite
+  component is an error naming the line (or, in binary PCD, the point).
 * XYZ with exactly 6 numeric columns and no header: columns 3-5 are taken as normals only if every one of
   them has unit length within 1e-3; otherwise they are ignored (they may be colours or anything else).
 * PCD: see :mod:`sprayplan.io.pcd`.
@@ -24,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sprayplan.checks import check_input_file
+from sprayplan.checks import check_input_file, first_bad_normal
 from sprayplan.errors import PartFileError
 
 __all__ = ["parse_xyz", "read_xyz"]
@@ -296,4 +298,8 @@ def parse_xyz(data: bytes, path: str | os.PathLike = "<bytes>") -> tuple[np.ndar
     _check_finite(path, values[:, used], lines)
     points = np.ascontiguousarray(values[:, coords])
     normals = None if normal_cols is None else np.ascontiguousarray(values[:, normal_cols])
+    if normals is not None:
+        row = first_bad_normal(normals)
+        if row is not None:
+            raise PartFileError(path, f"line {lines[row]}: the normal has zero length, so no direction")
     return points, normals

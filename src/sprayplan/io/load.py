@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sprayplan.checks import check_input_file
+from sprayplan.checks import check_input_file, first_bad_normal
 from sprayplan.errors import ConfigError, PartFileError
 from sprayplan.types import Part
 
@@ -47,11 +47,9 @@ PLAUSIBLE_SIZE_MM = (20.0, 100_000.0)
 #: stops being trustworthy.
 MAX_COORDINATE_MM = 1e7
 
-#: A normal stored in a file shorter than this (or not finite) has no direction.
-MIN_NORMAL_LENGTH = 1e-9
-
-#: A cloud whose second principal extent is below this fraction of its first lies on one line.
-COLLINEAR_RATIO = 1e-9
+#: A cloud whose second principal extent (root of the covariance's eigenvalue) is below this fraction of its
+#: first lies on one line (float64 eigenvalues are good to about 1e-16 of the largest, so 1e-6 of the extent).
+COLLINEAR_RATIO = 1e-6
 
 
 def load_part(path: str | os.PathLike, *, units: str = "mm", up: str = "z") -> Part:
@@ -204,14 +202,6 @@ def check_part_arrays(
         check_cloud_spread(vertices, name)
 
 
-def first_bad_normal(normals: np.ndarray) -> int | None:
-    """The index of the first normal of zero (below ``MIN_NORMAL_LENGTH``) or non-finite length, or None."""
-    with np.errstate(over="ignore", invalid="ignore"):
-        length = np.sqrt(np.einsum("ij,ij->i", normals, normals))
-    bad = ~(np.isfinite(length) & (length >= MIN_NORMAL_LENGTH))
-    return int(np.argmax(bad)) if bad.any() else None
-
-
 def _normal_fault(normal: np.ndarray) -> str:
     return "a NaN or infinite component" if not np.isfinite(normal).all() else "zero length (or too large to measure)"
 
@@ -225,8 +215,8 @@ def check_cloud_spread(points: np.ndarray, name: str) -> None:
     if extent == 0.0:
         raise PartFileError(name, f"degenerate point cloud: all {n} points coincide")
     centred = (points - points.mean(axis=0)) / extent
-    spread = np.sqrt(np.clip(np.linalg.eigvalsh(centred.T @ centred / n), 0.0, None))  # ascending
-    if spread[1] <= COLLINEAR_RATIO * spread[2]:
+    variance = np.linalg.eigvalsh(centred.T @ centred / n)  # ascending
+    if variance[1] <= COLLINEAR_RATIO**2 * variance[2]:
         raise PartFileError(name, f"degenerate point cloud: all {n} points lie on one line")
 
 

@@ -153,7 +153,7 @@ def parse_ply(data: bytes, path: str = "<bytes>") -> tuple[np.ndarray, np.ndarra
     reader = _AsciiBody(data, start, path) if order is None else _BinaryBody(data, start, order, path)
     vertices = faces = None
     for element in elements:
-        wanted = ["x", "y", "z"] if element is vertex else [index_name] if element is face else []
+        wanted = ["x", "y", "z"] if element is vertex else [index_name] if element is face and index_name else []
         columns = reader.element(element, wanted)
         if element is vertex:
             vertices = np.column_stack([np.asarray(columns[a], dtype=np.float64) for a in "xyz"])
