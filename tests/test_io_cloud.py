@@ -326,14 +326,20 @@ def test_pcd_nan_points_are_dropped_and_counted(tmp_path, caplog, kind):
     assert any("4 of 20" in r.getMessage() for r in caplog.records)
 
 
-def test_pcd_nan_normals_are_dropped_as_a_whole(tmp_path):
+def test_pcd_nan_normal_of_a_kept_point_is_an_error(tmp_path):
+    # issue 13: a normal the file gives is trusted as the surface's direction; one with none is an error
     points = random_points(5, seed=6)
     normals = np.tile([0.0, 0.0, 1.0], (5, 1))
     normals[2] = np.nan
     fields = XYZ_F4 + [("normal_x", "F", 4, 1), ("normal_y", "F", 4, 1), ("normal_z", "F", 4, 1)]
     columns = dict(zip("xyz", points.T)) | dict(zip(["normal_x", "normal_y", "normal_z"], normals.T))
-    got, got_normals = read_pcd(write(tmp_path, "nn.pcd", pcd_bytes(fields, columns, "binary")))
-    assert got.shape == (5, 3) and got_normals is None
+    with pytest.raises(PartFileError, match="point 3 of 5: NaN or infinite normal"):
+        read_pcd(write(tmp_path, "nn.pcd", pcd_bytes(fields, columns, "binary")))
+    # a NaN point (PCL's "no return") is dropped with its normal, whatever the normal is
+    points[2] = np.nan
+    columns = dict(zip("xyz", points.T)) | dict(zip(["normal_x", "normal_y", "normal_z"], normals.T))
+    got, got_normals = read_pcd(write(tmp_path, "nn2.pcd", pcd_bytes(fields, columns, "binary")))
+    assert got.shape == (4, 3) and got_normals.shape == (4, 3)
 
 
 # --------------------------------------------------------------------------------------------------------

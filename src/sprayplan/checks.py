@@ -8,10 +8,12 @@ names the argument and the shape it must have; a size that must be a positive nu
 from __future__ import annotations
 
 import math
+import os
+import stat
 
 import numpy as np
 
-from sprayplan.errors import ConfigError, DataError
+from sprayplan.errors import ConfigError, DataError, PartFileError
 
 
 def _allowed(dim) -> tuple[int, ...] | None:
@@ -99,3 +101,64 @@ def check_dwell_bounds(min_dwell, max_dwell, where: str = "") -> None:
         raise ConfigError(
             f"{lead}need {MIN_DWELL} <= min_dwell <= 1 <= max_dwell <= {1 / MIN_DWELL:g}, got {min_dwell}, {max_dwell}"
         )
+
+
+def check_input_file(path, error=None) -> str:
+    """``path`` as a str after checking, with ``os.stat`` and before anything opens it, that it is a regular file.
+
+    A folder, a named pipe (opening one for reading blocks until a writer comes, so a FIFO given as a part
+    would hang the command), a socket or a device is refused. Symbolic links are followed.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        An input file.
+    error : callable (path, problem) -> Exception, optional
+        The exception to raise; :class:`~sprayplan.errors.PartFileError` by default.
+
+    Raises
+    ------
+    PartFileError
+        ``"{path}: no such file"``, ``"... is a folder, not a file"``, ``"... is a named pipe, not a regular
+        file"`` (and the same for sockets and devices), ``"... permission denied"`` or another OS reason.
+    """
+    make = PartFileError if error is None else error
+    try:
+        name = os.fspath(path)
+    except TypeError:
+        raise make(str(path), "not a file name") from None
+    try:
+        info = os.stat(name)
+    except FileNotFoundError:
+        raise make(name, "no such file (file not found)") from None
+    except PermissionError:
+        raise make(name, "cannot read the file: permission denied") from None
+    except (OSError, ValueError) as exc:  # ValueError: an embedded NUL byte
+        reason = getattr(exc, "strerror", None) or exc
+        raise make(name, f"not a usable file ({reason})") from None
+    mode = info.st_mode
+    if stat.S_ISREG(mode):
+        return name
+    if stat.S_ISDIR(mode):
+        kind = "is a folder (directory)"
+    elif stat.S_ISFIFO(mode):
+        kind = "is a named pipe (FIFO)"
+    elif stat.S_ISSOCK(mode):
+        kind = "is a socket"
+    elif stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        kind = "is a device"
+    else:
+        kind = "is not a regular file"
+    raise make(name, f"{kind}, not a regular file")
+
+
+#: A normal stored in a file shorter than this (or not finite) has no direction.
+MIN_NORMAL_LENGTH = 1e-9
+
+
+def first_bad_normal(normals: np.ndarray) -> int | None:
+    """The index of the first normal of zero (below ``MIN_NORMAL_LENGTH``) or non-finite length, or None."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        length = np.sqrt(np.einsum("ij,ij->i", normals, normals))
+    bad = ~(np.isfinite(length) & (length >= MIN_NORMAL_LENGTH))
+    return int(np.argmax(bad)) if bad.any() else None

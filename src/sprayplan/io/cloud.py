@@ -12,6 +12,8 @@ Decisions worth knowing
 -----------------------
 * XYZ: a NaN or infinite value in a column that is used (x, y, z or a normal) is an error with its line
   number; values in ignored columns are not checked.
+* XYZ and PCD: a stored normal of zero length (below ``checks.MIN_NORMAL_LENGTH``) or with a NaN or infinite
+  component is an error naming the line (or, in binary PCD, the point).
 * XYZ with exactly 6 numeric columns and no header: columns 3-5 are taken as normals only if every one of
   them has unit length within 1e-3; otherwise they are ignored (they may be colours or anything else).
 * PCD: see :mod:`sprayplan.io.pcd`.
@@ -24,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sprayplan.checks import check_input_file, first_bad_normal
 from sprayplan.errors import PartFileError
 
 __all__ = ["parse_xyz", "read_xyz"]
@@ -41,19 +44,25 @@ _NORMAL_NAMES = (("nx", "ny", "nz"), ("normal_x", "normal_y", "normal_z"))
 
 
 def read_file_bytes(path: str | os.PathLike) -> bytes:
-    """Read a whole file, turning every reason it cannot be read into a PartFileError."""
+    """Read a whole input file, turning every reason it cannot be read into a PartFileError.
+
+    Every reader of an input file goes through here (or through :func:`sprayplan.checks.check_input_file`,
+    which this calls first): a folder, a named pipe, a socket or a device is refused by ``os.stat`` before
+    anything opens it, so a FIFO given as a part cannot block the command.
+    """
+    name = check_input_file(path)
     try:
-        return Path(path).read_bytes()
-    except FileNotFoundError:
-        raise PartFileError(path, "file not found") from None
+        return Path(name).read_bytes()
+    except FileNotFoundError:  # removed between the check and the read
+        raise PartFileError(name, "no such file (file not found)") from None
     except IsADirectoryError:
-        raise PartFileError(path, "is a directory, not a file") from None
+        raise PartFileError(name, "is a folder (directory), not a regular file") from None
     except PermissionError:
-        raise PartFileError(path, "cannot read the file: permission denied") from None
+        raise PartFileError(name, "cannot read the file: permission denied") from None
     except OSError as exc:
-        raise PartFileError(path, f"cannot read the file ({exc.strerror or exc})") from None
-    except ValueError as exc:  # e.g. a path with an embedded NUL byte
-        raise PartFileError(path, f"not a usable file name ({exc})") from None
+        raise PartFileError(name, f"cannot read the file ({exc.strerror or exc})") from None
+    except MemoryError:
+        raise PartFileError(name, "the file is too large to read into memory") from None
 
 
 def _show(token: bytes) -> str:
@@ -289,4 +298,8 @@ def parse_xyz(data: bytes, path: str | os.PathLike = "<bytes>") -> tuple[np.ndar
     _check_finite(path, values[:, used], lines)
     points = np.ascontiguousarray(values[:, coords])
     normals = None if normal_cols is None else np.ascontiguousarray(values[:, normal_cols])
+    if normals is not None:
+        row = first_bad_normal(normals)
+        if row is not None:
+            raise PartFileError(path, f"line {lines[row]}: the normal has zero length, so no direction")
     return points, normals

@@ -1,7 +1,13 @@
 """The ``load`` stage: a part file in any supported format and unit -> a :class:`~sprayplan.types.Part` in mm.
 
-Meshes: STL (ASCII and binary, own reader), OBJ, PLY and OFF (through trimesh). Point clouds: XYZ/TXT/CSV and
-PCD (own readers), PLY files without faces. A ``.gz`` suffix is decompressed first (``hull.stl.gz``).
+Meshes: STL (ASCII and binary), OBJ, PLY and OFF. Point clouds: XYZ/TXT/CSV, PCD, PLY/OBJ/OFF files without
+faces. Every reader is the package's own and strict (``io/stl.py``, ``io/ply.py``, ``io/off.py`` for OFF and
+OBJ, ``io/cloud.py``, ``io/pcd.py``): a count a header declares must match what the file holds, and every face
+index must name a vertex. A ``.gz`` suffix is decompressed first (``hull.stl.gz``).
+
+After reading, :func:`check_part_arrays` checks what every format shares: finite coordinates no larger than
+:data:`MAX_COORDINATE_MM` once in mm, face indices in range, normals of positive finite length, and a cloud of
+3 or more points that are not all on one line.
 """
 
 from __future__ import annotations
@@ -14,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sprayplan.checks import check_input_file, first_bad_normal
 from sprayplan.errors import ConfigError, PartFileError
 from sprayplan.types import Part
 
@@ -34,6 +41,15 @@ CLOUD_SUFFIXES = (".xyz", ".txt", ".csv", ".pcd")
 
 #: Sizes outside this range (largest bounding-box side, mm) are unlikely for a painted part.
 PLAUSIBLE_SIZE_MM = (20.0, 100_000.0)
+
+#: A coordinate farther than this from the origin (mm, after the unit's scaling) is an error: no painted part
+#: is 10 km across, and beyond it float64 arithmetic on the part (squares of lengths, 1e300 overflowing to inf)
+#: stops being trustworthy.
+MAX_COORDINATE_MM = 1e7
+
+#: A cloud whose second principal extent (root of the covariance's eigenvalue) is below this fraction of its
+#: first lies on one line (float64 eigenvalues are good to about 1e-16 of the largest, so 1e-6 of the extent).
+COLLINEAR_RATIO = 1e-6
 
 
 def load_part(path: str | os.PathLike, *, units: str = "mm", up: str = "z") -> Part:
@@ -68,6 +84,7 @@ def load_part(path: str | os.PathLike, *, units: str = "mm", up: str = "z") -> P
         raise ConfigError(f"unknown up axis {up!r}: use one of z, y, x")
     name = os.fspath(path)
     vertices, faces, normals = read_part_file(name)
+    check_part_arrays(vertices, faces, normals, name, units)
     vertices = vertices * UNITS_MM[units]
     rotation = UP_ROTATIONS[up]
     if up != "z":
@@ -91,26 +108,24 @@ def read_part_file(path: str) -> tuple[np.ndarray, np.ndarray, np.ndarray | None
     normals : (n, 3) float or None
         Per-point normals given by a point-cloud file.
     """
+    from sprayplan.io.cloud import read_file_bytes
+
+    path = check_input_file(path)  # a folder or a named pipe is refused before anything opens it
     file = Path(path)
-    if not file.exists():
-        raise PartFileError(path, "no such file")
-    if file.is_dir():
-        raise PartFileError(path, "is a folder, not a part file")
     suffixes = [s.lower() for s in file.suffixes]
     gzipped = bool(suffixes) and suffixes[-1] == ".gz"
     suffix = (suffixes[-2] if len(suffixes) >= 2 else "") if gzipped else (suffixes[-1] if suffixes else "")
     if suffix not in MESH_SUFFIXES + CLOUD_SUFFIXES:
         known = " ".join(MESH_SUFFIXES + CLOUD_SUFFIXES)
         raise PartFileError(path, f"unknown file type {suffix or '(no extension)'!r}: use one of {known}")
-    try:
-        data = file.read_bytes()
-    except OSError as exc:
-        raise PartFileError(path, f"cannot read: {exc.strerror or exc}") from None
+    data = read_file_bytes(path)
     if gzipped:
         try:
             data = gzip.decompress(data)
         except (OSError, EOFError, zlib.error) as exc:
             raise PartFileError(path, f"not a valid gzip file ({exc})") from None
+        except MemoryError:
+            raise PartFileError(path, "the gzip file decompresses to more than the memory holds") from None
     if not data:
         raise PartFileError(path, "file is empty")
     empty_faces = np.zeros((0, 3), dtype=np.int64)
@@ -125,70 +140,84 @@ def read_part_file(path: str) -> tuple[np.ndarray, np.ndarray, np.ndarray | None
         parser = pcd.parse_pcd if suffix == ".pcd" else cloud.parse_xyz
         points, normals = parser(data, path)
         return points, empty_faces, normals
-    return _read_with_trimesh(data, suffix, path)
+    from sprayplan.io.off import parse_obj, parse_off
+    from sprayplan.io.ply import parse_ply
 
-
-def _read_with_trimesh(data: bytes, suffix: str, path: str):
-    import trimesh
-
-    try:
-        loaded = trimesh.load(
-            trimesh.util.wrap_as_stream(data),
-            file_type=suffix[1:],
-            process=False,
-            # a missing .mtl or texture must not stop the geometry from loading
-            resolver=_NoResolver(path),
-        )
-    except Exception as exc:  # a third-party parser on user input: any failure is the file's
-        message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise PartFileError(path, f"cannot parse {suffix[1:].upper()} file: {message}") from None
-    if isinstance(loaded, trimesh.Scene):
-        geometries = list(loaded.dump()) if loaded.geometry else []
-        meshes = [g for g in geometries if isinstance(g, trimesh.Trimesh) and len(g.faces)]
-        if meshes:
-            loaded = trimesh.util.concatenate(meshes)
-        else:
-            clouds = [g for g in geometries if len(getattr(g, "vertices", []))]
-            if not clouds:
-                raise PartFileError(path, "file has no geometry")
-            loaded = trimesh.PointCloud(np.vstack([c.vertices for c in clouds]))
-    vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=np.float64).reshape(-1, 3)
-    faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
-    if len(vertices) == 0:
-        raise PartFileError(path, "file has no vertices")
-    if len(faces) and (faces.min() < 0 or faces.max() >= len(vertices)):
-        raise PartFileError(path, "a face refers to a vertex that does not exist")
-    bad = ~np.isfinite(vertices).all(axis=1)
-    if bad.any():
-        raise PartFileError(
-            path, f"vertex {int(np.flatnonzero(bad)[0]) + 1}: NaN or infinite coordinate ({int(bad.sum())} vertices)"
-        )
+    parse = {".ply": parse_ply, ".off": parse_off, ".obj": parse_obj}[suffix]
+    vertices, faces = parse(data, path)
     return vertices, faces, None
 
 
-class _NoResolver:
-    """A trimesh resolver that finds nothing: OBJ materials and textures are appearance, not geometry."""
+def check_part_arrays(
+    vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray | None, name: str, units: str = "mm"
+) -> None:
+    """Check what every reader returns, before it is scaled: the faults each format shares, one message each.
 
-    def __init__(self, path: str):
-        self.path = path
-        self.said = False
+    Parameters
+    ----------
+    vertices : (n, 3) float
+        In the file's units.
+    faces : (m, 3) int
+        ``(0, 3)`` for a cloud.
+    normals : (n, 3) float or None
+        Normals stored in the file.
+    name : str
+        The file, first in every message.
+    units : str
+        The file's unit, for the bound on coordinates.
 
-    def get(self, name):
-        if not self.said:
-            log.info("%s: ignoring material/texture files (%s): only the geometry is used", self.path, name)
-            self.said = True
-        raise FileNotFoundError(name)
+    Raises
+    ------
+    PartFileError
+        No vertex; a NaN or infinite coordinate; a coordinate beyond ``MAX_COORDINATE_MM`` once in mm (naming
+        the unit); a face index outside the vertices; a normal of zero or non-finite length (naming the point);
+        a cloud of fewer than 3 points, or whose points coincide or lie on one line.
+    """
+    n = len(vertices)
+    if n == 0:
+        raise PartFileError(name, "file has no vertices")
+    finite = np.isfinite(vertices).all(axis=1)
+    if not finite.all():
+        bad = ~finite
+        raise PartFileError(
+            name, f"vertex {int(np.argmax(bad)) + 1}: NaN or infinite coordinate ({int(bad.sum())} vertices)"
+        )
+    limit = MAX_COORDINATE_MM / UNITS_MM[units]  # in file units: scaling first could overflow to inf
+    far = np.abs(vertices).max(axis=1) > limit
+    if far.any():
+        row = int(np.argmax(far))
+        value = float(vertices[row][np.argmax(np.abs(vertices[row]))])
+        raise PartFileError(
+            name,
+            f"vertex {row + 1}: coordinate {value:.6g} {units} is beyond the plausible {MAX_COORDINATE_MM:g} mm "
+            f"({limit:g} {units}): a broken file or the wrong --units",
+        )
+    if len(faces) and (faces.min() < 0 or faces.max() >= n):
+        raise PartFileError(name, f"a face refers to a vertex that does not exist (the file has {n})")
+    if normals is not None:
+        row = first_bad_normal(normals)
+        if row is not None:
+            raise PartFileError(name, f"point {row + 1}: its normal has {_normal_fault(normals[row])}")
+    if len(faces) == 0:
+        check_cloud_spread(vertices, name)
 
-    __getitem__ = get
 
-    def namespaced(self, namespace):
-        return self
+def _normal_fault(normal: np.ndarray) -> str:
+    return "a NaN or infinite component" if not np.isfinite(normal).all() else "zero length (or too large to measure)"
 
-    def keys(self):
-        return []
 
-    def write(self, name, data):  # pragma: no cover - never asked to write
-        raise FileNotFoundError(name)
+def check_cloud_spread(points: np.ndarray, name: str) -> None:
+    """Raise unless the cloud has 3 or more points that neither coincide nor all lie on one line."""
+    n = len(points)
+    if n < 3:
+        raise PartFileError(name, f"point cloud of {n} point{'s' * (n != 1)}: a part needs at least 3")
+    extent = float(np.ptp(points, axis=0).max())
+    if extent == 0.0:
+        raise PartFileError(name, f"degenerate point cloud: all {n} points coincide")
+    centred = (points - points.mean(axis=0)) / extent
+    variance = np.linalg.eigvalsh(centred.T @ centred / n)  # ascending
+    if variance[1] <= COLLINEAR_RATIO**2 * variance[2]:
+        raise PartFileError(name, f"degenerate point cloud: all {n} points lie on one line")
 
 
 def clean_mesh(vertices: np.ndarray, faces: np.ndarray, name: str = "") -> tuple[np.ndarray, np.ndarray]:

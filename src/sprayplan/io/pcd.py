@@ -8,8 +8,9 @@ Decisions worth knowing
 -----------------------
 * NaN coordinates are PCL's "no return" marker in organised clouds; such points are dropped and the count is
   logged. Infinite coordinates are an error.
-* If the normals of the kept points are not all finite (PCL marks failed normal estimation with NaN), the
-  normals are dropped as a whole (``None``) with a warning, so that the caller estimates them itself.
+* A kept point whose normal is NaN, infinite or of zero length is an error naming its line (ascii) or its
+  index (binary): a normal the file gives is trusted as the surface's direction, so one without a direction
+  cannot be used (PCL marks failed normal estimation with NaN; remove those points or the normal fields).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import struct
 
 import numpy as np
 
+from sprayplan.checks import first_bad_normal
 from sprayplan.errors import PartFileError
 from sprayplan.io.cloud import _BOM, _NORMAL_NAMES, _SEPARATORS, _XYZ_NAMES, _parse_table, _show, read_file_bytes
 
@@ -376,9 +378,12 @@ def _pcd_result(
         points = points[keep]
     normals = None
     if has_normals:
-        normals = np.column_stack([columns[name] for name in _NORMAL_NAMES[1]])[keep]
-        if not np.isfinite(normals).all():
-            bad = int((~np.isfinite(normals).all(axis=1)).sum())
-            logger.warning("%s: %d points have NaN or infinite normals; ignoring the file's normals", path, bad)
-            normals = None
+        normals = np.column_stack([columns[name] for name in _NORMAL_NAMES[1]])
+        row = first_bad_normal(normals[keep])
+        if row is not None:
+            row = int(np.flatnonzero(keep)[row])  # in the file's numbering, dropped points included
+            where = f"line {lines[row]}" if lines is not None else f"point {row + 1} of {len(keep)}"
+            what = "NaN or infinite" if not np.isfinite(normals[row]).all() else "zero-length"
+            raise PartFileError(path, f"{where}: {what} normal, so no direction")
+        normals = normals[keep]
     return np.ascontiguousarray(points), None if normals is None else np.ascontiguousarray(normals)
