@@ -183,7 +183,8 @@ def staged_files(paths):
     stages: list[Path] = []
     name = names[0] if names else ""
     try:
-        for final, name in zip(finals, names):
+        for final, given in zip(finals, names):
+            name = given  # named if creating its folder fails
             made += _make_parents(final.parent)
             stages.append(_fresh_folder(final.parent, final.name, "tmp"))
         temps = [stage / final.name for stage, final in zip(stages, finals)]

@@ -11,7 +11,9 @@ FILM_FILES = ("thickness.ply", "thickness.csv", "coating.json")
 JOB_FILES = PLAN_FILES + FILM_FILES
 
 
-def write_job(outdir, result, part_file: str | os.PathLike | None = None, own: tuple[str, ...] = JOB_FILES) -> list[str]:
+def write_job(
+    outdir, result, part_file: str | os.PathLike | None = None, own: tuple[str, ...] = JOB_FILES
+) -> list[str]:
     """Write a job's files into ``outdir``, all or nothing; returns the paths written.
 
     The files are written into a temporary folder beside ``outdir`` and moved in only when every one is
