@@ -138,14 +138,21 @@ def _place(moves) -> None:
             if new is not None:
                 os.rename(new, final)
                 placed.append(final)
-    except BaseException:
+    except BaseException as exc:
         for final in reversed(placed):
             with contextlib.suppress(OSError):
                 os.unlink(final)
         for old, final in reversed(moved):
-            with contextlib.suppress(OSError):
+            try:
                 os.rename(old, final)
+            except OSError:  # cannot be put back: keep it where it is, and say where
+                problem = os_problem(exc) if isinstance(exc, OSError) else type(exc).__name__
+                raise _Stranded(final, f"cannot write ({problem}); the previous file is kept as {old}") from exc
         raise
+
+
+class _Stranded(OutputError):
+    """A move failed and an old output could not be put back: its temporary folder must be kept."""
 
 
 def _fresh_folder(parent: Path, name: str, suffix: str) -> Path:
@@ -202,8 +209,8 @@ def staged_files(paths):
     except OSError as exc:
         _cleanup(stages, made)
         raise _output_error(exc, name) from exc
-    except BaseException:
-        _cleanup(stages, made)
+    except BaseException as exc:
+        _cleanup(stages, made, exc)
         raise
     _cleanup(stages, [])
 
@@ -218,7 +225,9 @@ def _named(exc: OSError, pairs, default: str) -> str:
     return default
 
 
-def _cleanup(stages, made) -> None:
+def _cleanup(stages, made, exc: BaseException | None = None) -> None:
+    if isinstance(exc, _Stranded):
+        return  # the previous output is in there
     for stage in stages:
         shutil.rmtree(stage, ignore_errors=True)
     _remove_made(made)
@@ -260,8 +269,8 @@ def staged_folder(folder: str | os.PathLike, own: tuple[str, ...], whole: bool =
     except OSError as exc:
         _cleanup([stage] if stage else [], made)
         raise _output_error(exc, given) from exc
-    except BaseException:
-        _cleanup([stage] if stage else [], made)
+    except BaseException as exc:
+        _cleanup([stage] if stage else [], made, exc)
         raise
     _cleanup([stage] if stage.exists() else [], [])
 
@@ -280,8 +289,12 @@ def _commit_folder(stage: Path, target: Path, own: tuple[str, ...], whole: bool)
         os.rename(target, aside / "old")
         try:
             os.rename(stage, target)
-        except BaseException:
-            os.rename(aside / "old", target)
+        except BaseException as exc:
+            try:
+                os.rename(aside / "old", target)
+            except OSError:  # cannot be put back: keep it where it is, and say where
+                problem = os_problem(exc) if isinstance(exc, OSError) else type(exc).__name__
+                raise _Stranded(target, f"cannot write ({problem}); the previous folder is kept as {aside}") from exc
             shutil.rmtree(aside, ignore_errors=True)
             raise
         shutil.rmtree(aside, ignore_errors=True)
