@@ -1,8 +1,8 @@
 """The few exception types a user of sprayplan can meet.
 
-Bad input (a broken file, a bad option, an empty region) raises an :class:`InputError`; the command line turns
-it into a one-line message and exit code 2. Failures that are expected inside a plan (an unreachable waypoint)
-are never exceptions: they are data in the stage's result.
+Bad input (a broken file, a bad option, an empty region, an output path that cannot be written) raises an
+:class:`InputError`; the command line turns it into a one-line message and exit code 2. Failures that are
+expected inside a plan (an unreachable waypoint) are never exceptions: they are data in the stage's result.
 """
 
 from __future__ import annotations
@@ -68,3 +68,20 @@ class StageError(InputError):
 
 class DataError(InputError):
     """An array or value handed to a function is malformed: not numbers, the wrong shape, NaN or inf, too few."""
+
+
+class OutputError(InputError):
+    """An output path cannot be used: missing, a folder where a file is wanted, unwritable, or an input too.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The output as the user named it, first in the message.
+    problem : str
+        What is wrong with it.
+    """
+
+    def __init__(self, path: str | os.PathLike, problem: str):
+        self.path = os.fspath(path)
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}")

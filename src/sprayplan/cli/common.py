@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import logging
+import math
+import os
 import time
 
-from sprayplan.errors import ConfigError
+from sprayplan.errors import ConfigError, InputError
 
 log = logging.getLogger("sprayplan.cli")
 
@@ -18,6 +21,69 @@ def stage(name: str):
     log.info("%s ...", name)
     yield
     log.info("%s done in %.2f s", name, time.perf_counter() - start)
+
+
+class UsageError(InputError):
+    """The command line itself is wrong (argparse's complaint): an unknown option, a bad choice, a missing one."""
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse, but a wrong command line raises :class:`UsageError` (one line, no usage block) instead of
+    printing the usage and exiting; ``--help`` still prints the usage. Subparsers are of this class too."""
+
+    def error(self, message: str):
+        text = " ".join(message.split())
+        if text.startswith("argument "):  # "argument --units: invalid choice: ..." -> "--units: invalid ..."
+            text = text[len("argument ") :]
+        for lead, tail in (
+            ("the following arguments are required: ", "required"),
+            ("unrecognized arguments: ", "unknown"),
+        ):
+            if text.startswith(lead):  # "the following arguments are required: part" -> "part: required"
+                text = f"{text[len(lead) :]}: {tail}"
+        command = self.prog.split(" ", 1)[1] if " " in self.prog else ""
+        raise UsageError(f"{text} (see 'sprayplan {command + ' ' if command else ''}--help')")
+
+
+def output_option(value, option: str = "-o"):
+    """An output path option as given; an empty one is an error naming the option."""
+    if value is not None and not os.fspath(value).strip():
+        raise ConfigError(f"{option}: an empty path (give a file or folder name)")
+    return value
+
+
+def check_outputs(outputs, inputs, folder: bool = False) -> None:
+    """Before a command runs: each output ``(path, option)`` can be written (a folder with ``folder``), and
+    none is an input ``(path, label)`` or another output (``export.files.check_output``, ``refuse_inputs``)."""
+    from sprayplan.export.files import check_output, refuse_inputs
+
+    outputs = [(path, option) for path, option in outputs if path is not None]
+    for path, option in outputs:
+        check_output(output_option(path, option), folder=folder)
+    refuse_inputs(outputs, inputs)
+
+
+def file_input(value: str | None) -> str | None:
+    """An option that names either a preset or a file (``--robot``, ``--tool``, ``--process``): the file, if
+    it is one."""
+    return value if isinstance(value, str) and value and os.path.exists(value) else None
+
+
+def check_count(option: str, value: int | None, least: int = 1) -> None:
+    """A whole-number option the command line uses itself: at least ``least``."""
+    if value is not None and value < least:
+        raise ConfigError(f"{option}: must be a whole number >= {least}, got {value}")
+
+
+def parse_numbers(option: str, text: str, count: int, what: str) -> tuple[float, ...]:
+    """``'a,b,c'`` -> ``count`` finite numbers, or an error naming the option and what it wants."""
+    try:
+        values = tuple(float(v) for v in text.replace(" ", "").split(","))
+    except ValueError:
+        values = ()
+    if len(values) != count or not all(math.isfinite(v) for v in values):
+        raise ConfigError(f"{option}: give {count} finite numbers {what}, got {text!r}")
+    return values
 
 
 def parse_direction(text: str):

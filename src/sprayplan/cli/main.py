@@ -1,6 +1,9 @@
 """The ``sprayplan`` command: ``main(argv=None)`` with one subcommand per job.
 
-Bad input ends with one line on stderr (``sprayplan: error: FILE: problem``), exit code 2, and no output file.
+One error path: every expected failure (a bad file or option, a wrong command line, an output that cannot be
+written) ends with one line on stderr, ``sprayplan: error: FILE or --option: problem``, exit code 2, and no
+output created or changed; a bug ends with ``sprayplan: internal error: ...`` and exit code 1 (the traceback
+with ``-v``); Ctrl-C with exit code 130. Library warnings are logged (shown with ``-v``), never printed.
 """
 
 from __future__ import annotations
@@ -8,13 +11,26 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import logging
+import os
+import signal
 import sys
+import threading
 import time
+import traceback
+import warnings
 from pathlib import Path
 
 from sprayplan import __version__
-from sprayplan.cli.common import parse_direction, parse_edge_passes, stage
-from sprayplan.errors import ConfigError, InputError
+from sprayplan.cli.common import (
+    ArgumentParser,
+    UsageError,
+    check_outputs,
+    output_option,
+    parse_direction,
+    parse_edge_passes,
+    stage,
+)
+from sprayplan.errors import ConfigError, InputError, OutputError, StageError
 
 log = logging.getLogger("sprayplan.cli")
 
@@ -97,8 +113,8 @@ def _targets_config(args):
 _stage = stage
 
 
-def _run_targets(part_path: str, output: Path, load_args, config) -> str:
-    from sprayplan.export.files import write_targets_csv
+def _run_targets(part_path: str, load_args, config):
+    """The targets of a part: (targets, part, seconds)."""
     from sprayplan.io.load import load_part
     from sprayplan.surface.region import select_region
     from sprayplan.surface.targets import make_targets
@@ -110,8 +126,10 @@ def _run_targets(part_path: str, output: Path, load_args, config) -> str:
         part = select_region(part, load_args.region)
     with _stage("targets"):
         targets = make_targets(part, config)
-    elapsed = time.perf_counter() - start
-    write_targets_csv(output, targets)
+    return targets, part, time.perf_counter() - start
+
+
+def _targets_line(targets, part, config, elapsed: float, output) -> str:
     area = f"{part.area / 1e6:.4g} m^2" if part.is_mesh else f"a cloud of {len(part.vertices)} points"
     return (
         f"{len(targets)} targets on {area} (fill {config.fill if part.is_mesh else 'cloud'}, "
@@ -120,30 +138,49 @@ def _run_targets(part_path: str, output: Path, load_args, config) -> str:
 
 
 def cmd_targets(args) -> int:
+    from sprayplan.export.files import staged_files, write_targets_csv
+
+    check_outputs([(args.output, "-o")], [(args.part, "part")])
     config = _targets_config(args)
-    print(_run_targets(args.part, Path(args.output), args, config))
+    targets, part, elapsed = _run_targets(args.part, args, config)
+    with staged_files([args.output]) as (temp,):
+        write_targets_csv(temp, targets)
+    print(_targets_line(targets, part, config, elapsed, args.output))
     return 0
 
 
+#: What ``sprayplan demo`` writes into its folder.
+DEMO_FILES = ("roof.stl", "targets.csv")
+
+
 def cmd_demo(args) -> int:
+    from sprayplan.cli.plan import run_shown, summary_line
     from sprayplan.config import JobConfig, TargetsConfig
     from sprayplan.demo import DEMO_REGION, car_roof
-    from sprayplan.export.files import atomic_output
+    from sprayplan.export.files import atomic_output, staged_folder, write_targets_csv
+    from sprayplan.export.job_files import JOB_FILES, write_job_files
     from sprayplan.export.stl import write_stl_binary
 
+    check_outputs([(args.output, "-o")], [], folder=True)
     out = Path(args.output)
-    roof = car_roof()
-    part_file = out / "roof.stl"
-    with atomic_output(part_file, "wb") as handle:
-        handle.write(write_stl_binary(roof.triangles, b"sprayplan demo car roof, mm, z up"))
-    print(f"demo part: {part_file} ({len(roof.faces)} triangles, 2635 x 1959 mm above z = 1000 mm)")
-    load_args = argparse.Namespace(units="mm", up="z", region=DEMO_REGION)
-    print(_run_targets(str(part_file), out / "targets.csv", load_args, TargetsConfig()))
     # seed 003's film spec, 50 +- 5 um: the plan picks the stroke spacing and gun speed for it
     job = JobConfig().replace(
         load={"region": DEMO_REGION}, coating={"thickness_um": 50.0}, output={"simulate": True, "samples": 420}
     )
-    print(run_plan(str(part_file), out, job, quiet=getattr(args, "quiet", False)))
+    roof = car_roof()
+    lines = [f"demo part: {out / 'roof.stl'} ({len(roof.faces)} triangles, 2635 x 1959 mm above z = 1000 mm)"]
+    with staged_folder(out, DEMO_FILES + JOB_FILES) as folder:  # all of it, or nothing
+        with atomic_output(folder / "roof.stl", "wb") as handle:
+            handle.write(write_stl_binary(roof.triangles, b"sprayplan demo car roof, mm, z up"))
+        load_args = argparse.Namespace(units="mm", up="z", region=DEMO_REGION)
+        config = TargetsConfig()
+        targets, part, elapsed = _run_targets(str(folder / "roof.stl"), load_args, config)
+        write_targets_csv(folder / "targets.csv", targets)
+        lines.append(_targets_line(targets, part, config, elapsed, out / "targets.csv"))
+        result = run_shown(str(folder / "roof.stl"), job, quiet=getattr(args, "quiet", False))
+        write_job_files(folder, result, part_file=os.path.abspath(out / "roof.stl"))
+    lines.append(summary_line(result, out))
+    print("\n".join(lines))
     return 0
 
 
@@ -180,10 +217,15 @@ def _path_config(args):
 
 
 def cmd_paths(args) -> int:
+    from sprayplan.export.files import staged_files
     from sprayplan.export.paths_json import summary, write_paths_json
 
     start = time.perf_counter()
-    output = Path(args.output)
+    output_option(args.table, "--table")
+    if args.table is not None and not args.ruled:
+        raise ConfigError("--table: the Cartesian table is written only with --ruled SURFACE.toml")
+    outputs = [(args.output, "-o"), (args.table, "--table")]
+    check_outputs(outputs, [(args.part, "part"), (args.ruled, "--ruled")])
     if args.ruled:
         from sprayplan.export.tables import write_table_csv
         from sprayplan.paths.ruled import ruled_paths
@@ -195,8 +237,6 @@ def cmd_paths(args) -> int:
             job = load_ruled(args.ruled)
             paths = ruled_paths(job)
         settings = {"ruled": str(args.ruled)}
-        if args.table:
-            write_table_csv(args.table, paths)
     else:
         from sprayplan.io.load import load_part
         from sprayplan.paths.planner import plan_paths
@@ -220,17 +260,20 @@ def cmd_paths(args) -> int:
             "up": args.up,
             "region": args.region,
         }
-    write_paths_json(output, paths, settings)
     info = summary(paths)
+    with staged_files([path for path, _ in outputs if path is not None]) as temps:  # both files, or neither
+        write_paths_json(temps[0], paths, settings)
+        if args.table:
+            write_table_csv(temps[1], paths)
     print(
         f"{info['strokes']} strokes, spray {info['spray_length_mm'] / 1000:.3f} m, transfer "
         f"{info['transfer_length_mm'] / 1000:.3f} m, {info['waypoints']} waypoints in "
-        f"{time.perf_counter() - start:.2f} s -> {output}"
+        f"{time.perf_counter() - start:.2f} s -> {args.output}"
     )
     return 0
 
 
-from sprayplan.cli.plan import cmd_plan, cmd_simulate, run_plan  # noqa: E402 - the main job's commands
+from sprayplan.cli.plan import cmd_plan, cmd_simulate  # noqa: E402 - the main job's commands
 from sprayplan.cli.robots import cmd_fk, cmd_ik  # noqa: E402 - the robot commands live in their own module
 
 
@@ -244,12 +287,12 @@ def _add_edge_options(group) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog="sprayplan",
         description="Turn a part's geometry into a spray-painting robot program.",
     )
     parser.add_argument("--version", action="version", version=f"sprayplan {__version__}")
-    common = argparse.ArgumentParser(add_help=False)
+    common = ArgumentParser(add_help=False)
     common.add_argument(
         "-v", "--verbose", action="store_true", default=argparse.SUPPRESS, help="log each stage and its time"
     )
@@ -450,24 +493,82 @@ def _setup_logging(verbose: bool, quiet: bool) -> logging.Handler:
     return handler
 
 
+def _log_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """``warnings.showwarning`` while the command runs: a library's warning is a log line (shown with -v)."""
+    logging.getLogger("sprayplan.warnings").info("%s: %s (%s:%s)", category.__name__, message, filename, lineno)
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def _expected(exc: BaseException) -> str | None:
+    """The one line of an expected failure (bad input, an OS error on a path), None for a bug."""
+    if isinstance(exc, StageError) and isinstance(exc.cause, OutputError):
+        return str(exc.cause)  # an output that cannot be written: named as the user gave it, not by stage
+    if isinstance(exc, InputError):
+        return str(exc)
+    if isinstance(exc, OSError):
+        from sprayplan.export.files import os_problem
+
+        name = exc.filename if exc.filename is not None else getattr(exc, "filename2", None)
+        return f"{os.fspath(name)}: {os_problem(exc)}" if name is not None else os_problem(exc)
+    return None
+
+
+def _terminated(signum, frame):
+    raise SystemExit(128 + signum)  # unwinds like Ctrl-C: the temporary outputs are removed on the way out
+
+
+def _on_sigterm():
+    """While the command runs, SIGTERM ends it through the normal clean-up; returns the handler it replaced."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, _terminated)
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line; returns the exit code (0 ok, 2 bad input)."""
+    """Run the command line; returns the exit code (0 ok, 2 bad input, 1 an internal error, 130 interrupted).
+
+    Every expected failure is one line on stderr, ``sprayplan: error: FILE or --option: problem``, with exit
+    code 2 and no output written; a bare ``sprayplan`` prints its usage on stderr (exit code 2).
+    """
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except UsageError as exc:
+        print(f"sprayplan: error: {_one_line(exc)}", file=sys.stderr)
+        return 2
     if not getattr(args, "func", None):
-        parser.print_help()
+        print(parser.format_usage().rstrip(), file=sys.stderr)
         return 2
     handler = _setup_logging(args.verbose, args.quiet)
+    terminate = _on_sigterm()
     try:
-        return args.func(args)
-    except InputError as exc:
-        print(f"sprayplan: error: {exc}", file=sys.stderr)
-        return 2
+        with warnings.catch_warnings():
+            warnings.showwarning = _log_warning
+            return args.func(args)
     except KeyboardInterrupt:
         print("sprayplan: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:
+        line = _expected(exc)
+        if line is not None:
+            print(f"sprayplan: error: {_one_line(line)}", file=sys.stderr)
+            return 2
+        if args.verbose:
+            traceback.print_exception(exc, file=sys.stderr)
+        where = [note[len("sprayplan: ") :] for note in getattr(exc, "__notes__", ()) if note.startswith("sprayplan: ")]
+        hint = "; ".join(part for part in (*where, None if args.verbose else "run with -v for the traceback") if part)
+        print(
+            f"sprayplan: internal error: {type(exc).__name__}: {_one_line(exc)}" + (f" ({hint})" if hint else ""),
+            file=sys.stderr,
+        )
+        return 1
     finally:
         logging.getLogger("sprayplan").removeHandler(handler)
+        if terminate is not None:
+            signal.signal(signal.SIGTERM, terminate)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -3,9 +3,19 @@
 from __future__ import annotations
 
 import logging
+import os
 from pathlib import Path
 
-from sprayplan.cli.common import ProgressDisplay, parse_direction, parse_edge_passes, stage
+from sprayplan.cli.common import (
+    ProgressDisplay,
+    check_count,
+    check_outputs,
+    file_input,
+    output_option,
+    parse_direction,
+    parse_edge_passes,
+    stage,
+)
 from sprayplan.errors import ConfigError
 
 log = logging.getLogger("sprayplan.cli")
@@ -43,7 +53,13 @@ def _job_config(args):
 
 
 def run_plan(part_path: str, outdir: Path, job, quiet: bool = False) -> str:
-    """Run the main job (``job.run_job``) with a progress display and write its files; returns the summary."""
+    """Run the main job (``job.run_job``) with a progress display and write its files (all or nothing, in
+    ``outdir``); returns the summary."""
+    return summary_line(run_shown(part_path, job, quiet, outdir), outdir)
+
+
+def run_shown(part_path, job, quiet: bool = False, outdir=None):
+    """``job.run_job`` with the progress display; returns its result."""
     from sprayplan.job import run_job
 
     display = ProgressDisplay(quiet=quiet)
@@ -53,7 +69,7 @@ def run_plan(part_path: str, outdir: Path, job, quiet: bool = False) -> str:
         display.close(finished=False)
         raise
     display.close()
-    return summary_line(result, outdir)
+    return result
 
 
 def summary_line(result, outdir) -> str:
@@ -83,13 +99,28 @@ def _coating_line(report: dict, outdir) -> str:
     )
 
 
+def _check_samples(value) -> None:
+    """``--samples``: a whole number >= 1 within the job's bound on it (``config.OutputConfig``)."""
+    from sprayplan.config import OutputConfig
+
+    check_count("--samples", value)
+    try:
+        OutputConfig(samples=value)
+    except ConfigError as exc:
+        raise ConfigError(f"--samples: {exc}") from None
+
+
 def cmd_simulate(args) -> int:
     from sprayplan.coating.stage import simulate_plan
+    from sprayplan.export.files import staged_folder
     from sprayplan.export.film import film_report, write_coating
+    from sprayplan.export.job_files import FILM_FILES
     from sprayplan.export.plan_read import read_plan_file
     from sprayplan.io.load import load_part
     from sprayplan.surface.region import select_region
 
+    output_option(args.outdir, "OUTDIR")
+    _check_samples(args.samples)
     outdir = Path(args.outdir)
     read = read_plan_file(outdir / "plan.json")  # checked whole before anything is written
     result, job = read.plan, read.job
@@ -99,16 +130,27 @@ def cmd_simulate(args) -> int:
     part_file = args.part or read.part_file
     if not part_file:
         raise ConfigError("plan.json does not name its part file: give it with --part")
+    if not result.strokes or not any(stroke.spray_on for stroke in result.strokes):
+        raise ConfigError(f"{outdir / 'plan.json'}: the plan paints nothing (no spray strokes): no film to predict")
+    outputs = [(outdir / name, "OUTDIR") for name in FILM_FILES]
+    check_outputs(outputs, [(part_file, "--part" if args.part else "part"), (outdir / "plan.json", "plan.json")])
     part = select_region(load_part(part_file, units=job.load.units, up=job.load.up), job.load.region)
     with stage("coating"):
         film = simulate_plan(part, result, job)
     report = film_report(film, job, args.samples)
-    write_coating(outdir, film, job, report)
+    with staged_folder(outdir, FILM_FILES, whole=False) as folder:  # the three film files, or none
+        write_coating(folder, film, job, report)
     print(_coating_line(report, outdir))
     return 0
 
 
 def cmd_plan(args) -> int:
+    from sprayplan.export.job_files import JOB_FILES
+
+    check_outputs([(args.output, "-o")], [], folder=True)
+    _check_samples(args.samples)
     job = _job_config(args)
+    inputs = [(args.part, "part"), (args.config, "-c"), (file_input(job.coating.process), "--process")]
+    check_outputs([(os.path.join(args.output, name), "-o") for name in JOB_FILES], inputs)
     print(run_plan(args.part, Path(args.output), job, quiet=getattr(args, "quiet", False)))
     return 0

@@ -2,8 +2,23 @@
 
 from __future__ import annotations
 
+from sprayplan.cli.common import check_outputs, file_input, parse_numbers
 from sprayplan.cli.common import stage as _stage
 from sprayplan.errors import ConfigError
+
+
+def _check_files(args, source: str, label: str) -> None:
+    """Before anything runs: ``-o`` can be written and is none of the inputs."""
+    inputs = [(source, label), (file_input(args.robot), "--robot"), (file_input(args.tool), "--tool")]
+    check_outputs([(args.output, "-o")], inputs)
+
+
+def _write_table(path, header, rows) -> None:
+    from sprayplan.export.files import staged_files
+    from sprayplan.export.tables import write_table
+
+    with staged_files([path]) as (temp,):
+        write_table(temp, header, rows)
 
 
 def _robot(name: str):
@@ -20,14 +35,15 @@ def _tool_offset(args, robot):
 
 
 def cmd_fk(args) -> int:
-    from sprayplan.export.tables import pose_rows, write_table
+    from sprayplan.export.tables import pose_rows
     from sprayplan.io.tables import POSE_COLUMNS, read_joints
     from sprayplan.robots.model import fk
 
+    _check_files(args, args.joints, "joints")
     robot = _robot(args.robot)
     q = read_joints(args.joints, robot.dof)
     poses = robot.base2world @ fk(robot, q) @ _tool_offset(args, robot)
-    write_table(args.output, POSE_COLUMNS[args.pose_format], pose_rows(poses, args.pose_format).tolist())
+    _write_table(args.output, POSE_COLUMNS[args.pose_format], pose_rows(poses, args.pose_format).tolist())
     print(f"{len(q)} poses of the {'tool ' + args.tool if args.tool else 'flange'} ({robot.name}) -> {args.output}")
     return 0
 
@@ -62,19 +78,26 @@ def _r5150_ik(robot, poses):
 def cmd_ik(args) -> int:
     import numpy as np
 
-    from sprayplan.export.tables import write_table
     from sprayplan.io.tables import read_poses
 
+    _check_files(args, args.poses, "poses")
+    platform = None
+    if args.platform and args.platform != "auto":
+        platform = np.array(parse_numbers("--platform", args.platform, 3, "'x,y,z' (mm) or auto"))
     if args.robot == "gantry-ur5":
-        return _ik_gantry(args)
+        return _ik_gantry(args, platform)
     robot = _robot(args.robot)
+    seed = None
+    if args.seed_joints:
+        what = "'" + ",".join(f"q{i + 1}" for i in range(robot.dof)) + "' (rad)"
+        seed = np.array(parse_numbers("--seed-joints", args.seed_joints, robot.dof, what))
     poses = np.linalg.inv(robot.base2world) @ read_poses(args.poses, args.pose_format)
     poses = poses @ np.linalg.inv(_tool_offset(args, robot))
     names = [f"q{i + 1}" for i in range(robot.dof)]
     if robot.name == "r5150":
         q, ok, reason = _r5150_ik(robot, poses)
         rows = [[*(q[i] if ok[i] else [None] * 5), int(ok[i]), reason[i]] for i in range(len(q))]
-        write_table(args.output, [*names, "reachable", "reason"], rows)
+        _write_table(args.output, [*names, "reachable", "reason"], rows)
         print(f"{int(ok.sum())} of {len(q)} poses reachable ({robot.name}) -> {args.output}")
         return 0
     from sprayplan.robots.ur_ik import ik_path, ur_ik
@@ -87,14 +110,9 @@ def cmd_ik(args) -> int:
             for b in range(8)
             if solutions.valid[i, b]
         ]
-        write_table(args.output, ["pose", "branch", *names, "wrist_singular"], rows)
+        _write_table(args.output, ["pose", "branch", *names, "wrist_singular"], rows)
         print(f"{len(rows)} solutions for {len(poses)} poses ({robot.name}) -> {args.output}")
         return 0
-    seed = None
-    if args.seed_joints:
-        seed = np.array([float(v) for v in args.seed_joints.split(",")])
-        if seed.shape != (robot.dof,):
-            raise ConfigError(f"--seed-joints needs {robot.dof} values")
     path = ik_path(robot, poses, seed_q=seed)
     rows = [
         [
@@ -106,7 +124,7 @@ def cmd_ik(args) -> int:
         ]
         for i in range(len(poses))
     ]
-    write_table(args.output, [*names, "reachable", "branch", "branch_change", "jump"], rows)
+    _write_table(args.output, [*names, "reachable", "branch", "branch_change", "jump"], rows)
     print(
         f"{int(path.reachable.sum())} of {len(poses)} poses reachable, {int(path.branch_change.sum())} branch "
         f"changes, {int(path.jump.sum())} jumps ({robot.name}) -> {args.output}"
@@ -114,21 +132,17 @@ def cmd_ik(args) -> int:
     return 0
 
 
-def _ik_gantry(args) -> int:
+def _ik_gantry(args, fixed) -> int:
     import numpy as np
 
     from sprayplan.export.paths_json import read_paths_json
-    from sprayplan.export.tables import write_table
     from sprayplan.robots.gantry import build_gantry, solve_gantry_path
     from sprayplan.surface.poses import stroke_poses
 
     gantry = build_gantry("ur5", args.tool or "wa101")
     paths = read_paths_json(args.poses)
-    fixed = None
-    if args.platform and args.platform != "auto":
-        fixed = np.array([float(v) for v in args.platform.split(",")])
-        if fixed.shape != (3,):
-            raise ConfigError("--platform needs 'x,y,z' (mm) or 'auto'")
+    if not any(stroke.spray_on for stroke in paths.strokes):
+        raise ConfigError(f"{args.poses}: no spray strokes to solve")
     gun2world, platform, labels = [], [], []
     platforms = []
     for stroke in paths.strokes:
@@ -187,7 +201,7 @@ def _ik_gantry(args) -> int:
                 int(result.jump[j]),
             ]
         )
-    write_table(args.output, header, rows)
+    _write_table(args.output, header, rows)
     ok = result.reachable
     worst = np.nanmax(result.position_error_mm) if ok.any() else float("nan")
     print(

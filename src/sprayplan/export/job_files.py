@@ -1,29 +1,67 @@
 """The files of a finished job: plan.json and waypoints.csv, and the film files when the plan has a film (whose
-summary plan.json keeps)."""
+summary plan.json keeps); written all or nothing (``export.files.staged_folder``)."""
 
 from __future__ import annotations
 
 import os
 
+#: The files a job writes into its output folder (plan.json and waypoints.csv always, the rest with a film).
+PLAN_FILES = ("plan.json", "waypoints.csv")
+FILM_FILES = ("thickness.ply", "thickness.csv", "coating.json")
+JOB_FILES = PLAN_FILES + FILM_FILES
 
-def write_job(outdir, result) -> list[str]:
-    """Write a job's files into ``outdir`` (created if missing); returns the paths written.
+
+def write_job(
+    outdir, result, part_file: str | os.PathLike | None = None, own: tuple[str, ...] = JOB_FILES
+) -> list[str]:
+    """Write a job's files into ``outdir``, all or nothing; returns the paths written.
+
+    The files are written into a temporary folder beside ``outdir`` and moved in only when every one is
+    written: a missing ``outdir`` is created then; an ``outdir`` holding only an earlier job's files (named in
+    ``own``) is replaced as a whole; in one holding other files too, the job's files replace their namesakes
+    and the other files are left alone. When anything fails, ``outdir`` is left as it was.
 
     Parameters
     ----------
     outdir : str or os.PathLike
     result : job.JobResult
         The plan, its settings and totals, and its film (None: no film files).
+    part_file : str or os.PathLike, optional
+        The part's file as plan.json names it (default: the file the job read).
+    own : tuple of str
+        The names of the files a run writes in ``outdir`` (an earlier run's are replaced, not kept).
+
+    Raises
+    ------
+    OutputError
+        ``outdir`` cannot be written (naming it and the OS's reason), or the part is one of its files.
+    """
+    from sprayplan.export.files import refuse_inputs, staged_folder
+
+    part_file = result.part_file if part_file is None else os.fspath(part_file)
+    refuse_inputs([(os.path.join(outdir, name), "a job output") for name in own], [(part_file, "part")])
+    report = None
+    if result.film is not None:  # computed before any file is written: a failure leaves nothing behind
+        from sprayplan.export.film import film_report
+
+        report = film_report(result.film, result.job, result.job.output.samples, result.chosen)
+    with staged_folder(outdir, own) as stage:
+        names = [os.path.basename(p) for p in write_job_files(stage, result, part_file, report)]
+    return [os.path.join(outdir, name) for name in names]
+
+
+def write_job_files(folder, result, part_file: str | None = None, report: dict | None = None) -> list[str]:
+    """Write a job's files straight into ``folder`` (an existing folder: the staging folder of :func:`write_job`).
+
+    ``report``: the film's report when already computed (``export.film.film_report``).
     """
     from sprayplan.export.film import film_report, write_coating
     from sprayplan.export.plan_json import write_plan
 
-    os.makedirs(outdir, exist_ok=True)
     job = result.job
-    report = None
-    if result.film is not None:  # computed before any file is written: a failure leaves nothing behind
+    if result.film is not None and report is None:
         report = film_report(result.film, job, job.output.samples, result.chosen)
-    written = write_plan(outdir, result.plan, job, result.totals, result.part_file, report)
+    written = write_plan(folder, result.plan, job, result.totals, part_file, report)
     if report is not None:
-        written += write_coating(outdir, result.film, job, report)
+        written += write_coating(folder, result.film, job, report)
     return written
