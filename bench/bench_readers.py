@@ -47,17 +47,19 @@ def main() -> None:
 
     from sprayplan.io.load import check_part_arrays, load_part, read_part_file
 
-    print(f"| part | triangles | load_part ms | reader ms | post-load checks ms | checks / load | trimesh ms |")
+    print("| part | triangles | load_part ms | reader ms | post-load checks ms | checks / load | trimesh ms |")
     print("|---|---|---|---|---|---|---|")
     for name, units in PARTS:
         path = str(meshes_dir() / name)
         vertices, faces, normals = read_part_file(path)
-        load = median_time(lambda: load_part(path, units=units), args.repeat)
-        read = median_time(lambda: read_part_file(path), args.repeat)
-        checks = median_time(lambda: check_part_arrays(vertices, faces, normals, path, units), args.repeat * 4)
+        load = median_time(lambda p=path, u=units: load_part(p, units=u), args.repeat)
+        read = median_time(lambda p=path: read_part_file(p), args.repeat)
+        checks = median_time(
+            lambda v=vertices, f=faces, n=normals, p=path, u=units: check_part_arrays(v, f, n, p, u), args.repeat * 4
+        )
         old = "-"
         if name.endswith(".ply"):
-            old = f"{1e3 * median_time(lambda: trimesh.load(path, process=False), args.repeat):.1f}"
+            old = f"{1e3 * median_time(lambda p=path: trimesh.load(p, process=False), args.repeat):.1f}"
         print(
             f"| {name} | {len(faces)} | {1e3 * load:.1f} | {1e3 * read:.1f} | {1e3 * checks:.2f} | "
             f"{100 * checks / load:.2f} % | {old} |"

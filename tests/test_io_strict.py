@@ -48,7 +48,9 @@ OBJ = "v 0 0 0\nv 100 0 0\nv 100 100 0\nv 0 100 0\nf 1 2 3\nf 1 3 4\n"
 def test_obj_valid_with_corner_forms_polygons_and_negative_indices(tmp_path):
     part = load_part(write(tmp_path, "a.obj", OBJ))
     assert len(part.faces) == 2 and part.area == pytest.approx(1e4)
-    quad = load_part(write(tmp_path, "q.obj", "v 0 0 0\nv 100 0 0\nv 100 100 0\nv 0 100 0\nvt 0 0\nvn 0 0 1\nf 1/1/1 2/1/1 3//1 4\n"))
+    quad = load_part(
+        write(tmp_path, "q.obj", "v 0 0 0\nv 100 0 0\nv 100 100 0\nv 0 100 0\nvt 0 0\nvn 0 0 1\nf 1/1/1 2/1/1 3//1 4\n")
+    )
     assert len(quad.faces) == 2 and quad.area == pytest.approx(1e4)
     # negative indices count back from the vertices defined so far, not from the file's last vertex
     text = "v 0 0 0\nv 100 0 0\nv 100 100 0\nf -3 -2 -1\nv 0 100 0\nv 500 500 500\nf 1 3 4\n"
@@ -335,7 +337,9 @@ def test_pose_matrices_must_be_rotations(tmp_path):
 
 
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
-@pytest.mark.parametrize("name", ["part.stl", "part.ply", "part.obj", "cloud.xyz", "cloud.pcd", "poses.csv", "p.stl.gz"])
+@pytest.mark.parametrize(
+    "name", ["part.stl", "part.ply", "part.obj", "cloud.xyz", "cloud.pcd", "poses.csv", "p.stl.gz"]
+)
 def test_named_pipe_is_refused_before_open(tmp_path, name):
     fifo = tmp_path / name
     os.mkfifo(fifo)

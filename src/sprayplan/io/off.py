@@ -136,7 +136,9 @@ def parse_off(data: bytes, path: str = "<bytes>") -> tuple[np.ndarray, np.ndarra
     for number, tokens in rest[n_vertices:]:
         k = _whole(tokens[0])
         if k is None:
-            raise PartFileError(path, f"line {number}: a face's index count {tokens[0][:24].decode('latin-1')!r} is not a whole number")
+            raise PartFileError(
+                path, f"line {number}: a face's index count {tokens[0][:24].decode('latin-1')!r} is not a whole number"
+            )
         if k < 3:
             raise PartFileError(path, f"line {number}: a face of {k} indices: a face needs at least 3")
         extra = len(tokens) - 1 - k
@@ -151,7 +153,8 @@ def parse_off(data: bytes, path: str = "<bytes>") -> tuple[np.ndarray, np.ndarra
             raise PartFileError(path, f"line {number}: a vertex index is not a whole number >= 0")
         if max(indices) >= n_vertices:
             raise PartFileError(
-                path, f"line {number}: face refers to vertex {max(indices)}, the file has {n_vertices} (0 to {n_vertices - 1})"
+                path,
+                f"line {number}: face refers to vertex {max(indices)}, the file has {n_vertices} (0 to {n_vertices - 1})",
             )
         polygons.append(indices)
     return vertices, _fans(polygons)
@@ -193,12 +196,16 @@ def parse_obj(data: bytes, path: str = "<bytes>") -> tuple[np.ndarray, np.ndarra
         key = tokens[0]
         if key == b"v":
             if len(tokens) < 4:
-                raise PartFileError(path, f"line {number}: a vertex needs 3 coordinates, the line has {len(tokens) - 1}")
+                raise PartFileError(
+                    path, f"line {number}: a vertex needs 3 coordinates, the line has {len(tokens) - 1}"
+                )
             vertex_rows.append(tokens[1:4])
             vertex_lines.append(number)
         elif key == b"f":
             if len(tokens) < 4:
-                raise PartFileError(path, f"line {number}: a face of {len(tokens) - 1} corners: a face needs at least 3")
+                raise PartFileError(
+                    path, f"line {number}: a face of {len(tokens) - 1} corners: a face needs at least 3"
+                )
             seen = len(vertex_rows)
             corners = []
             for token in tokens[1:]:
@@ -208,13 +215,18 @@ def parse_obj(data: bytes, path: str = "<bytes>") -> tuple[np.ndarray, np.ndarra
                 except ValueError:
                     index = None
                 if index is None:
-                    raise PartFileError(path, f"line {number}: face corner {token[:24].decode('latin-1')!r} is not a vertex index")
+                    raise PartFileError(
+                        path, f"line {number}: face corner {token[:24].decode('latin-1')!r} is not a vertex index"
+                    )
                 if index == 0:
-                    raise PartFileError(path, f"line {number}: face index 0: OBJ indices start at 1 (or count back from -1)")
+                    raise PartFileError(
+                        path, f"line {number}: face index 0: OBJ indices start at 1 (or count back from -1)"
+                    )
                 if index < 0:
                     if -index > seen:
                         raise PartFileError(
-                            path, f"line {number}: face index {index} counts back past the first vertex ({seen} defined so far)"
+                            path,
+                            f"line {number}: face index {index} counts back past the first vertex ({seen} defined so far)",
                         )
                     corners.append(seen + index)
                 else:
@@ -229,6 +241,7 @@ def parse_obj(data: bytes, path: str = "<bytes>") -> tuple[np.ndarray, np.ndarra
         raise PartFileError(path, "OBJ file has no vertices ('v' lines)")
     if largest[0] > len(vertex_rows):
         raise PartFileError(
-            path, f"line {largest[1]}: face index {largest[0]} is past the last vertex (the file has {len(vertex_rows)})"
+            path,
+            f"line {largest[1]}: face index {largest[0]} is past the last vertex (the file has {len(vertex_rows)})",
         )
     return _numbers(vertex_rows, vertex_lines, path), _fans(polygons)

@@ -95,7 +95,9 @@ def _header(data: bytes, path: str) -> tuple[str | None, list[_Element], int]:
             else:
                 raise PartFileError(path, f"line {number}: bad property line {' '.join(words)!r}")
             if any(p.name == prop.name for p in element.properties):
-                raise PartFileError(path, f"line {number}: property {prop.name!r} of {element.name!r} is declared twice")
+                raise PartFileError(
+                    path, f"line {number}: property {prop.name!r} of {element.name!r} is declared twice"
+                )
             element.properties.append(prop)
         else:
             raise PartFileError(path, f"line {number}: unknown PLY header keyword {key[:24]!r}")
@@ -189,7 +191,8 @@ def _triangles(faces, n_vertices: int, path: str) -> np.ndarray:
         at = int(np.argmax(bad))
         row = int(np.searchsorted(np.cumsum(sizes), at, side="right"))
         raise PartFileError(
-            path, f"face {row + 1} refers to vertex {flat[at]:.0f}, but the file has {n_vertices} (0 to {n_vertices - 1})"
+            path,
+            f"face {row + 1} refers to vertex {flat[at]:.0f}, but the file has {n_vertices} (0 to {n_vertices - 1})",
         )
     flat = flat.astype(np.int64)
     if isinstance(faces, np.ndarray) and faces.shape[1] == 3:
@@ -344,13 +347,17 @@ class _AsciiBody:
                     raise self._short(element, 0)
                 count = self._numbers([self.tokens[at]], element, 0, 1)[0]
                 if count != int(count) or count < 0:
-                    raise PartFileError(self.path, f"element {element.name!r} row 1: list count {count:g} is not a whole number")
+                    raise PartFileError(
+                        self.path, f"element {element.name!r} row 1: list count {count:g} is not a whole number"
+                    )
                 lengths.append(int(count))
                 at += 1 + int(count)
         width = at - self.at
         need = element.count * width
         if self.at + need <= len(self.tokens):
-            table = self._numbers(self.tokens[self.at : self.at + need], element, 0, width).reshape(element.count, width)
+            table = self._numbers(self.tokens[self.at : self.at + need], element, 0, width).reshape(
+                element.count, width
+            )
             offsets = np.cumsum([0] + [n + (p.count_dtype is not None) for p, n in zip(props, lengths)])
             same = all(
                 (table[:, offsets[i]] == lengths[i]).all() for i, p in enumerate(props) if p.count_dtype is not None

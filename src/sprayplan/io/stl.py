@@ -25,10 +25,14 @@ _FACET = (
 _FACET_SPLIT = re.compile(_FACET, re.IGNORECASE)
 _BODY = re.compile(rb"(?:\s*" + _FACET + rb")*\s*", re.IGNORECASE)
 _VERTEX = re.compile(rb"\bvertex\s+(\S+)\s+(\S+)\s+(\S+)", re.IGNORECASE)
-_FACET_TOKENS = [b"facet", b"normal", None, None, None, b"outer", b"loop"] + [b"vertex", None, None, None] * 3 + [
-    b"endloop",
-    b"endfacet",
-]
+_FACET_TOKENS = (
+    [b"facet", b"normal", None, None, None, b"outer", b"loop"]
+    + [b"vertex", None, None, None] * 3
+    + [
+        b"endloop",
+        b"endfacet",
+    ]
+)
 
 
 def parse_stl(data: bytes, path: str = "<bytes>") -> np.ndarray:
