@@ -10,7 +10,16 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
-from sprayplan.checks import MIN_DWELL, check_dwell_bounds  # noqa: F401 - MIN_DWELL is part of this API
+from sprayplan.checks import (  # noqa: F401 - MIN_DWELL and the bounds are part of this API
+    MAX_EDGE_PASSES,
+    MAX_LAYERS,
+    MAX_POINTS_PER_SECTION,
+    MAX_REPORT_SAMPLES,
+    MIN_DWELL,
+    MIN_STEP_MM,
+    check_dwell_bounds,
+    number_text,
+)
 from sprayplan.errors import ConfigError
 from sprayplan.errors import PartFileError as _PartFileError
 
@@ -91,6 +100,12 @@ def _at_least(cls, name: str, value, low: float, *, strict: bool = False) -> Non
 def _within(cls, name: str, value, low: float, high: float) -> None:
     if value is not None and not low <= value <= high:
         raise _fail(cls, name, f"a number from {low:g} to {high:g}", value)
+
+
+def _at_most(cls, name: str, value, high: float) -> None:
+    """The upper bound of a count or the lower bound's partner: names the key and the largest value accepted."""
+    if value is not None and not value <= high:
+        raise _fail(cls, name, f"at most {number_text(high)}", value)
 
 
 @dataclass(frozen=True)
@@ -179,6 +194,8 @@ class TargetsConfig(Section):
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value > 0):
                 raise ConfigError(f"{name} must be a positive number, got {value}")
+        for name in ("spacing_mm", "h_min_mm"):
+            _at_least(TargetsConfig, name, getattr(self, name), MIN_STEP_MM)
         if not (math.isfinite(self.spray_radius_mm) and self.spray_radius_mm > 0):
             raise ConfigError(f"spray_radius_mm must be a positive number, got {self.spray_radius_mm}")
         if not 0.0 <= self.overlap < 1.0:
@@ -312,6 +329,7 @@ class PathConfig(Section):
                 or value < 0
             ):
                 raise ConfigError(f"edge_passes must be auto or a whole number >= 0, got {self.edge_passes!r}")
+            _at_most(PathConfig, "edge_passes", value, MAX_EDGE_PASSES)
             object.__setattr__(self, "edge_passes", int(self.edge_passes))
         if self.cloud_normals not in ("triangles", "plane"):
             raise ConfigError(f"cloud_normals must be triangles or plane, got {self.cloud_normals!r}")
@@ -333,12 +351,16 @@ class PathConfig(Section):
             int(self.points_per_section) != self.points_per_section or self.points_per_section < 2
         ):
             raise ConfigError(f"points_per_section must be a whole number >= 2, got {self.points_per_section}")
+        _at_most(PathConfig, "layers", self.layers, MAX_LAYERS)
+        _at_most(PathConfig, "points_per_section", self.points_per_section, MAX_POINTS_PER_SECTION)
         if self.layers is not None and self.spacing_mm is not None:
             raise ConfigError("give either layers or spacing_mm, not both")
         for name in ("spacing_mm", "spray_radius_mm", "step_mm", "split_gap_mm", "slab_mm", "cloud_smooth_mm"):
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value > 0):
                 raise ConfigError(f"{name} must be a positive number, got {value}")
+        for name in ("spacing_mm", "step_mm"):
+            _at_least(PathConfig, name, getattr(self, name), MIN_STEP_MM)
         if self.cloud_normal_smooth_mm is not None and not (
             math.isfinite(self.cloud_normal_smooth_mm) and self.cloud_normal_smooth_mm >= 0
         ):
@@ -641,6 +663,7 @@ class OutputConfig(Section):
 
     def _check(self):
         _at_least(OutputConfig, "samples", self.samples, 1)
+        _at_most(OutputConfig, "samples", self.samples, MAX_REPORT_SAMPLES)
 
 
 @dataclass(frozen=True)
