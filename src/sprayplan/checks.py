@@ -144,7 +144,8 @@ def check_work(count: float, limit: float, what: str, setting: str, value, part:
     if not count <= limit:  # also NaN
         on = f" on this part ({part})" if part else ""
         tail = f": {fix}" if fix else ""
-        raise ConfigError(f"{setting} {value!r} would make {count:.3g} {what}{on} (at most {limit:.3g}){tail}")
+        shown = f"{value:.4g}" if isinstance(value, float) else repr(value)
+        raise ConfigError(f"{setting} {shown} would make {count:.3g} {what}{on} (at most {limit:.3g}){tail}")
 
 
 def size_text(points) -> str:
