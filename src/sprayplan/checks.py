@@ -157,13 +157,14 @@ def size_text(points) -> str:
     return " x ".join(f"{s:.4g}" for s in size) + " mm"
 
 
-def check_poses(poses, name: str = "poses", *, tol: float = 1e-3) -> np.ndarray:
+def check_poses(poses, name: str = "poses", *, tol: float = 1e-3, allow_nan: bool = False) -> np.ndarray:
     """A float64 ``(n, 4, 4)`` copy of homogeneous poses after checking each is a rigid motion.
 
     Each pose must hold finite numbers, a rotation block with orthonormal columns and determinant +1 (to
     ``tol``), and a last row ``0 0 0 1``; a single ``(4, 4)`` pose is taken as one row. A bad pose is a
     :class:`DataError` naming ``name`` and the row (``"poses row 3: the rotation has determinant -1 (a
-    mirror), not +1"``).
+    mirror), not +1"``). With ``allow_nan``, rows holding a NaN or inf are left as they are (inverse kinematics
+    reports them as unreachable rows) and only the finite rows are checked.
     """
     try:
         out = np.array(poses, dtype=np.float64, copy=True)
@@ -174,13 +175,13 @@ def check_poses(poses, name: str = "poses", *, tol: float = 1e-3) -> np.ndarray:
     if out.ndim != 3 or out.shape[1:] != (4, 4):
         raise DataError(f"{name} must be (n, 4, 4) poses, got shape {out.shape}")
     finite = np.isfinite(out).all(axis=(1, 2))
-    if not finite.all():
+    if not finite.all() and not allow_nan:
         raise DataError(f"{name} row {int(np.argmin(finite))}: NaN or inf in the pose")
-    rot = out[:, :3, :3]
+    rot = np.where(finite[:, None, None], out, np.eye(4))[:, :3, :3]
     gram = np.abs(np.einsum("nji,njk->nik", rot, rot) - np.eye(3)).max(axis=(1, 2))
     det = np.linalg.det(rot) if len(out) else np.zeros(0)
     bottom = np.abs(out[:, 3] - [0.0, 0.0, 0.0, 1.0]).max(axis=1) if len(out) else np.zeros(0)
-    bad = (gram > tol) | (np.abs(det - 1.0) > tol) | (bottom > tol)
+    bad = ((gram > tol) | (np.abs(det - 1.0) > tol) | (bottom > tol)) & finite
     if bad.any():
         row = int(np.argmax(bad))
         if gram[row] <= tol and det[row] < 0:

@@ -558,6 +558,14 @@ class FilmConfig(Section):
     def _check(self):
         if not self.process.strip():
             raise _fail(FilmConfig, "process", "a preset name or a .toml file", self.process)
+        import os
+
+        if not (self.process.endswith(".toml") or os.sep in self.process):
+            from sprayplan.coating.process import list_presets
+
+            known = list_presets()
+            if self.process not in known:
+                raise _fail(FilmConfig, "process", f"one of {', '.join(known)} or a .toml file", self.process)
         _at_least(FilmConfig, "thickness_um", self.thickness_um, 0, strict=True)
         _at_least(FilmConfig, "tolerance_um", self.tolerance_um, 0)
         _at_least(FilmConfig, "workers", self.workers, 1)
