@@ -113,7 +113,7 @@ MAX_WAYPOINTS = 5_000_000
 #: Random candidates of the even target sampling, and points of the DFS filling (24 bytes each, plus pairs).
 MAX_CANDIDATES = 20_000_000
 #: Surface or gun samples of one film simulation.
-MAX_FILM_SAMPLES = 50_000_000
+MAX_FILM_SAMPLES = 20_000_000
 #: Edge passes past each of the first and the last layer (``paths.edge_passes``; auto gives 1 to 3).
 MAX_EDGE_PASSES = 100
 #: Points per section piece (``paths.points_per_section``; seed 003 samples a few tens).
