@@ -2,6 +2,14 @@
 
 Each stage takes one frozen dataclass; :func:`config_from_dict` builds one from a TOML table (keys as the field
 names, units in the names), rejecting unknown keys so that a typo does not pass silently.
+
+Bounds of work (``sprayplan.checks``; issue 13: no setting may ask for more than a 2-core, 24 GiB machine has):
+``paths.layers`` and the layers a spacing makes at most 10000; ``paths.edge_passes`` at most 100;
+``paths.points_per_section`` at most 100000; steps and spacings at least 0.01 mm; at most 5e6 waypoints,
+2e7 target candidates or filling points and 2e7 film samples on the part (checked by each stage before it
+allocates, naming the setting, the part's size and the value accepted); ``output.samples`` at most 1e6;
+``coating.batch`` at most 65536, ``occlusion_pixels`` 1024, ``workers`` 64. A whole car body at 40 mm
+spacing and 5 mm steps (about 60 000 waypoints) is far inside every bound.
 """
 
 from __future__ import annotations
