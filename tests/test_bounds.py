@@ -239,11 +239,12 @@ def test_ruled_step_and_spot_checked_before_sampling():
 
 
 def test_droplet_counts_bounded():
-    from sprayplan.coating.droplet import DropletConfig
+    from sprayplan.coating.droplet import DropletConfig, simulate_droplets
 
     assert "at most 1000000" in fast(lambda: DropletConfig(count=10**9), ConfigError)
-    assert "dt_s" in fast(lambda: DropletConfig(dt_s=1e-12), ConfigError)
-    message = fast(lambda: DropletConfig(count=500_000, max_time_s=0.2, dt_s=1e-5), ConfigError)
+    assert "use dt_s >=" in fast(lambda: simulate_droplets(DropletConfig(dt_s=1e-12)), ConfigError)
+    config = DropletConfig(count=500_000, max_time_s=0.2, dt_s=1e-5)
+    message = fast(lambda: simulate_droplets(config), ConfigError)
     assert message.startswith("droplet count 500000 would make") and "use count <=" in message
     DropletConfig()  # the default is fine
 

@@ -173,21 +173,6 @@ class DropletConfig:
             raise ConfigError("need count >= 1, diameter_gsd >= 1 and cup_radius_mm < standoff_mm")
         if self.count > MAX_DROPLETS:
             raise ConfigError(f"droplet count must be at most {MAX_DROPLETS}, got {self.count!r}")
-        steps = self.max_time_s / self.dt_s
-        if steps > MAX_DROPLET_STEPS:
-            raise ConfigError(
-                f"droplet max_time_s / dt_s must be at most {MAX_DROPLET_STEPS} steps, got {steps:.3g}"
-                f" (max_time_s {self.max_time_s:g}, dt_s {self.dt_s:g}): use dt_s >= {self.max_time_s / MAX_DROPLET_STEPS:.3g}"
-            )
-        check_work(
-            self.count * steps,
-            MAX_DROPLET_WORK,
-            "droplet steps",
-            "droplet count",
-            int(self.count),
-            f"{steps:.3g} time steps each",
-            f"use count <= {max(1, int(MAX_DROPLET_WORK // steps))} or a larger dt_s",
-        )
         object.__setattr__(self, "gravity_m_s2", tuple(float(g) for g in self.gravity_m_s2))
 
 
@@ -216,6 +201,25 @@ class DropletResult:
     flight_time_s: np.ndarray
     transfer_efficiency: float
     config: DropletConfig
+
+
+def _check_steps(config: DropletConfig, count: int, steps: float) -> None:
+    """Refuse, before integrating, more than ``MAX_DROPLET_STEPS`` time steps or ``MAX_DROPLET_WORK`` droplet
+    steps (``count`` droplets over ``steps`` steps), naming the settings to change."""
+    if steps > MAX_DROPLET_STEPS:
+        raise ConfigError(
+            f"droplet max_time_s / dt_s must be at most {MAX_DROPLET_STEPS} steps, got {steps:.3g}"
+            f" (max_time_s {config.max_time_s:g}, dt_s {config.dt_s:g}): use dt_s >= {config.max_time_s / MAX_DROPLET_STEPS:.3g}"
+        )
+    check_work(
+        count * steps,
+        MAX_DROPLET_WORK,
+        "droplet steps",
+        "droplet count",
+        int(count),
+        f"{steps:.3g} time steps each",
+        f"use count <= {max(1, int(MAX_DROPLET_WORK // steps))} or a larger dt_s",
+    )
 
 
 def drag_factor(reynolds: np.ndarray) -> np.ndarray:
@@ -335,6 +339,7 @@ def integrate(
     n = len(x)
     dt = config.dt_s
     total = round(config.max_time_s / dt) if steps is None else int(steps)
+    _check_steps(config, n, total)
     rng = np.random.default_rng(config.seed)
     eddy_steps = max(1, round(config.eddy_time_s / dt))
     turb = np.zeros((n, 3))
