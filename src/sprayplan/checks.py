@@ -162,3 +162,109 @@ def first_bad_normal(normals: np.ndarray) -> int | None:
         length = np.sqrt(np.einsum("ij,ij->i", normals, normals))
     bad = ~(np.isfinite(length) & (length >= MIN_NORMAL_LENGTH))
     return int(np.argmax(bad)) if bad.any() else None
+
+
+# ------------------------------------------------------------------------------------------------ bounds of work
+#: Largest amounts of work a setting may ask for (issue 13: no setting may ask for more time or memory than a
+#: two-core, 24 GiB machine has). Each is far above the real cases: a whole car body (about 12 m^2) at a 40 mm
+#: spacing and 5 mm steps makes about 500 layers and 60 000 waypoints; the DTC hull about 300 layers.
+#: Slicing planes of one part (``paths.layers``, or the part's extent / ``paths.spacing_mm``).
+MAX_LAYERS = 10_000
+#: Waypoints of one part's strokes: 5e6 take about half a minute to slice and far longer to solve and film
+#: (a whole car body at 0.5 mm steps stays below).
+MAX_WAYPOINTS = 5_000_000
+#: Random candidates of the even target sampling, and points of the DFS filling (24 bytes each, plus pairs).
+MAX_CANDIDATES = 20_000_000
+#: Surface or gun samples of one film simulation.
+MAX_FILM_SAMPLES = 20_000_000
+#: Edge passes past each of the first and the last layer (``paths.edge_passes``; auto gives 1 to 3).
+MAX_EDGE_PASSES = 100
+#: Points per section piece (``paths.points_per_section``; seed 003 samples a few tens).
+MAX_POINTS_PER_SECTION = 100_000
+#: Random measuring points of a film report (``output.samples``, ``simulate --samples``; seed 003: 420).
+MAX_REPORT_SAMPLES = 1_000_000
+#: Smallest step between waypoints or film samples, mm (a robot repeats to about 0.03 mm).
+MIN_STEP_MM = 0.01
+#: Largest coordinate of a part, mm (10 km): beyond it a part is in the wrong unit or broken, and products of
+#: coordinates in the normals and covariances overflow or lose every digit.
+MAX_COORDINATE_MM = 1e7
+
+
+def check_at_most(value, limit, name: str) -> None:
+    """Raise a one-line :class:`ConfigError` ``"{name} must be at most {limit}, got {value}"`` when value > limit."""
+    if value is not None and value > limit:
+        raise ConfigError(f"{name} must be at most {number_text(limit)}, got {value!r}")
+
+
+def check_work(count: float, limit: float, what: str, setting: str, value, part: str = "", fix: str = "") -> None:
+    """Raise a one-line :class:`ConfigError` when a setting would make more than ``limit`` of something.
+
+    ``count`` is the estimated number of ``what`` (layers, waypoints, candidates) that ``setting = value`` makes
+    on the part (``part``: a few words on its size); ``fix`` says which value is accepted, e.g.
+    ``"use paths.step_mm >= 0.5"``. The message reads ``"paths.step_mm 1e-09 would make 4.2e+12 waypoints on
+    this part (2635 x 1959 mm) (at most 2e+07): use paths.step_mm >= 0.5"``.
+    """
+    if not count <= limit:  # also NaN
+        on = f" on this part ({part})" if part else ""
+        tail = f": {fix}" if fix else ""
+        shown = f"{value:.4g}" if isinstance(value, float) else repr(value)
+        raise ConfigError(f"{setting} {shown} would make {count:.3g} {what}{on} (at most {limit:.3g}){tail}")
+
+
+def size_text(points) -> str:
+    """The size of a point set's bounding box, e.g. ``"2635 x 1959 x 340 mm"``."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    if not len(pts):
+        return "empty"
+    size = pts.max(axis=0) - pts.min(axis=0)
+    return " x ".join(f"{s:.4g}" for s in size) + " mm"
+
+
+def check_poses(poses, name: str = "poses", *, tol: float = 1e-3, allow_nan: bool = False) -> np.ndarray:
+    """A float64 ``(n, 4, 4)`` copy of homogeneous poses after checking each is a rigid motion.
+
+    Each pose must hold finite numbers, a rotation block with orthonormal columns and determinant +1 (to
+    ``tol``), and a last row ``0 0 0 1``; a single ``(4, 4)`` pose is taken as one row. A bad pose is a
+    :class:`DataError` naming ``name`` and the row (``"poses row 3: the rotation has determinant -1 (a
+    mirror), not +1"``). With ``allow_nan``, rows holding a NaN or inf are left as they are (inverse kinematics
+    reports them as unreachable rows) and only the finite rows are checked.
+    """
+    try:
+        out = np.array(poses, dtype=np.float64, copy=True)
+    except (TypeError, ValueError):
+        raise DataError(f"{name} must be (n, 4, 4) poses of finite numbers, got something that is not numbers") from None
+    if out.shape == (4, 4):
+        out = out[None]
+    if out.ndim != 3 or out.shape[1:] != (4, 4):
+        raise DataError(f"{name} must be (n, 4, 4) poses, got shape {out.shape}")
+    finite = np.isfinite(out).all(axis=(1, 2))
+    if not finite.all() and not allow_nan:
+        raise DataError(f"{name} row {int(np.argmin(finite))}: NaN or inf in the pose")
+    rot = np.where(finite[:, None, None], out, np.eye(4))[:, :3, :3]
+    gram = np.abs(np.einsum("nji,njk->nik", rot, rot) - np.eye(3)).max(axis=(1, 2))
+    det = np.linalg.det(rot) if len(out) else np.zeros(0)
+    bottom = np.abs(out[:, 3] - [0.0, 0.0, 0.0, 1.0]).max(axis=1) if len(out) else np.zeros(0)
+    bad = ((gram > tol) | (np.abs(det - 1.0) > tol) | (bottom > tol)) & finite
+    if bad.any():
+        row = int(np.argmax(bad))
+        if gram[row] <= tol and det[row] < 0:
+            problem = f"the rotation has determinant {det[row]:.6g} (a mirror), not +1"
+        elif gram[row] > tol or abs(det[row] - 1.0) > tol:
+            problem = f"the rotation is not orthonormal (|R^T R - I| = {gram[row]:.3g}, det {det[row]:.6g})"
+        else:
+            problem = f"the last row must be 0 0 0 1, got {' '.join(f'{v:g}' for v in out[row, 3])}"
+        raise DataError(f"{name} row {row}: {problem}")
+    return out
+
+
+def round_up(value: float) -> str:
+    """``value`` rounded up to two significant digits, as text: the value a bound's message asks for."""
+    if not value > 0:
+        return "0"
+    scale = 10.0 ** (math.floor(math.log10(value)) - 1)
+    return f"{float(f'{math.ceil(value / scale - 1e-9) * scale:.2g}'):g}"
+
+
+def number_text(value) -> str:
+    """A bound as text: whole numbers in full (``1000000``), others by ``:g``."""
+    return str(int(value)) if float(value).is_integer() and abs(value) < 1e15 else f"{value:g}"

@@ -2,6 +2,14 @@
 
 Each stage takes one frozen dataclass; :func:`config_from_dict` builds one from a TOML table (keys as the field
 names, units in the names), rejecting unknown keys so that a typo does not pass silently.
+
+Bounds of work (``sprayplan.checks``; issue 13: no setting may ask for more than a 2-core, 24 GiB machine has):
+``paths.layers`` and the layers a spacing makes at most 10000; ``paths.edge_passes`` at most 100;
+``paths.points_per_section`` at most 100000; steps and spacings at least 0.01 mm; at most 5e6 waypoints,
+2e7 target candidates or filling points and 2e7 film samples on the part (checked by each stage before it
+allocates, naming the setting, the part's size and the value accepted); ``output.samples`` at most 1e6;
+``coating.batch`` at most 65536, ``occlusion_pixels`` 1024, ``workers`` 64. A whole car body at 40 mm
+spacing and 5 mm steps (about 60 000 waypoints) is far inside every bound.
 """
 
 from __future__ import annotations
@@ -10,7 +18,16 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
-from sprayplan.checks import MIN_DWELL, check_dwell_bounds  # noqa: F401 - MIN_DWELL is part of this API
+from sprayplan.checks import (  # noqa: F401 - MIN_DWELL and the bounds are part of this API
+    MAX_EDGE_PASSES,
+    MAX_LAYERS,
+    MAX_POINTS_PER_SECTION,
+    MAX_REPORT_SAMPLES,
+    MIN_DWELL,
+    MIN_STEP_MM,
+    check_dwell_bounds,
+    number_text,
+)
 from sprayplan.errors import ConfigError
 from sprayplan.errors import PartFileError as _PartFileError
 
@@ -91,6 +108,12 @@ def _at_least(cls, name: str, value, low: float, *, strict: bool = False) -> Non
 def _within(cls, name: str, value, low: float, high: float) -> None:
     if value is not None and not low <= value <= high:
         raise _fail(cls, name, f"a number from {low:g} to {high:g}", value)
+
+
+def _at_most(cls, name: str, value, high: float) -> None:
+    """The upper bound of a count or the lower bound's partner: names the key and the largest value accepted."""
+    if value is not None and not value <= high:
+        raise _fail(cls, name, f"at most {number_text(high)}", value)
 
 
 @dataclass(frozen=True)
@@ -179,6 +202,8 @@ class TargetsConfig(Section):
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value > 0):
                 raise ConfigError(f"{name} must be a positive number, got {value}")
+        for name in ("spacing_mm", "h_min_mm"):
+            _at_least(TargetsConfig, name, getattr(self, name), MIN_STEP_MM)
         if not (math.isfinite(self.spray_radius_mm) and self.spray_radius_mm > 0):
             raise ConfigError(f"spray_radius_mm must be a positive number, got {self.spray_radius_mm}")
         if not 0.0 <= self.overlap < 1.0:
@@ -312,6 +337,7 @@ class PathConfig(Section):
                 or value < 0
             ):
                 raise ConfigError(f"edge_passes must be auto or a whole number >= 0, got {self.edge_passes!r}")
+            _at_most(PathConfig, "edge_passes", value, MAX_EDGE_PASSES)
             object.__setattr__(self, "edge_passes", int(self.edge_passes))
         if self.cloud_normals not in ("triangles", "plane"):
             raise ConfigError(f"cloud_normals must be triangles or plane, got {self.cloud_normals!r}")
@@ -333,12 +359,16 @@ class PathConfig(Section):
             int(self.points_per_section) != self.points_per_section or self.points_per_section < 2
         ):
             raise ConfigError(f"points_per_section must be a whole number >= 2, got {self.points_per_section}")
+        _at_most(PathConfig, "layers", self.layers, MAX_LAYERS)
+        _at_most(PathConfig, "points_per_section", self.points_per_section, MAX_POINTS_PER_SECTION)
         if self.layers is not None and self.spacing_mm is not None:
             raise ConfigError("give either layers or spacing_mm, not both")
         for name in ("spacing_mm", "spray_radius_mm", "step_mm", "split_gap_mm", "slab_mm", "cloud_smooth_mm"):
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value > 0):
                 raise ConfigError(f"{name} must be a positive number, got {value}")
+        for name in ("spacing_mm", "step_mm"):
+            _at_least(PathConfig, name, getattr(self, name), MIN_STEP_MM)
         if self.cloud_normal_smooth_mm is not None and not (
             math.isfinite(self.cloud_normal_smooth_mm) and self.cloud_normal_smooth_mm >= 0
         ):
@@ -536,6 +566,14 @@ class FilmConfig(Section):
     def _check(self):
         if not self.process.strip():
             raise _fail(FilmConfig, "process", "a preset name or a .toml file", self.process)
+        import os
+
+        if not (self.process.endswith(".toml") or os.sep in self.process):
+            from sprayplan.coating.process import list_presets
+
+            known = list_presets()
+            if self.process not in known:
+                raise _fail(FilmConfig, "process", f"one of {', '.join(known)} or a .toml file", self.process)
         _at_least(FilmConfig, "thickness_um", self.thickness_um, 0, strict=True)
         _at_least(FilmConfig, "tolerance_um", self.tolerance_um, 0)
         _at_least(FilmConfig, "workers", self.workers, 1)
@@ -641,6 +679,7 @@ class OutputConfig(Section):
 
     def _check(self):
         _at_least(OutputConfig, "samples", self.samples, 1)
+        _at_most(OutputConfig, "samples", self.samples, MAX_REPORT_SAMPLES)
 
 
 @dataclass(frozen=True)

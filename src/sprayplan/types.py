@@ -31,6 +31,33 @@ def read_only(result) -> None:
             value.flags.writeable = False
 
 
+def _check_part_arrays(vertices: np.ndarray, faces: np.ndarray, name: str) -> None:
+    """A part's coordinates are finite and within ``checks.MAX_COORDINATE_MM`` of the origin, its faces index
+    its vertices: anything else is a one-line ``DataError`` naming the part and the row (beyond 1e7 mm the
+    products in normals and covariances overflow or lose every digit)."""
+    from sprayplan.checks import MAX_COORDINATE_MM
+    from sprayplan.errors import DataError
+
+    who = f"{name}: " if name else ""
+    if len(vertices):
+        size = np.abs(vertices).max(axis=1)
+        bad = ~(size <= MAX_COORDINATE_MM)  # NaN too
+        if bad.any():
+            row = int(np.argmax(bad))
+            raise DataError(
+                f"{who}vertex {row} is ({', '.join(f'{v:g}' for v in vertices[row])}) mm: coordinates must be finite"
+                f" and within {MAX_COORDINATE_MM:g} mm of the origin (is the unit right?)"
+            )
+    if len(faces):
+        bad = (faces < 0).any(axis=1) | (faces >= len(vertices)).any(axis=1)
+        if bad.any():
+            row = int(np.argmax(bad))
+            raise DataError(
+                f"{who}face {row} ({' '.join(map(str, faces[row]))}) refers to a vertex that does not exist"
+                f" ({len(vertices)} vertices)"
+            )
+
+
 @dataclass(frozen=True)
 class Part:
     """A part in the part frame, in mm, z up.
@@ -56,6 +83,7 @@ class Part:
         object.__setattr__(self, "vertices", _frozen(self.vertices, np.float64, (3,), "vertices"))
         faces = np.asarray(self.faces).reshape(-1, 3) if np.size(self.faces) == 0 else self.faces
         object.__setattr__(self, "faces", _frozen(faces, np.int64, (3,), "faces"))
+        _check_part_arrays(self.vertices, self.faces, self.name)
         if self.vertex_normals is not None:
             normals = _frozen(self.vertex_normals, np.float64, (3,), "vertex_normals")
             if len(normals) != len(self.vertices):

@@ -54,9 +54,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sprayplan.checks import check_work
 from sprayplan.errors import ConfigError
 
 log = logging.getLogger(__name__)
+
+#: Droplets of one simulation (about 1 kB each while it runs), time steps (``max_time_s / dt_s``), and
+#: droplets x steps (the default is 2000 x 20000 = 4e7, about a minute on two cores).
+MAX_DROPLETS = 1_000_000
+MAX_DROPLET_STEPS = 1_000_000
+MAX_DROPLET_WORK = 1e9
 
 EPS0 = 8.8541878128e-12
 K_E = 1.0 / (4.0 * math.pi * EPS0)
@@ -164,6 +171,8 @@ class DropletConfig:
                 raise ConfigError(f"droplet {key} must be positive, got {getattr(self, key)}")
         if int(self.count) < 1 or self.diameter_gsd < 1 or self.cup_radius_mm >= self.standoff_mm:
             raise ConfigError("need count >= 1, diameter_gsd >= 1 and cup_radius_mm < standoff_mm")
+        if self.count > MAX_DROPLETS:
+            raise ConfigError(f"droplet count must be at most {MAX_DROPLETS}, got {self.count!r}")
         object.__setattr__(self, "gravity_m_s2", tuple(float(g) for g in self.gravity_m_s2))
 
 
@@ -192,6 +201,25 @@ class DropletResult:
     flight_time_s: np.ndarray
     transfer_efficiency: float
     config: DropletConfig
+
+
+def _check_steps(config: DropletConfig, count: int, steps: float) -> None:
+    """Refuse, before integrating, more than ``MAX_DROPLET_STEPS`` time steps or ``MAX_DROPLET_WORK`` droplet
+    steps (``count`` droplets over ``steps`` steps), naming the settings to change."""
+    if steps > MAX_DROPLET_STEPS:
+        raise ConfigError(
+            f"droplet max_time_s / dt_s must be at most {MAX_DROPLET_STEPS} steps, got {steps:.3g}"
+            f" (max_time_s {config.max_time_s:g}, dt_s {config.dt_s:g}): use dt_s >= {config.max_time_s / MAX_DROPLET_STEPS:.3g}"
+        )
+    check_work(
+        count * steps,
+        MAX_DROPLET_WORK,
+        "droplet steps",
+        "droplet count",
+        int(count),
+        f"{steps:.3g} time steps each",
+        f"use count <= {max(1, int(MAX_DROPLET_WORK // steps))} or a larger dt_s",
+    )
 
 
 def drag_factor(reynolds: np.ndarray) -> np.ndarray:
@@ -311,6 +339,7 @@ def integrate(
     n = len(x)
     dt = config.dt_s
     total = round(config.max_time_s / dt) if steps is None else int(steps)
+    _check_steps(config, n, total)
     rng = np.random.default_rng(config.seed)
     eddy_steps = max(1, round(config.eddy_time_s / dt))
     turb = np.zeros((n, 3))
@@ -412,6 +441,10 @@ def landing_density(result: DropletResult, cell_mm: float | None = None, half_wi
         raise ConfigError("no droplet landed: nothing to make a pattern of")
     half = float(np.quantile(np.linalg.norm(pts, axis=1), 0.99)) if half_width_mm is None else half_width_mm
     cell = half / 20.0 if cell_mm is None else float(cell_mm)
+    if not (math.isfinite(cell) and cell > 0 and math.isfinite(half) and half > 0):
+        raise ConfigError(f"cell_mm and half_width_mm must be positive numbers, got {cell_mm!r}, {half_width_mm!r}")
+    check_work((2 * half / cell) ** 2, 1e8, "grid cells", "cell_mm", cell, f"half width {half:.4g} mm",
+               f"use cell_mm >= {2 * half / 1e4:.3g}")
     edges = np.arange(-half, half + cell / 2, cell)
     hist, ex, ey = np.histogram2d(pts[:, 0], pts[:, 1], bins=[edges, edges], weights=w)
     cx, cy = 0.5 * (ex[1:] + ex[:-1]), 0.5 * (ey[1:] + ey[:-1])

@@ -162,8 +162,11 @@ def list_presets() -> list[str]:
     return sorted(p.name[:-5] for p in _presets_dir().iterdir() if p.name.endswith(".toml"))
 
 
-def load_preset(name_or_path: str | os.PathLike) -> Process:
+def load_preset(name_or_path: str | os.PathLike, setting: str = "process") -> Process:
     """A process from a bundled preset name (``"seed000_circle"``, ``"bell003"``) or a TOML file path.
+
+    ``setting`` names the option or key the name came from (``coating.process``, ``--process``), first in the
+    message of an unknown name.
 
     Raises
     ------
@@ -180,7 +183,10 @@ def load_preset(name_or_path: str | os.PathLike) -> Process:
         return process_from_dict(table, source=str(path))
     entry = _presets_dir().joinpath(f"{text_name}.toml")
     if not entry.is_file():
-        raise ConfigError(f"unknown coating preset {text_name!r}; known: {', '.join(list_presets())}")
+        raise ConfigError(
+            f"{setting} {text_name!r} is not a known process preset: use one of {', '.join(list_presets())}"
+            " or a .toml file"
+        )
     return process_from_dict(tomllib.loads(entry.read_text(encoding="utf-8")), source=text_name)
 
 

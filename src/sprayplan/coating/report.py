@@ -15,6 +15,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sprayplan.coating.thickness import CoatingResult
+from sprayplan.checks import MAX_REPORT_SAMPLES
 from sprayplan.errors import ConfigError
 
 log = logging.getLogger(__name__)
@@ -150,6 +151,8 @@ def boundary_distance(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
 def _measuring_points(samples, painted: np.ndarray, area: np.ndarray, seed: int) -> np.ndarray:
     if np.ndim(samples) == 0:
         count = int(samples)
+        if count > MAX_REPORT_SAMPLES:
+            raise ConfigError(f"output.samples must be at most {MAX_REPORT_SAMPLES} measuring points, got {count}")
         candidates = np.flatnonzero(painted)
         if count < 1 or not len(candidates):
             raise ConfigError(f"cannot choose {count} measuring points among {len(candidates)} painted samples")

@@ -16,7 +16,7 @@ def process_for(job: JobConfig):
     """The spray process of a job: its preset, at the job's gun speed."""
     from sprayplan.coating.process import load_preset
 
-    process = load_preset(job.coating.process)
+    process = load_preset(job.coating.process, "coating.process")
     return dataclasses.replace(process, speed_mm_s=job.motion.gun_speed_mm_s)
 
 
@@ -32,7 +32,7 @@ def meet_thickness(job: JobConfig) -> tuple[JobConfig, dict]:
     from sprayplan.coating.process import load_preset
     from sprayplan.coating.spacing import choose_spacing_and_speed
 
-    process = load_preset(job.coating.process)
+    process = load_preset(job.coating.process, "coating.process")
     choice = choose_spacing_and_speed(process, job.coating.thickness_um, standoff_mm=job.paths.standoff_mm)
     chosen = {
         "spacing_mm": float(choice.spacing_mm),

@@ -57,10 +57,17 @@ from sprayplan.coating.patterns import SprayPattern
 from sprayplan.coating.process import Process, StrokeOverride
 from sprayplan.coating.sampling import GunSamples, SurfaceSamples, gun_samples, surface_samples
 from sprayplan.errors import ConfigError
+from sprayplan.checks import MAX_FILM_SAMPLES, MIN_STEP_MM, check_work, round_up
 from sprayplan.surface import normals as nm
 from sprayplan.types import Part, Paths, Targets, read_only
 
 log = logging.getLogger(__name__)
+
+#: Largest side of the occlusion depth map (a view costs pixels^2), gun samples per batch (memory: about 200
+#: bytes x batch x samples per footprint), and threads.
+MAX_OCCLUSION_PIXELS = 1024
+MAX_BATCH = 65_536
+MAX_WORKERS = 64
 
 
 @dataclass(frozen=True)
@@ -125,6 +132,13 @@ class CoatingConfig:
             raise ConfigError(f"max_speed_ratio must be >= 1, got {self.max_speed_ratio}")
         if int(self.occlusion_pixels) < 4 or int(self.batch) < 1:
             raise ConfigError("occlusion_pixels must be >= 4 and batch >= 1")
+        for name, value, low in (("max_step_mm", self.max_step_mm, MIN_STEP_MM), ("sample_edge_mm", self.sample_edge_mm, MIN_STEP_MM)):
+            if value is not None and value != 0 and value < low:
+                raise ConfigError(f"{name} must be {'0 or ' * (name == 'sample_edge_mm')}a number >= {low:g}, got {value!r}")
+        for name, high in (("occlusion_pixels", MAX_OCCLUSION_PIXELS), ("batch", MAX_BATCH), ("workers", MAX_WORKERS)):
+            value = getattr(self, name)
+            if value is not None and value > high:
+                raise ConfigError(f"{name} must be at most {high}, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -346,7 +360,10 @@ def _setup(part, paths, process, overrides, config: CoatingConfig, targets, node
     """Surface samples (unless given), gun samples and occlusion: what the film's sum runs over."""
     if samples is None:
         edge = process.pattern.radius_mm / 5.0 if config.sample_edge_mm is None else config.sample_edge_mm
+        if targets is None and part.is_mesh and edge > 0:
+            _check_sample_count(part, edge, config)
         samples = surface_samples(part, targets, edge, facing=paths)
+    _check_gun_samples(paths, process, config)
     guns, times, flows = gun_samples(
         paths, process, overrides, config.max_step_mm, config.speed_along, config.max_speed_ratio, nodes=nodes
     )
@@ -378,6 +395,39 @@ def _setup(part, paths, process, overrides, config: CoatingConfig, targets, node
         samples_are_vertices=on_vertices,
     )
     return _Setup(samples, guns, times, flows, pattern, tree, reach, occlusion, int(config.batch), workers)
+
+
+def _check_sample_count(part: Part, edge: float, config: CoatingConfig) -> None:
+    """Refuse, before splitting the mesh, a sample edge that would make more surface samples than
+    ``MAX_FILM_SAMPLES`` (about 1.2 area / edge^2 vertices once no edge is longer than ``edge``)."""
+    count = max(1.2 * part.area / edge**2, float(len(part.vertices)))
+    lowest = math.sqrt(1.2 * part.area / MAX_FILM_SAMPLES)
+    setting = "coating.sample_edge_mm" if config.sample_edge_mm is not None else "coating.sample_edge_mm (None: radius / 5)"
+    check_work(
+        count,
+        MAX_FILM_SAMPLES,
+        "film samples",
+        setting,
+        edge,
+        f"{part.area:.4g} mm^2",
+        f"use coating.sample_edge_mm >= {round_up(lowest)}",
+    )
+
+
+def _check_gun_samples(paths: Paths, process: Process, config: CoatingConfig) -> None:
+    """Refuse, before sampling the plan, a time step that would make more gun samples than ``MAX_FILM_SAMPLES``."""
+    step = process.pattern.radius_mm / 10.0 if config.max_step_mm is None else float(config.max_step_mm)
+    length = sum(float(np.linalg.norm(np.diff(s.tcp, axis=0), axis=1).sum()) for s in paths.spray_strokes)
+    count = length / step + sum(len(s.tcp) for s in paths.spray_strokes)
+    check_work(
+        count,
+        MAX_FILM_SAMPLES,
+        "gun samples",
+        "coating.max_step_mm",
+        step,
+        f"{length:.4g} mm of spray strokes",
+        f"use coating.max_step_mm >= {round_up(length / MAX_FILM_SAMPLES)}",
+    )
 
 
 def _in_batches(setup: _Setup, reduce, progress=None) -> list:

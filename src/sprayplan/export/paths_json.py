@@ -14,6 +14,7 @@ import os
 import numpy as np
 
 from sprayplan import __version__
+from sprayplan.checks import MAX_COORDINATE_MM
 from sprayplan.errors import PartFileError
 from sprayplan.export.files import atomic_output, read_json_file
 from sprayplan.types import Paths, Stroke
@@ -76,6 +77,32 @@ def write_paths_json(path: str | os.PathLike, paths: Paths, settings=None) -> No
         handle.write("\n")
 
 
+#: A normal read from a file may differ from unit length by this much (the writer writes full precision).
+UNIT_TOL = 1e-3
+
+
+def _check_stroke_arrays(name: str, k: int, points, normals, tcp) -> None:
+    """Coordinates finite and within ``MAX_COORDINATE_MM``, normals of unit length: else a ``PartFileError``
+    naming the file, the stroke and the waypoint (a NaN or zero normal would be solved as a pose)."""
+    for field, values in (("points", points), ("tcp", tcp)):
+        bad = ~(np.abs(values) <= MAX_COORDINATE_MM).all(axis=1)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise PartFileError(
+                name,
+                f"stroke {k} waypoint {i}: {field} ({', '.join(f'{v:g}' for v in values[i])}) must be finite and"
+                f" within {MAX_COORDINATE_MM:g} mm",
+            )
+    length = np.linalg.norm(normals, axis=1)
+    bad = ~(np.abs(length - 1.0) <= UNIT_TOL)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise PartFileError(
+            name,
+            f"stroke {k} waypoint {i}: normal ({', '.join(f'{v:g}' for v in normals[i])}) is not a unit vector",
+        )
+
+
 def read_paths_json(path: str | os.PathLike) -> Paths:
     """Read a paths.json written by :func:`write_paths_json`.
 
@@ -87,18 +114,24 @@ def read_paths_json(path: str | os.PathLike) -> Paths:
     name = os.fspath(path)
     data = read_json_file(path, FORMAT, "paths")
     try:
-        strokes = tuple(
-            Stroke(
-                np.array(s["points"], float).reshape(-1, 3),
-                np.array(s["normals"], float).reshape(-1, 3),
-                np.array(s["tcp"], float).reshape(-1, 3),
-                bool(s["spray_on"]),
-                np.array(s["on_part"], bool),
-                int(s["layer"]),
-                np.array(s["dwell"], float) if "dwell" in s else None,
+        strokes = []
+        for k, s in enumerate(data["strokes"]):
+            points = np.array(s["points"], float).reshape(-1, 3)
+            normals = np.array(s["normals"], float).reshape(-1, 3)
+            tcp = np.array(s["tcp"], float).reshape(-1, 3)
+            _check_stroke_arrays(name, k, points, normals, tcp)
+            strokes.append(
+                Stroke(
+                    points,
+                    normals,
+                    tcp,
+                    bool(s["spray_on"]),
+                    np.array(s["on_part"], bool),
+                    int(s["layer"]),
+                    np.array(s["dwell"], float) if "dwell" in s else None,
+                )
             )
-            for s in data["strokes"]
-        )
+        strokes = tuple(strokes)
         settings = data["settings"]
         return Paths(strokes, float(settings["standoff_mm"]), float(settings["spacing_mm"]), str(data.get("part", "")))
     except (KeyError, TypeError, ValueError) as exc:

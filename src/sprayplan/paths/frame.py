@@ -10,7 +10,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import brentq
 
+from sprayplan.checks import MAX_LAYERS
 from sprayplan.config import PathConfig
+from sprayplan.errors import ConfigError
 
 #: Surface-spacing marching never moves the plane by less than this fraction of the spacing: where the surface
 #: runs nearly parallel to the planes (steeper than about 75 degrees to the strokes' plane), sections drift
@@ -143,6 +145,12 @@ def march_offsets(lo: float, hi: float, d: float, samples, distance, close: bool
     eps = 1e-6 * max(hi - lo, 1.0)
     offsets = [lo + min(d / 2, (hi - lo) / 2)]
     while True:
+        if len(offsets) > MAX_LAYERS:
+            raise ConfigError(
+                f"paths.spacing_mm {d:.4g} would make more than {MAX_LAYERS} layers on this part ({hi - lo:.4g} mm"
+                f" across the layers, where the surface runs along the planes): use a larger paths.spacing_mm"
+                " or another paths.direction"
+            )
         current = samples(offsets[-1])
 
         def gap(o, q=current, here=offsets[-1]):

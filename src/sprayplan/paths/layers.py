@@ -16,6 +16,7 @@ from typing import Protocol
 
 import numpy as np
 
+from sprayplan.checks import MAX_LAYERS, MAX_WAYPOINTS, check_work, round_up
 from sprayplan.config import PathConfig
 from sprayplan.paths import polyline as pl
 from sprayplan.paths import segmentation
@@ -57,7 +58,9 @@ class SectionSource(Protocol):
         """A few words on the sections for the log (e.g. the slab's width)."""
 
 
-def build_layers(source: SectionSource, config: PathConfig, progress=None) -> list[list[Piece]]:
+def build_layers(
+    source: SectionSource, config: PathConfig, progress=None, area_mm2: float | None = None
+) -> list[list[Piece]]:
     """Resampled pieces of every slicing layer, in layer order, edge passes included.
 
     Parameters
@@ -67,6 +70,9 @@ def build_layers(source: SectionSource, config: PathConfig, progress=None) -> li
     config : PathConfig
     progress : callable, optional
         ``progress(done, total)`` after each layer's sections.
+    area_mm2 : float, optional
+        The part's surface area (a cloud's: about its outline's), to refuse before slicing a step or spacing
+        that would make more than ``checks.MAX_WAYPOINTS`` waypoints (:func:`check_layer_work`).
 
     Returns
     -------
@@ -76,6 +82,7 @@ def build_layers(source: SectionSource, config: PathConfig, progress=None) -> li
     """
     normal, travel = slicing_frame(source.covariance(), config.direction)
     lo, hi = source.use_frame(normal, travel)
+    check_layer_work(lo, hi, config, area_mm2)
     d = layer_spacing(lo, hi, config)
     boundary = source.boundary(d / 4)
     offsets = layer_offsets(lo, hi, config, source.samples, source.distance, closed_part=len(boundary) == 0)
@@ -96,6 +103,56 @@ def build_layers(source: SectionSource, config: PathConfig, progress=None) -> li
     )
     layers = with_inner_edge_passes(layers, normal, travel, d, config, boundary)
     return with_edge_passes(layers, normal, counts, d, config, boundary)
+
+
+def check_layer_work(lo: float, hi: float, config: PathConfig, area_mm2: float | None = None) -> None:
+    """Refuse, before any slicing, settings that would make more layers than ``MAX_LAYERS`` or more waypoints
+    than ``MAX_WAYPOINTS`` on a part spanning [lo, hi] across the layers (surface area ``area_mm2``).
+
+    Layers: the span over the spacing (``paths.layers`` is bounded by the config itself). Waypoints: the
+    strokes' length (about area / spacing, plus two leads per layer and the edge passes) over ``step_mm``, or
+    ``points_per_section`` per layer. Each message names the setting, its value, the part's size and the
+    value that would be accepted.
+    """
+    span = max(float(hi - lo), 0.0)
+    d = layer_spacing(lo, hi, config)
+    spacing_name = "paths.spacing_mm" if config.spacing_mm is not None else "paths.spacing_mm (from spray_radius_mm and overlap)"
+    if config.layers is None and span > 0:
+        check_work(
+            span / d,
+            MAX_LAYERS,
+            "layers",
+            spacing_name,
+            d,
+            f"{span:.4g} mm across the layers",
+            f"use paths.spacing_mm >= {round_up(span / MAX_LAYERS)}",
+        )
+    layers = (config.layers or max(1.0, span / d)) + (2 * config.edge_passes if config.edge_passes != "auto" else 6)
+    if config.points_per_section is not None:
+        check_work(
+            layers * config.points_per_section,
+            MAX_WAYPOINTS,
+            "waypoints",
+            "paths.points_per_section",
+            config.points_per_section,
+            f"{layers:.0f} layers",
+            f"use paths.points_per_section <= {max(2, int(MAX_WAYPOINTS // layers))}",
+        )
+    if area_mm2 is None or not area_mm2 > 0:
+        return
+    width = area_mm2 / max(span, d)  # the sections' mean length
+    length = layers * (width + 2 * config.margin)
+    if config.points_per_section is not None and config.interpolate == "none":
+        return
+    check_work(
+        length / config.step_mm,
+        MAX_WAYPOINTS,
+        "waypoints",
+        "paths.step_mm",
+        config.step_mm,
+        f"{area_mm2:.4g} mm^2, {layers:.0f} layers of about {width:.4g} mm",
+        f"use paths.step_mm >= {round_up(length / MAX_WAYPOINTS)}",
+    )
 
 
 def section_pieces(points, normals, closed, travel, config: PathConfig) -> list[Piece]:

@@ -50,11 +50,21 @@ def plan_paths(part: Part, config: PathConfig | None = None, progress=None) -> P
     """
     config = PathConfig() if config is None else config
     source = MeshSections(part, config.spacing) if part.is_mesh else cloud_sections(part, config)
-    layers = build_layers(source, config, progress) if source is not None else []
+    layers = build_layers(source, config, progress, area_mm2=_area(part)) if source is not None else []
     if not any(layers):
         raise InputError(f"{part.name}: no section of the part to paint (spacing {config.spacing:.4g} mm)")
     strokes = order_strokes(layers, config)
     return Paths(tuple(strokes), config.standoff_mm, config.spacing, part.name)
+
+
+def _area(part: Part) -> float:
+    """The part's surface area, mm^2 (a cloud's: its bounding box's two largest sides' product)."""
+    if part.is_mesh:
+        return float(part.area)
+    if not len(part.vertices):
+        return 0.0
+    size = np.sort(np.ptp(part.vertices, axis=0))
+    return float(size[1] * size[2])
 
 
 # ----------------------------------------------------------------------------------------------- strokes

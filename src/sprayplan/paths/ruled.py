@@ -62,6 +62,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sprayplan.checks import MAX_LAYERS, MAX_WAYPOINTS, MIN_STEP_MM, check_work, round_up
 from sprayplan.errors import ConfigError
 from sprayplan.paths.ruled_surface import (  # noqa: F401 - re-exported: the curve types are part of this API
     _NO_BREAKS,
@@ -129,6 +130,10 @@ class RuledPathConfig:
             isinstance(self.passes, bool) or int(self.passes) != self.passes or self.passes < 1
         ):
             raise ConfigError(f"passes must be a whole number >= 1, got {self.passes}")
+        if self.passes is not None and self.passes > MAX_LAYERS:
+            raise ConfigError(f"passes must be at most {MAX_LAYERS}, got {self.passes!r}")
+        if self.step_mm is not None and self.step_mm < MIN_STEP_MM:
+            raise ConfigError(f"step_mm must be a number >= {MIN_STEP_MM:g}, got {self.step_mm!r}")
         if not (math.isfinite(self.standoff_mm) and self.standoff_mm >= 0):
             raise ConfigError(f"standoff_mm must be a number >= 0, got {self.standoff_mm}")
         if self.direction not in DIRECTIONS:
@@ -164,6 +169,15 @@ def _pass_positions(extent_mm: float, closed: bool, config: RuledPathConfig) -> 
             return np.array([0.5]), extent_mm
         return np.linspace(0.0, 1.0, n), extent_mm / (n - 1)
     d = config.spacing_mm
+    check_work(
+        extent_mm / d,
+        MAX_LAYERS,
+        "passes",
+        "path.spot_diameter_mm",
+        config.spot_diameter_mm,
+        f"{extent_mm:.4g} mm across the passes, overlap {config.overlap:g}",
+        f"use path.spot_diameter_mm >= {round_up(config.spot_diameter_mm * extent_mm / d / MAX_LAYERS)}",
+    )
     if closed:
         n = max(1, math.ceil(extent_mm / d - 1e-9))
         return np.arange(n) / n, extent_mm / n
@@ -221,6 +235,18 @@ def ruled_paths(job: RuledJob) -> Paths:
         extent = float(surface.ruling_length(fine).max())
         positions, spacing = _pass_positions(extent, False, config)
     step = config.step_mm
+    longest = max(surface.curve_a.length_mm, surface.curve_b.length_mm, float(surface.ruling_length(fine).max()))
+    if step is not None or config.direction == "across":
+        along = step or spacing
+        check_work(
+            len(positions) * longest / along,
+            MAX_WAYPOINTS,
+            "waypoints",
+            "path.step_mm",
+            along,
+            f"{len(positions)} passes up to {longest:.4g} mm long",
+            f"use path.step_mm >= {round_up(len(positions) * longest / MAX_WAYPOINTS)}",
+        )
     params = []
     for k, p in enumerate(positions):
         if config.direction == "rulings":

@@ -31,7 +31,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import minimize
 
-from sprayplan.errors import ConfigError
+from sprayplan.checks import check_points, check_poses
+from sprayplan.errors import ConfigError, DataError
 from sprayplan.robots.model import RobotModel, fk, load_robot
 from sprayplan.types import read_only
 
@@ -449,9 +450,17 @@ def solve_gantry_path(
     """
     from sprayplan.robots.ur_ik import nearest_equivalent, ur_ik
 
-    gun2world = np.asarray(gun2world, dtype=float).reshape(-1, 4, 4)
+    gun2world = check_poses(np.asarray(gun2world, dtype=float).reshape(-1, 4, 4), "gun2world")
     n = len(gun2world)
-    platform = np.broadcast_to(np.asarray(platform, dtype=float), (n, 3)).copy()
+    try:
+        platform = np.broadcast_to(np.asarray(platform, dtype=float), (n, 3)).copy()
+    except ValueError:
+        raise DataError(f"platform must have shape (3,) or ({n}, 3), got {np.shape(platform)}") from None
+    check_points(platform, "platform")
+    if seed_q is not None:
+        from sprayplan.robots.ur_ik import _check_vector
+
+        seed_q = _check_vector(seed_q, "seed_q", 0.0)
     wanted_target = gun2world @ gantry.gun.target2gun
     # the working cylinder bounds where the robot's end (the flange) goes (seed 000, figure 25)
     flange_world = gun2world @ np.linalg.inv(gantry.gun.gun2flange)

@@ -47,6 +47,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from sprayplan.checks import check_points, check_poses
 from sprayplan.errors import ConfigError, InputError
 from sprayplan.robots.gantry import GANTRY_ARMS, Gantry, build_gantry, load_gun
 from sprayplan.robots.model import TAU, RobotModel, fk, load_robot
@@ -164,6 +165,8 @@ def _poses(tcp2world) -> np.ndarray:
         poses = poses[None]
     if poses.ndim != 3 or poses.shape[1:] != (4, 4):
         raise InputError(f"tcp2world must have shape (4, 4) or (n, 4, 4), got {poses.shape}")
+    # NaN rows are unreachable rows; a mirror or a sheared rotation is an error naming the row
+    check_poses(poses, "tcp2world", allow_nan=True)
     return poses
 
 
@@ -446,6 +449,7 @@ class GantryRobot:
                 platform = np.broadcast_to(np.asarray(platform_mm, dtype=float), (n, 3))
             except ValueError:
                 raise InputError(f"platform_mm must have shape (3,) or ({n}, 3), got {np.shape(platform_mm)}") from None
+            check_points(platform, "platform_mm")
         finite = _finite(poses) & np.isfinite(platform).all(axis=1)
         safe = np.where(finite[:, None], platform, 0.0)
         flange = self.gantry.flange_targets(np.where(finite[:, None, None], poses, np.nan), safe)

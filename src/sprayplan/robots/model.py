@@ -207,7 +207,7 @@ PRESETS = {
 }
 
 
-def load_robot(name_or_path: str | os.PathLike) -> RobotModel:
+def load_robot(name_or_path: str | os.PathLike, setting: str = "robot") -> RobotModel:
     """A robot model from a preset name (``ur5``, ``ur5-seed``, ``ur5e``, ``r5150``) or a TOML file.
 
     The TOML file has ``name``, and lists ``d_mm``, ``a_mm``, ``alpha_deg`` and optionally ``theta_offset_deg``,
@@ -215,10 +215,13 @@ def load_robot(name_or_path: str | os.PathLike) -> RobotModel:
     flange as ``base_xyz_mm``, ``base_rpy_deg``, ``tool_xyz_mm``, ``tool_rpy_deg`` (three values each; angles
     as seed 001's eq. 9, ``Rot(x) Rot(y) Rot(z)``).
 
+    ``setting`` names the option or key the name came from (``--robot``), first in the message of an
+    unknown name.
+
     Raises
     ------
     ConfigError
-        An unknown preset name.
+        An unknown preset name: ``"--robot 'ur10' is not a known robot: use one of ur5, ... or a .toml file"``.
     PartFileError
         A TOML file that is missing, broken or incomplete.
     """
@@ -227,7 +230,7 @@ def load_robot(name_or_path: str | os.PathLike) -> RobotModel:
         return RobotModel(name=key, **PRESETS[key])
     path = Path(key)
     if path.suffix.lower() != ".toml":
-        raise ConfigError(f"unknown robot {key!r}: use one of {', '.join(PRESETS)} or a .toml file")
+        raise ConfigError(f"{setting} {key!r} is not a known robot: use one of {', '.join(PRESETS)} or a .toml file")
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:

@@ -50,6 +50,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sprayplan.checks import check_poses
 from sprayplan.errors import ConfigError, InputError
 from sprayplan.robots.model import RobotModel
 
@@ -155,6 +156,8 @@ def _check_poses(flange2base) -> np.ndarray:
         poses = poses[None]
     if poses.ndim != 3 or poses.shape[1:] != (4, 4):
         raise InputError(f"flange2base must be (4, 4) or (n, 4, 4), got shape {poses.shape}")
+    # a mirror or a sheared rotation is not a pose: an error naming the row, not a "reachable" answer
+    check_poses(poses, "flange2base", allow_nan=True)
     return poses
 
 
@@ -398,9 +401,13 @@ def _singular_theta6(desired, x5, y5, n_x, n_y, o_x, o_y, d5, r_min, r_max) -> n
 def _check_vector(value, name: str, default: float) -> np.ndarray:
     if value is None:
         return np.full(6, default)
-    out = np.asarray(value, dtype=float).reshape(-1)
+    try:
+        out = np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name} must be 6 finite numbers (rad), got {value!r}") from None
     if out.shape != (6,) or not np.isfinite(out).all():
-        raise ConfigError(f"{name} must be 6 finite numbers, got {np.asarray(value).shape}")
+        shown = ", ".join(f"{v:g}" for v in out[:12]) + (", ..." if out.size > 12 else "")
+        raise ConfigError(f"{name} must be 6 finite numbers (rad), got {out.size} value(s): {shown}")
     return out
 
 

@@ -12,13 +12,26 @@ in a random order), so the targets cover the surface evenly whatever the triangu
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sprayplan.checks import MAX_CANDIDATES
 from sprayplan.errors import ConfigError
 
 #: No filling may produce more points than this (protects against a spacing far too small for the part).
-MAX_POINTS = 20_000_000
+MAX_POINTS = MAX_CANDIDATES
+#: Candidates of the even sampling per spacing^2 of area (``sample_even``'s default).
+EVEN_OVERSAMPLE = 3.0
+#: Points the DFS filling makes per (area / h_min^2), measured on plates and the demo roof (point: 0.2-0.5,
+#: line: 2.6-3.2), rounded up: ``dfs_point_estimate``.
+_DFS_POINTS_PER_H2 = {"point": 0.5, "line": 4.0}
+
+
+def dfs_point_estimate(area_mm2: float, h_min_mm: float, mode: str = "point") -> float:
+    """About how many points :func:`fill_dfs` makes on ``area_mm2`` at ``h_min_mm`` (an upper estimate)."""
+    return _DFS_POINTS_PER_H2.get(mode, 4.0) * area_mm2 / h_min_mm**2
 
 
 def triangle_area_heron(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -88,6 +101,8 @@ def fill_dfs(triangles: np.ndarray, h_min_mm: float, mode: str = "point") -> tup
         current, owner = current[split], owner[split]
         if not len(current):
             break
+        if total + 3 * len(current) > 3 * MAX_POINTS:  # the next level's triangles alone would not fit
+            _too_many(h_min_mm)
         centroid = current.mean(axis=1)
         if mode == "point":
             new, new_owner = centroid, owner
@@ -111,7 +126,8 @@ def fill_dfs(triangles: np.ndarray, h_min_mm: float, mode: str = "point") -> tup
 
 def _too_many(h_min_mm):
     raise ConfigError(
-        f"filling with h_min {h_min_mm} mm would make more than {MAX_POINTS} points: use a larger spacing"
+        f"targets.h_min_mm {h_min_mm:g}: the filling would make more than {MAX_POINTS} points: use a larger"
+        " targets.h_min_mm (or targets.spacing_mm, whose half it is by default)"
     )
 
 
@@ -155,7 +171,7 @@ def sample_uniform(triangles: np.ndarray, count: int, rng: np.random.Generator) 
 
 
 def sample_even(
-    triangles: np.ndarray, spacing_mm: float, *, seed: int = 0, oversample: float = 3.0
+    triangles: np.ndarray, spacing_mm: float, *, seed: int = 0, oversample: float = EVEN_OVERSAMPLE
 ) -> tuple[np.ndarray, np.ndarray]:
     """Even sampling: points on the surface, no two closer than ``spacing_mm``, leaving no large gaps.
 
@@ -189,8 +205,10 @@ def sample_even(
     )
     count = int(np.ceil(oversample * area / spacing_mm**2)) + 1
     if count > MAX_POINTS:
+        lowest = math.sqrt(oversample * area / MAX_POINTS)
         raise ConfigError(
-            f"even sampling at {spacing_mm} mm needs {count} candidates on {area:.4g} mm^2: use a larger spacing"
+            f"targets.spacing_mm {spacing_mm:g}: even sampling needs {count} candidates on {area:.4g} mm^2 (at most"
+            f" {MAX_POINTS}): use targets.spacing_mm >= {lowest:.3g} (or a larger spray_radius_mm / overlap)"
         )
     rng = np.random.default_rng(seed)
     candidates, face = sample_uniform(triangles, count, rng)

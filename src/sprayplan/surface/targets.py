@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import logging
+import math
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sprayplan.checks import MAX_CANDIDATES, check_work, round_up
 from sprayplan.config import TargetsConfig
 from sprayplan.errors import InputError
 from sprayplan.surface import compress as compress_mod
@@ -44,6 +46,8 @@ def make_targets(part: Part, config: TargetsConfig | None = None) -> Targets:
     config = TargetsConfig() if config is None else config
     spacing = config.spacing
     if part.is_mesh:
+        check_target_work(part, config)
+    if part.is_mesh:
         points, normals, face_index = _mesh_targets(part, config, spacing)
     else:
         points, normals, face_index = _cloud_targets(part, config, spacing)
@@ -56,6 +60,29 @@ def make_targets(part: Part, config: TargetsConfig | None = None) -> Targets:
     if len(points) == 0:
         raise InputError(f"{part.name}: no target points (is the spacing {spacing:.4g} mm larger than the part?)")
     return Targets(points, normals, face_index)
+
+
+def check_target_work(part: Part, config: TargetsConfig) -> None:
+    """Refuse, before sampling, a spacing (even fill) or ``h_min_mm`` (DFS fill) that would make more than
+    ``checks.MAX_CANDIDATES`` points on the part: the message names the setting, the part's area and the
+    smallest value accepted."""
+    area = float(part.area)
+    if config.fill == "even":
+        spacing = config.spacing
+        name = "targets.spacing_mm" if config.spacing_mm is not None else "targets.spacing_mm (from spray_radius_mm and overlap)"
+        count = filling.EVEN_OVERSAMPLE * area / spacing**2
+        lowest = math.sqrt(filling.EVEN_OVERSAMPLE * area / MAX_CANDIDATES)
+        check_work(count, MAX_CANDIDATES, "candidates of the even sampling", name, spacing, f"{area:.4g} mm^2",
+                   f"use targets.spacing_mm >= {round_up(lowest)} or a smaller region")
+    else:
+        h_min = config.h_min_mm or config.spacing / 2.0
+        name = "targets.h_min_mm" if config.h_min_mm is not None else "targets.h_min_mm (None: half the spacing)"
+        # the filling splits a triangle while its smallest height is h_min or more: at most about
+        # 2 area / h_min^2 triangles of the last level, each with a centroid or the points along its medians
+        count = filling.dfs_point_estimate(area, h_min, config.fill)
+        lowest = math.sqrt(count / MAX_CANDIDATES) * h_min
+        check_work(count, MAX_CANDIDATES, f"points of the {config.fill} filling", name, h_min, f"{area:.4g} mm^2",
+                   f"use targets.h_min_mm >= {round_up(lowest)} or a smaller region")
 
 
 def _mesh_targets(part: Part, config: TargetsConfig, spacing: float):
