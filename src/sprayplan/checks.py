@@ -232,7 +232,9 @@ def check_poses(poses, name: str = "poses", *, tol: float = 1e-3, allow_nan: boo
     try:
         out = np.array(poses, dtype=np.float64, copy=True)
     except (TypeError, ValueError):
-        raise DataError(f"{name} must be (n, 4, 4) poses of finite numbers, got something that is not numbers") from None
+        raise DataError(
+            f"{name} must be (n, 4, 4) poses of finite numbers, got something that is not numbers"
+        ) from None
     if out.shape == (4, 4):
         out = out[None]
     if out.ndim != 3 or out.shape[1:] != (4, 4):

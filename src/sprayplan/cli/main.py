@@ -30,7 +30,7 @@ from sprayplan.cli.common import (
     parse_edge_passes,
     stage,
 )
-from sprayplan.errors import ConfigError, InputError, OutputError, StageError
+from sprayplan.errors import ConfigError, InputError, OutputError, PartFileError, StageError
 
 log = logging.getLogger("sprayplan.cli")
 
@@ -235,7 +235,10 @@ def cmd_paths(args) -> int:
             raise ConfigError("give either a PART or --ruled SURFACE.toml, not both")
         with _stage("ruled surface"):
             job = load_ruled(args.ruled)
-            paths = ruled_paths(job)
+            try:
+                paths = ruled_paths(job)
+            except ConfigError as exc:  # a bound on the file's settings: name the file
+                raise PartFileError(args.ruled, str(exc)) from None
         settings = {"ruled": str(args.ruled)}
     else:
         from sprayplan.io.load import load_part
@@ -527,6 +530,26 @@ def _on_sigterm():
     return signal.signal(signal.SIGTERM, _terminated)
 
 
+def _naming_the_option(message: str, argv: list[str] | None) -> str:
+    """The message led by the option it is about, when the user gave that option on the command line.
+
+    Errors from the library name a setting as a config key (``paths.step_mm``, ``step_mm``, ``region``); the
+    user typed ``--step-mm``. The first option given whose key appears in the message as a word leads it,
+    unless the message names the option already.
+    """
+    import re
+
+    given = [a.split("=", 1)[0] for a in (sys.argv[1:] if argv is None else argv) if a.startswith("--")]
+    for flag in given:
+        if flag in message:
+            return message
+    for flag in given:
+        key = flag[2:].replace("-", "_")
+        if len(key) > 2 and re.search(rf"(?<![\w-]){re.escape(key)}(?![\w-])", message):
+            return f"{flag}: {message}"
+    return message
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit code (0 ok, 2 bad input, 1 an internal error, 130 interrupted).
 
@@ -554,7 +577,7 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:
         line = _expected(exc)
         if line is not None:
-            print(f"sprayplan: error: {_one_line(line)}", file=sys.stderr)
+            print(f"sprayplan: error: {_one_line(_naming_the_option(str(line), argv))}", file=sys.stderr)
             return 2
         if args.verbose:
             traceback.print_exception(exc, file=sys.stderr)

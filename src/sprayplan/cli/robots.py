@@ -24,7 +24,7 @@ def _write_table(path, header, rows) -> None:
 def _robot(name: str):
     from sprayplan.robots.model import load_robot
 
-    return load_robot("ur5" if name == "gantry-ur5" else name)
+    return load_robot("ur5" if name == "gantry-ur5" else name, "--robot")
 
 
 def _tool_offset(args, robot):

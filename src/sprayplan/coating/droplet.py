@@ -443,8 +443,15 @@ def landing_density(result: DropletResult, cell_mm: float | None = None, half_wi
     cell = half / 20.0 if cell_mm is None else float(cell_mm)
     if not (math.isfinite(cell) and cell > 0 and math.isfinite(half) and half > 0):
         raise ConfigError(f"cell_mm and half_width_mm must be positive numbers, got {cell_mm!r}, {half_width_mm!r}")
-    check_work((2 * half / cell) ** 2, 1e8, "grid cells", "cell_mm", cell, f"half width {half:.4g} mm",
-               f"use cell_mm >= {2 * half / 1e4:.3g}")
+    check_work(
+        (2 * half / cell) ** 2,
+        1e8,
+        "grid cells",
+        "cell_mm",
+        cell,
+        f"half width {half:.4g} mm",
+        f"use cell_mm >= {2 * half / 1e4:.3g}",
+    )
     edges = np.arange(-half, half + cell / 2, cell)
     hist, ex, ey = np.histogram2d(pts[:, 0], pts[:, 1], bins=[edges, edges], weights=w)
     cx, cy = 0.5 * (ex[1:] + ex[:-1]), 0.5 * (ey[1:] + ey[:-1])

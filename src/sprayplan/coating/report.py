@@ -14,8 +14,8 @@ import logging
 import numpy as np
 from scipy.spatial import cKDTree
 
-from sprayplan.coating.thickness import CoatingResult
 from sprayplan.checks import MAX_REPORT_SAMPLES
+from sprayplan.coating.thickness import CoatingResult
 from sprayplan.errors import ConfigError
 
 log = logging.getLogger(__name__)

@@ -52,12 +52,12 @@ import numpy as np
 from scipy import sparse
 from scipy.spatial import cKDTree
 
+from sprayplan.checks import MAX_FILM_SAMPLES, MIN_STEP_MM, check_work, round_up
 from sprayplan.coating.occlusion import METHODS, compute_occlusion, make_views
 from sprayplan.coating.patterns import SprayPattern
 from sprayplan.coating.process import Process, StrokeOverride
 from sprayplan.coating.sampling import GunSamples, SurfaceSamples, gun_samples, surface_samples
 from sprayplan.errors import ConfigError
-from sprayplan.checks import MAX_FILM_SAMPLES, MIN_STEP_MM, check_work, round_up
 from sprayplan.surface import normals as nm
 from sprayplan.types import Part, Paths, Targets, read_only
 
@@ -132,9 +132,14 @@ class CoatingConfig:
             raise ConfigError(f"max_speed_ratio must be >= 1, got {self.max_speed_ratio}")
         if int(self.occlusion_pixels) < 4 or int(self.batch) < 1:
             raise ConfigError("occlusion_pixels must be >= 4 and batch >= 1")
-        for name, value, low in (("max_step_mm", self.max_step_mm, MIN_STEP_MM), ("sample_edge_mm", self.sample_edge_mm, MIN_STEP_MM)):
+        for name, value, low in (
+            ("max_step_mm", self.max_step_mm, MIN_STEP_MM),
+            ("sample_edge_mm", self.sample_edge_mm, MIN_STEP_MM),
+        ):
             if value is not None and value != 0 and value < low:
-                raise ConfigError(f"{name} must be {'0 or ' * (name == 'sample_edge_mm')}a number >= {low:g}, got {value!r}")
+                raise ConfigError(
+                    f"{name} must be {'0 or ' * (name == 'sample_edge_mm')}a number >= {low:g}, got {value!r}"
+                )
         for name, high in (("occlusion_pixels", MAX_OCCLUSION_PIXELS), ("batch", MAX_BATCH), ("workers", MAX_WORKERS)):
             value = getattr(self, name)
             if value is not None and value > high:
@@ -402,7 +407,9 @@ def _check_sample_count(part: Part, edge: float, config: CoatingConfig) -> None:
     ``MAX_FILM_SAMPLES`` (about 1.2 area / edge^2 vertices once no edge is longer than ``edge``)."""
     count = max(1.2 * part.area / edge**2, float(len(part.vertices)))
     lowest = math.sqrt(1.2 * part.area / MAX_FILM_SAMPLES)
-    setting = "coating.sample_edge_mm" if config.sample_edge_mm is not None else "coating.sample_edge_mm (None: radius / 5)"
+    setting = (
+        "coating.sample_edge_mm" if config.sample_edge_mm is not None else "coating.sample_edge_mm (None: radius / 5)"
+    )
     check_work(
         count,
         MAX_FILM_SAMPLES,

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sprayplan.checks import check_input_file, first_bad_normal
+from sprayplan.checks import MAX_COORDINATE_MM, check_input_file, first_bad_normal
 from sprayplan.errors import ConfigError, PartFileError
 from sprayplan.types import Part
 
@@ -41,11 +41,6 @@ CLOUD_SUFFIXES = (".xyz", ".txt", ".csv", ".pcd")
 
 #: Sizes outside this range (largest bounding-box side, mm) are unlikely for a painted part.
 PLAUSIBLE_SIZE_MM = (20.0, 100_000.0)
-
-#: A coordinate farther than this from the origin (mm, after the unit's scaling) is an error: no painted part
-#: is 10 km across, and beyond it float64 arithmetic on the part (squares of lengths, 1e300 overflowing to inf)
-#: stops being trustworthy.
-MAX_COORDINATE_MM = 1e7
 
 #: A cloud whose second principal extent (root of the covariance's eigenvalue) is below this fraction of its
 #: first lies on one line (float64 eigenvalues are good to about 1e-16 of the largest, so 1e-6 of the extent).

@@ -116,7 +116,9 @@ def check_layer_work(lo: float, hi: float, config: PathConfig, area_mm2: float |
     """
     span = max(float(hi - lo), 0.0)
     d = layer_spacing(lo, hi, config)
-    spacing_name = "paths.spacing_mm" if config.spacing_mm is not None else "paths.spacing_mm (from spray_radius_mm and overlap)"
+    spacing_name = (
+        "paths.spacing_mm" if config.spacing_mm is not None else "paths.spacing_mm (from spray_radius_mm and overlap)"
+    )
     if config.layers is None and span > 0:
         check_work(
             span / d,

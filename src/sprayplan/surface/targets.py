@@ -69,11 +69,22 @@ def check_target_work(part: Part, config: TargetsConfig) -> None:
     area = float(part.area)
     if config.fill == "even":
         spacing = config.spacing
-        name = "targets.spacing_mm" if config.spacing_mm is not None else "targets.spacing_mm (from spray_radius_mm and overlap)"
+        name = (
+            "targets.spacing_mm"
+            if config.spacing_mm is not None
+            else "targets.spacing_mm (from spray_radius_mm and overlap)"
+        )
         count = filling.EVEN_OVERSAMPLE * area / spacing**2
         lowest = math.sqrt(filling.EVEN_OVERSAMPLE * area / MAX_CANDIDATES)
-        check_work(count, MAX_CANDIDATES, "candidates of the even sampling", name, spacing, f"{area:.4g} mm^2",
-                   f"use targets.spacing_mm >= {round_up(lowest)} or a smaller region")
+        check_work(
+            count,
+            MAX_CANDIDATES,
+            "candidates of the even sampling",
+            name,
+            spacing,
+            f"{area:.4g} mm^2",
+            f"use targets.spacing_mm >= {round_up(lowest)} or a smaller region",
+        )
     else:
         h_min = config.h_min_mm or config.spacing / 2.0
         name = "targets.h_min_mm" if config.h_min_mm is not None else "targets.h_min_mm (None: half the spacing)"
@@ -81,8 +92,15 @@ def check_target_work(part: Part, config: TargetsConfig) -> None:
         # 2 area / h_min^2 triangles of the last level, each with a centroid or the points along its medians
         count = filling.dfs_point_estimate(area, h_min, config.fill)
         lowest = math.sqrt(count / MAX_CANDIDATES) * h_min
-        check_work(count, MAX_CANDIDATES, f"points of the {config.fill} filling", name, h_min, f"{area:.4g} mm^2",
-                   f"use targets.h_min_mm >= {round_up(lowest)} or a smaller region")
+        check_work(
+            count,
+            MAX_CANDIDATES,
+            f"points of the {config.fill} filling",
+            name,
+            h_min,
+            f"{area:.4g} mm^2",
+            f"use targets.h_min_mm >= {round_up(lowest)} or a smaller region",
+        )
 
 
 def _mesh_targets(part: Part, config: TargetsConfig, spacing: float):
