@@ -799,6 +799,11 @@ SUBPROCESS_CASES = {
     "targets-spacing-1e-6": _sub_targets("--spacing-mm", "1e-6", names=["--spacing-mm"]),
     "targets-h-min-1e-6": _sub_targets("--fill", "point", "--h-min-mm", "1e-6", names=["--h-min-mm"]),
     "plan-samples-1e11": _sub_plan("--simulate", "--samples", "100000000000", names=["--samples"]),
+}
+
+#: Unbounded work that fails fast today (a MemoryError under the limit, an overflow): run in-process, under the
+#: same time and memory limits as every in-process case.
+UNBOUNDED_INPROCESS = {
     "ruled-passes-1e9": _sub_ruled_passes,
     "ruled-step-1e-9": _sub_ruled_step,
     "mesh-coords-1e300": _sub_targets(names=["far.stl"], name="far.stl",
@@ -807,6 +812,12 @@ SUBPROCESS_CASES = {
     "cloud-coords-1e150": _sub_targets(names=["far.xyz"], name="far.xyz", data=_far_cloud(1e150)),
     "paths-coords-1e100": _sub_far_paths,
 }
+
+
+@pytest.mark.parametrize("case", list(UNBOUNDED_INPROCESS))
+def test_unbounded_input_fails_fast(case, tmp_path, capsys):
+    argv, names = UNBOUNDED_INPROCESS[case](tmp_path)
+    assert_contract(argv, snapshot(tmp_path), capsys, names=names, root=tmp_path)
 
 
 def _limit_child():
