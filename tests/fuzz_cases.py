@@ -149,9 +149,7 @@ def pcd_ascii(points=None) -> str:
 
 JOINTS_CSV = "q1,q2,q3,q4,q5,q6\n0,-1.2,1.1,-1.5,-1.57,0\n0.1,-1.0,1.0,-1.4,-1.57,0.2\n"
 POSES_CSV = "x,y,z,rx,ry,rz\n400,100,300,3.1416,0,0\n420,100,300,3.1416,0,0\n"
-POSES_MATRIX_CSV = (
-    "x,y,z,r11,r12,r13,r21,r22,r23,r31,r32,r33\n400,100,300,1,0,0,0,-1,0,0,0,-1\n"
-)
+POSES_MATRIX_CSV = "x,y,z,r11,r12,r13,r21,r22,r23,r31,r32,r33\n400,100,300,1,0,0,0,-1,0,0,0,-1\n"
 
 CONFIG_TOML = """mode = "paths"
 [load]

@@ -231,7 +231,11 @@ def test_ruled_step_and_spot_checked_before_sampling():
     assert message.startswith("path.step_mm 0.01 would make") and "waypoints" in message
     job = _ruled(passes=None, spot_diameter_mm=1e-4)
     message = fast(lambda: ruled_paths(job), ConfigError)
-    assert message.startswith("path.spot_diameter_mm") and "passes" in message and "use path.spot_diameter_mm >=" in message
+    assert (
+        message.startswith("path.spot_diameter_mm")
+        and "passes" in message
+        and "use path.spot_diameter_mm >=" in message
+    )
     assert len(ruled_paths(_ruled()).spray_strokes) == 5
 
 

@@ -539,20 +539,23 @@ CASES = {
     "ik-paths-no-strokes": _gantry(lambda d: d.__setitem__("strokes", [])),
     # --- multi-line errors (argparse)
     "argparse-missing-output": _argv("targets", "{root}/plate.stl", names=["-o", "--output"]),
-    "argparse-bad-choice": _argv("targets", "{root}/plate.stl", "-o", "{root}/t.csv", "--units", "km",
-                                 names=["--units"]),
-    "argparse-not-a-number": _argv("paths", "{root}/plate.stl", "-o", "{root}/p.json", "--layers", "x",
-                                   names=["--layers"]),
+    "argparse-bad-choice": _argv(
+        "targets", "{root}/plate.stl", "-o", "{root}/t.csv", "--units", "km", names=["--units"]
+    ),
+    "argparse-not-a-number": _argv(
+        "paths", "{root}/plate.stl", "-o", "{root}/p.json", "--layers", "x", names=["--layers"]
+    ),
     "argparse-unknown-option": _argv("fk", "{root}/j.csv", "-o", "{root}/p.csv", "--bogus", names=["--bogus"]),
     "argparse-unknown-command": _argv("paint", names=["paint"]),
     # --- data lost or overwritten
     "plan-prev-samples-0": _plan_opt("--simulate", "--samples", "0", names=["--samples"], prev=True),
     "plan-prev-bad-process": _plan_opt("--process", "bogus", names=["--process"], prev=True),
     "ruled-table-then-unwritable-output": _ruled(
-        None, names=["sprayplan-fuzz-no-such-dir"], table=lambda r: r / "t.csv",
-        output=lambda r: f"{UNWRITABLE}/p.json"),
-    "ruled-unwritable-table": _ruled(None, names=["sprayplan-fuzz-no-such-dir", "--table"],
-                                     table=lambda r: f"{UNWRITABLE}/t.csv"),
+        None, names=["sprayplan-fuzz-no-such-dir"], table=lambda r: r / "t.csv", output=lambda r: f"{UNWRITABLE}/p.json"
+    ),
+    "ruled-unwritable-table": _ruled(
+        None, names=["sprayplan-fuzz-no-such-dir", "--table"], table=lambda r: f"{UNWRITABLE}/t.csv"
+    ),
     "simulate-paints-nothing": _simulate(_paints_nothing, names=["plan.json", "prev"]),
     "targets-output-is-input": _argv("targets", "{root}/plate.stl", "-o", "{root}/plate.stl", names=["plate.stl"]),
     "paths-output-is-input": _argv("paths", "{root}/plate.stl", "-o", "{root}/plate.stl", names=["plate.stl"]),
@@ -572,8 +575,8 @@ CASES = {
     "stl-ascii-underscore-number": _ascii_stl_underscore,
     # --- nonsense accepted as data
     "ik-pose-determinant-minus-1": _ik(
-        "x,y,z,r11,r12,r13,r21,r22,r23,r31,r32,r33\n400,100,300,1,0,0,0,1,0,0,0,-1\n",
-        names=["poses.csv"], fmt="matrix"),
+        "x,y,z,r11,r12,r13,r21,r22,r23,r31,r32,r33\n400,100,300,1,0,0,0,1,0,0,0,-1\n", names=["poses.csv"], fmt="matrix"
+    ),
     "xyz-zero-length-normal": _xyz_zero_normals,
     "xyz-nan-normal": _xyz_nan_normals,
     "ik-paths-zero-normal": _gantry(_normals([0.0, 0.0, 0.0])),
@@ -590,8 +593,9 @@ CASES = {
     "paths-direction-zero": _paths_opt("--direction", "0,0,0", names=["--direction"]),
     "paths-direction-nan": _paths_opt("--direction", "nan,0,1", names=["--direction"]),
     "targets-region-empty-names-option": _targets_opt("--region", "z > 99999", names=["--region"]),
-    "paths-overlap-and-spacing": _paths_opt("--overlap", "0.3", "--spacing-mm", "20",
-                                            names=["--overlap", "--spacing-mm"]),
+    "paths-overlap-and-spacing": _paths_opt(
+        "--overlap", "0.3", "--spacing-mm", "20", names=["--overlap", "--spacing-mm"]
+    ),
     "paths-overlap-1.5": _paths_opt("--overlap", "1.5", names=["--overlap"]),
     "paths-spray-radius-nan": _paths_opt("--spray-radius-mm", "nan", names=["--spray-radius-mm"]),
     "paths-step-negative": _paths_opt("--step-mm", "-5", names=["--step-mm"]),
@@ -603,8 +607,9 @@ CASES = {
     "simulate-thickness-nan": _simulate(None, "--thickness-um", "nan", names=["--thickness-um"]),
     # --- readers: missing and non-regular inputs
     "part-is-a-folder": _argv("targets", "{root}/adir.stl", "-o", "{root}/t.csv", names=["adir.stl"]),
-    "config-missing": _argv("plan", "{root}/plate.stl", "-o", "{root}/plan", "-c", "{root}/none.toml",
-                            names=["none.toml"]),
+    "config-missing": _argv(
+        "plan", "{root}/plate.stl", "-o", "{root}/plan", "-c", "{root}/none.toml", names=["none.toml"]
+    ),
     "joints-missing": _argv("fk", "{root}/none.csv", "-o", "{root}/p.csv", names=["none.csv"]),
     "ruled-missing": _argv("paths", "--ruled", "{root}/none.toml", "-o", "{root}/p.json", names=["none.toml"]),
 }
@@ -646,7 +651,11 @@ def test_output_in_a_missing_folder_is_made_or_refused(good, tmp_path, capsys):
     part = put(tmp_path, "plate.stl", fc.stl_binary())
     out = tmp_path / "missing_dir" / "x.csv"
     run = assert_contract_or_success(
-        ["targets", part, "-o", out], tmp_path, capsys, names=["missing_dir"], outputs=["missing_dir", "missing_dir/x.csv"]
+        ["targets", part, "-o", out],
+        tmp_path,
+        capsys,
+        names=["missing_dir"],
+        outputs=["missing_dir", "missing_dir/x.csv"],
     )
     if run.code == 0:
         assert out.read_text().startswith("x,y,z,nx,ny,nz")
@@ -670,7 +679,10 @@ def test_plan_folder_survives_a_failing_rerun_byte_for_byte(good, tmp_path, caps
     prev = plan_copy(good, tmp_path)
     before = snapshot(tmp_path)
     assert_contract(
-        ["plan", part, "-o", prev, "-q", "--simulate", "--samples", "0"], before, capsys, names=["--samples"],
+        ["plan", part, "-o", prev, "-q", "--simulate", "--samples", "0"],
+        before,
+        capsys,
+        names=["--samples"],
         root=tmp_path,
     )
 
@@ -793,8 +805,7 @@ SUBPROCESS_CASES = {
     "paths-layers-1e9": _sub_paths("--layers", "1000000000", names=["--layers"]),
     "paths-step-1e-9": _sub_paths("--step-mm", "1e-9", names=["--step-mm"]),
     "paths-spacing-1e-6": _sub_paths("--spacing-mm", "1e-6", names=["--spacing-mm"]),
-    "paths-points-per-section-1e9": _sub_paths("--points-per-section", "1000000000",
-                                               names=["--points-per-section"]),
+    "paths-points-per-section-1e9": _sub_paths("--points-per-section", "1000000000", names=["--points-per-section"]),
     "paths-edge-margin-1e12": _sub_paths("--edge-margin-mm", "1e12", names=["--edge-margin-mm"]),
     "targets-spacing-1e-6": _sub_targets("--spacing-mm", "1e-6", names=["--spacing-mm"]),
     "targets-h-min-1e-6": _sub_targets("--fill", "point", "--h-min-mm", "1e-6", names=["--h-min-mm"]),
@@ -806,8 +817,9 @@ SUBPROCESS_CASES = {
 UNBOUNDED_INPROCESS = {
     "ruled-passes-1e9": _sub_ruled_passes,
     "ruled-step-1e-9": _sub_ruled_step,
-    "mesh-coords-1e300": _sub_targets(names=["far.stl"], name="far.stl",
-                                      data=lambda: fc.stl_ascii(*fc.plate_mesh(scale=1e300))),
+    "mesh-coords-1e300": _sub_targets(
+        names=["far.stl"], name="far.stl", data=lambda: fc.stl_ascii(*fc.plate_mesh(scale=1e300))
+    ),
     "cloud-coords-1e300": _sub_targets(names=["far.xyz"], name="far.xyz", data=_far_cloud(1e300)),
     "cloud-coords-1e150": _sub_targets(names=["far.xyz"], name="far.xyz", data=_far_cloud(1e150)),
     "paths-coords-1e100": _sub_far_paths,
@@ -828,18 +840,32 @@ def _limit_child():
 @pytest.fixture(scope="session")
 def subprocess_runs(tmp_path_factory):
     """Every hang-prone case run at once, each in its own python and folder, killed after the time limit."""
-    env = {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", ""),
-           "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "PYTHONWARNINGS": "default"}
+    env = {
+        **os.environ,
+        "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", ""),
+        "OPENBLAS_NUM_THREADS": "1",
+        "OMP_NUM_THREADS": "1",
+        "PYTHONWARNINGS": "default",
+    }
     started = {}
     for case, build in SUBPROCESS_CASES.items():
         root = tmp_path_factory.mktemp(case)
         argv, names = build(root)
         before = snapshot(root)
         proc = subprocess.Popen(
-            [sys.executable, "-c", "import sys; from sprayplan.cli import main; sys.exit(main(sys.argv[1:]))",
-             *map(str, argv)],
-            cwd=root, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL,
-            start_new_session=True, preexec_fn=_limit_child,
+            [
+                sys.executable,
+                "-c",
+                "import sys; from sprayplan.cli import main; sys.exit(main(sys.argv[1:]))",
+                *map(str, argv),
+            ],
+            cwd=root,
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            stdin=subprocess.DEVNULL,
+            start_new_session=True,
+            preexec_fn=_limit_child,
         )
         started[case] = (proc, time.monotonic(), root, names, before)
     results = {}
@@ -922,8 +948,7 @@ READERS = {
 
 def _part_case(root: Path, name: str, data: bytes, capsys):
     part = put(root, name, data)
-    assert_contract_or_success(["targets", part, "-o", root / "t.csv"], root, capsys, names=[name],
-                               outputs=["t.csv"])
+    assert_contract_or_success(["targets", part, "-o", root / "t.csv"], root, capsys, names=[name], outputs=["t.csv"])
 
 
 @pytest.mark.parametrize("reader", list(READERS))
@@ -946,8 +971,11 @@ def test_fuzz_part_reader_random_bytes(suffix, data, capsys):
 TABLES = {
     "fk-joints": ("joints.csv", fc.JOINTS_CSV, lambda f, r: ["fk", f, "-o", r / "o.csv"]),
     "ik-poses": ("poses.csv", fc.POSES_CSV, lambda f, r: ["ik", f, "-o", r / "o.csv"]),
-    "ik-poses-matrix": ("poses.csv", fc.POSES_MATRIX_CSV,
-                        lambda f, r: ["ik", f, "-o", r / "o.csv", "--pose-format", "matrix"]),
+    "ik-poses-matrix": (
+        "poses.csv",
+        fc.POSES_MATRIX_CSV,
+        lambda f, r: ["ik", f, "-o", r / "o.csv", "--pose-format", "matrix"],
+    ),
     "ruled-toml": ("ruled.toml", fc.RULED_TOML, lambda f, r: ["paths", "--ruled", f, "-o", r / "o.csv"]),
 }
 
@@ -966,21 +994,45 @@ def test_fuzz_table_reader_mutations(reader, ops, capsys):
 # ---------------------------------------------------------------- generated: TOML, plan.json, paths.json
 
 #: Values of a type no setting of that key takes (every key below is a number, or a name from a list).
-WRONG_NUMBER = st.sampled_from(['"x"', "[1, 2]", "{a = 1}", "true", "nan", "inf", "-inf", "-1e300", "1e300",
-                                '""', "1979-05-27"])
-WRONG_NAME = st.sampled_from(["5", "[\"mm\"]", "{a = 1}", "true", "nan", '"bogus"', '""', "1.5"])
+WRONG_NUMBER = st.sampled_from(
+    ['"x"', "[1, 2]", "{a = 1}", "true", "nan", "inf", "-inf", "-1e300", "1e300", '""', "1979-05-27"]
+)
+WRONG_NAME = st.sampled_from(["5", '["mm"]', "{a = 1}", "true", "nan", '"bogus"', '""', "1.5"])
 TOML_NUMBERS = [
-    ("paths", "spray_radius_mm"), ("paths", "overlap"), ("paths", "standoff_mm"), ("paths", "step_mm"),
-    ("paths", "split_angle_deg"), ("paths", "layers"), ("paths", "spacing_mm"), ("paths", "rim_mm"),
-    ("targets", "spray_radius_mm"), ("stations", "platform_z_mm"), ("stations", "seed"), ("ordering", "seed"),
-    ("kinematics", "k_d"), ("kinematics", "position_tol_mm"), ("motion", "gun_speed_mm_s"),
-    ("motion", "max_speed_ratio"), ("coating", "tolerance_um"), ("coating", "batch"),
-    ("coating", "occlusion_pixels"), ("coating", "thickness_um"),
+    ("paths", "spray_radius_mm"),
+    ("paths", "overlap"),
+    ("paths", "standoff_mm"),
+    ("paths", "step_mm"),
+    ("paths", "split_angle_deg"),
+    ("paths", "layers"),
+    ("paths", "spacing_mm"),
+    ("paths", "rim_mm"),
+    ("targets", "spray_radius_mm"),
+    ("stations", "platform_z_mm"),
+    ("stations", "seed"),
+    ("ordering", "seed"),
+    ("kinematics", "k_d"),
+    ("kinematics", "position_tol_mm"),
+    ("motion", "gun_speed_mm_s"),
+    ("motion", "max_speed_ratio"),
+    ("coating", "tolerance_um"),
+    ("coating", "batch"),
+    ("coating", "occlusion_pixels"),
+    ("coating", "thickness_um"),
 ]
 TOML_NAMES = [
-    ("load", "units"), ("load", "up"), ("paths", "direction"), ("paths", "spacing_mode"), ("paths", "interpolate"),
-    ("ordering", "tour"), ("kinematics", "robot"), ("kinematics", "tool"), ("coating", "process"),
-    ("coating", "occlusion"), ("motion", "speed_along"), ("targets", "fill"),
+    ("load", "units"),
+    ("load", "up"),
+    ("paths", "direction"),
+    ("paths", "spacing_mode"),
+    ("paths", "interpolate"),
+    ("ordering", "tour"),
+    ("kinematics", "robot"),
+    ("kinematics", "tool"),
+    ("coating", "process"),
+    ("coating", "occlusion"),
+    ("motion", "speed_along"),
+    ("targets", "fill"),
 ]
 
 
@@ -999,8 +1051,14 @@ def test_fuzz_toml_wrong_types(key, good, capsys):
         root = Path(folder)
         part = put(root, "plate.stl", fc.stl_binary())
         cfg = put(root, "job.toml", f"[{section}]\n{name} = {value}\n")
-        assert_contract(["plan", part, "-o", root / "plan", "-q", "-c", cfg], snapshot(root), capsys,
-                        names=["job.toml"], root=root, also=[name])
+        assert_contract(
+            ["plan", part, "-o", root / "plan", "-q", "-c", cfg],
+            snapshot(root),
+            capsys,
+            names=["job.toml"],
+            root=root,
+            also=[name],
+        )
 
 
 def _json_paths(data, prefix=()):
@@ -1014,8 +1072,9 @@ def _json_paths(data, prefix=()):
             yield from _json_paths(data[i], (*prefix, i))
 
 
-JSON_EDITS = st.tuples(st.sampled_from(["delete", "null", "string", "nan", "list", "negative", "huge", "object"]),
-                       st.integers(0, 1 << 16))
+JSON_EDITS = st.tuples(
+    st.sampled_from(["delete", "null", "string", "nan", "list", "negative", "huge", "object"]), st.integers(0, 1 << 16)
+)
 
 
 def _edit_json(data, edit):
@@ -1034,7 +1093,11 @@ def _edit_json(data, edit):
             del parent[key]
     else:
         parent[key] = {
-            "null": None, "string": "x", "nan": float("nan"), "list": [value, value], "object": {"v": value},
+            "null": None,
+            "string": "x",
+            "nan": float("nan"),
+            "list": [value, value],
+            "object": {"v": value},
             "negative": -1 if not isinstance(value, (int, float)) or isinstance(value, bool) else -abs(value) - 1,
             "huge": 1e300,
         }[kind]
@@ -1053,8 +1116,9 @@ def test_fuzz_plan_json(edits, good, capsys):
             _edit_json(data, edit)
         (prev / "plan.json").write_text(json.dumps(data))
         outputs = [f"prev/{n}" for n in ("coating.json", "thickness.csv", "thickness.ply")]
-        assert_contract_or_success(["simulate", prev, "--part", good / "plate.stl"], root, capsys,
-                                   names=["plan.json"], outputs=outputs)
+        assert_contract_or_success(
+            ["simulate", prev, "--part", good / "plate.stl"], root, capsys, names=["plan.json"], outputs=outputs
+        )
 
 
 @settings(FUZZ, max_examples=10)
@@ -1067,8 +1131,13 @@ def test_fuzz_paths_json(edits, good, capsys):
         for edit in edits:
             _edit_json(data, edit)
         paths = put(root, "paths.json", json.dumps(data))
-        assert_contract_or_success(["ik", paths, "--robot", "gantry-ur5", "-o", root / "q.csv"], root, capsys,
-                                   names=["paths.json"], outputs=["q.csv"])
+        assert_contract_or_success(
+            ["ik", paths, "--robot", "gantry-ur5", "-o", root / "q.csv"],
+            root,
+            capsys,
+            names=["paths.json"],
+            outputs=["q.csv"],
+        )
 
 
 # ------------------------------------------------------------------------- generated: numeric options
@@ -1080,44 +1149,77 @@ ODD_FLOATS = st.one_of(
 )
 ODD_INTS = st.sampled_from(["0", "-1", "-2147483649", "9223372036854775808", "1e3", "3.5", "x", "2", "7"])
 
-PATH_FLOATS = ["--spacing-mm", "--spray-radius-mm", "--overlap", "--standoff-mm", "--edge-margin-mm", "--step-mm",
-               "--split-gap-mm", "--split-angle-deg", "--slab-mm", "--cloud-smooth-mm", "--rim-mm"]
+PATH_FLOATS = [
+    "--spacing-mm",
+    "--spray-radius-mm",
+    "--overlap",
+    "--standoff-mm",
+    "--edge-margin-mm",
+    "--step-mm",
+    "--split-gap-mm",
+    "--split-angle-deg",
+    "--slab-mm",
+    "--cloud-smooth-mm",
+    "--rim-mm",
+]
 PATH_INTS = ["--layers", "--points-per-section", "--edge-passes"]
 TARGET_FLOATS = ["--spacing-mm", "--spray-radius-mm", "--overlap", "--h-min-mm", "--normal-radius-mm"]
 
 
 @settings(FUZZ, max_examples=25)
-@given(option=st.one_of(st.tuples(st.sampled_from(PATH_FLOATS), ODD_FLOATS),
-                        st.tuples(st.sampled_from(PATH_INTS), ODD_INTS)))
+@given(
+    option=st.one_of(
+        st.tuples(st.sampled_from(PATH_FLOATS), ODD_FLOATS), st.tuples(st.sampled_from(PATH_INTS), ODD_INTS)
+    )
+)
 def test_fuzz_paths_numeric_options(option, capsys):
     name, value = option
     with tempfile.TemporaryDirectory() as folder:
         root = Path(folder)
         part = put(root, "plate.stl", fc.stl_binary())
-        assert_contract_or_success(["paths", part, "-o", root / "p.json", f"{name}={value}"], root, capsys,
-                                   names=[name], outputs=["p.json"])
+        assert_contract_or_success(
+            ["paths", part, "-o", root / "p.json", f"{name}={value}"], root, capsys, names=[name], outputs=["p.json"]
+        )
 
 
 @settings(FUZZ, max_examples=20)
-@given(option=st.one_of(st.tuples(st.sampled_from(TARGET_FLOATS), ODD_FLOATS),
-                        st.tuples(st.just("--seed"), ODD_INTS)),
-       fill=st.sampled_from(["even", "point", "line"]))
+@given(
+    option=st.one_of(st.tuples(st.sampled_from(TARGET_FLOATS), ODD_FLOATS), st.tuples(st.just("--seed"), ODD_INTS)),
+    fill=st.sampled_from(["even", "point", "line"]),
+)
 def test_fuzz_targets_numeric_options(option, fill, capsys):
     name, value = option
     with tempfile.TemporaryDirectory() as folder:
         root = Path(folder)
         part = put(root, "plate.stl", fc.stl_binary())
-        assert_contract_or_success(["targets", part, "-o", root / "t.csv", "--fill", fill, f"{name}={value}"], root,
-                                   capsys, names=[name], outputs=["t.csv"])
+        assert_contract_or_success(
+            ["targets", part, "-o", root / "t.csv", "--fill", fill, f"{name}={value}"],
+            root,
+            capsys,
+            names=[name],
+            outputs=["t.csv"],
+        )
 
 
 @settings(FUZZ, max_examples=15)
-@given(values=st.lists(st.one_of(st.floats(allow_nan=True, allow_infinity=True).map(repr),
-                                 st.sampled_from(["a", "", " ", "1e999", "0x10"])), min_size=0, max_size=8))
+@given(
+    values=st.lists(
+        st.one_of(
+            st.floats(allow_nan=True, allow_infinity=True).map(repr), st.sampled_from(["a", "", " ", "1e999", "0x10"])
+        ),
+        min_size=0,
+        max_size=8,
+    )
+)
 def test_fuzz_seed_joints(values, capsys):
     with tempfile.TemporaryDirectory() as folder:
         root = Path(folder)
         poses = put(root, "poses.csv", fc.POSES_CSV)
         text = ",".join(values) or ","
-        assert_contract_or_success(["ik", poses, "-o", root / "q.csv", f"--seed-joints={text}"], root, capsys,
-                                   names=["--seed-joints"], outputs=["q.csv"])
+        assert_contract_or_success(
+            ["ik", poses, "-o", root / "q.csv", f"--seed-joints={text}"],
+            root,
+            capsys,
+            names=["--seed-joints"],
+            outputs=["q.csv"],
+        )

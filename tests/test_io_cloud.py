@@ -412,8 +412,18 @@ def test_xyz_six_columns_without_header(tmp_path):
     points, normals = read_xyz(write(tmp_path, "u.xyz", text.encode()))
     np.testing.assert_array_equal(points, XYZ_POINTS)
     np.testing.assert_array_equal(normals, unit)
-    # colours (or anything not of unit length) in columns 3-5 are ignored
+    # one normal a little off unit length among unit ones: still normals, as the file gave them
     table[3, 3:6] *= 1.01
+    text = "\n".join(" ".join(repr(float(v)) for v in row) for row in table) + "\n"
+    points, normals = read_xyz(write(tmp_path, "o.xyz", text.encode()))
+    np.testing.assert_array_equal(normals, table[:, 3:6])
+    # ... but one of zero length is an error naming its line
+    table[3, 3:6] = 0.0
+    text = "\n".join(" ".join(repr(float(v)) for v in row) for row in table) + "\n"
+    with pytest.raises(PartFileError, match="line 4"):
+        read_xyz(write(tmp_path, "z.xyz", text.encode()))
+    # colours (or anything mostly not of unit length) in columns 3-5 are ignored
+    table[:, 3:6] = rng.integers(0, 256, size=(12, 3))
     text = "\n".join(" ".join(repr(float(v)) for v in row) for row in table) + "\n"
     points, normals = read_xyz(write(tmp_path, "c.xyz", text.encode()))
     np.testing.assert_array_equal(points, XYZ_POINTS)

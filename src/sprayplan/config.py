@@ -19,6 +19,7 @@ import math
 from dataclasses import dataclass
 
 from sprayplan.checks import (  # noqa: F401 - MIN_DWELL and the bounds are part of this API
+    MAX_COORDINATE_MM,
     MAX_EDGE_PASSES,
     MAX_LAYERS,
     MAX_POINTS_PER_SECTION,
@@ -47,7 +48,8 @@ def _fail(cls, name: str, wanted: str, value) -> ConfigError:
 class Section:
     """Base of every config section: checks each field against its annotation before the section's own checks.
 
-    ``float`` fields take a finite number (not a bool, not a string) and are stored as float; ``int`` fields a
+    ``float`` fields take a finite number (not a bool, not a string) and are stored as float, at most
+    ``checks.MAX_COORDINATE_MM`` in size for a length (``_mm``) or a speed (``_mm_s``); ``int`` fields a
     whole number (stored as int); ``bool`` fields only true or false; ``str`` fields only a string. ``X | None``
     also takes None. Other annotations are left to the section's ``_check``. A bad value raises a one-line
     :class:`~sprayplan.errors.ConfigError` naming ``section.key`` and what it takes.
@@ -64,6 +66,9 @@ class Section:
             if value is None and optional:
                 continue
             converted = _typed(type(self), f.name, kind, value, optional)
+            if kind == "float" and f.name.endswith(("_mm", "_mm_s")) and abs(converted) > MAX_COORDINATE_MM:
+                unit = "mm/s" if f.name.endswith("_s") else "mm"
+                raise _fail(type(self), f.name, f"at most {MAX_COORDINATE_MM:g} {unit} (10 km)", value)
             if converted is not value:
                 object.__setattr__(self, f.name, converted)
         self._check()
@@ -373,6 +378,8 @@ class PathConfig(Section):
             math.isfinite(self.cloud_normal_smooth_mm) and self.cloud_normal_smooth_mm >= 0
         ):
             raise ConfigError(f"cloud_normal_smooth_mm must be a number >= 0, got {self.cloud_normal_smooth_mm}")
+        if self.split_angle_deg is not None and not 0.0 <= self.split_angle_deg <= 180.0:
+            raise _fail(PathConfig, "split_angle_deg", "an angle from 0 to 180 degrees or none", self.split_angle_deg)
         if self.rim_mm is not None and not (math.isfinite(self.rim_mm) and self.rim_mm >= 0):
             raise ConfigError(f"rim_mm must be a number >= 0, got {self.rim_mm}")
         if self.edge_margin_mm is not None and not (math.isfinite(self.edge_margin_mm) and self.edge_margin_mm >= 0):
@@ -836,10 +843,11 @@ def job_from_toml(path) -> JobConfig:
     PartFileError
         A missing or broken file, an unknown table or key, or a bad value; the message names the file.
     """
-    import os
     import tomllib
 
-    name = os.fspath(path)
+    from sprayplan.checks import check_input_file
+
+    name = check_input_file(path)  # a folder or a named pipe is refused before it is opened
     try:
         with open(path, "rb") as handle:
             data = tomllib.load(handle)

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 
+from sprayplan.checks import check_input_file
 from sprayplan.coating.patterns import SprayPattern, pattern_from_dict
 from sprayplan.errors import ConfigError
 
@@ -176,6 +177,7 @@ def load_preset(name_or_path: str | os.PathLike, setting: str = "process") -> Pr
     text_name = os.fspath(name_or_path)
     if text_name.endswith(".toml") or os.sep in text_name:
         path = Path(text_name)
+        check_input_file(path, error=lambda name, problem: ConfigError(f"{name}: cannot read the preset: {problem}"))
         try:
             table = tomllib.loads(path.read_text(encoding="utf-8"))
         except (OSError, tomllib.TOMLDecodeError) as exc:

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sprayplan.checks import check_input_file
 from sprayplan.errors import OutputError, PartFileError
 from sprayplan.types import Targets
 
@@ -331,7 +332,7 @@ def read_json_file(path: str | os.PathLike, fmt: str, what: str, versions: tuple
     """
     import json
 
-    name = os.fspath(path)
+    name = check_input_file(path)  # a folder or a named pipe is refused before it is opened
     try:
         with open(path, encoding="utf-8") as handle:
             data = json.load(handle)

@@ -14,8 +14,9 @@ Decisions worth knowing
   number; values in ignored columns are not checked.
 * XYZ and PCD: a stored normal of zero length (below ``checks.MIN_NORMAL_LENGTH``) or with a NaN or infinite
   component is an error naming the line (or, in binary PCD, the point).
-* XYZ with exactly 6 numeric columns and no header: columns 3-5 are taken as normals only if every one of
-  them has unit length within 1e-3; otherwise they are ignored (they may be colours or anything else).
+* XYZ with exactly 6 numeric columns and no header: columns 3-5 are taken as normals when at least
+  ``NORMAL_SHARE`` of the rows have unit length within 1e-3 (the rest are then bad normals: an error naming
+  the first one's line); otherwise they are ignored (they may be colours or anything else).
 * PCD: see :mod:`sprayplan.io.pcd`.
 """
 
@@ -157,11 +158,17 @@ def _check_finite(path: str | os.PathLike, values: np.ndarray, lines: np.ndarray
         raise PartFileError(path, f"line {lines[row]}: {what} where a coordinate or normal is expected")
 
 
-def _all_unit_length(vectors: np.ndarray) -> bool:
-    """True if every row of ``vectors`` (n, 3) is finite with length 1 within ``_UNIT_TOLERANCE``."""
+#: Share of the rows of a headerless 6-column XYZ file whose columns 3-5 must have unit length for those columns
+#: to be read as normals (so that one broken normal is reported, not taken for colours).
+NORMAL_SHARE = 0.9
+
+
+def _mostly_unit_length(vectors: np.ndarray) -> bool:
+    """True if at least ``NORMAL_SHARE`` of the rows of ``vectors`` (n, 3) are finite with length 1 within
+    ``_UNIT_TOLERANCE``."""
     with np.errstate(over="ignore", invalid="ignore"):
         lengths = np.sqrt(np.einsum("ij,ij->i", vectors, vectors))
-        return bool(np.all(np.abs(lengths - 1.0) <= _UNIT_TOLERANCE))
+        return bool(np.mean(np.abs(lengths - 1.0) <= _UNIT_TOLERANCE) >= NORMAL_SHARE)
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -291,7 +298,7 @@ def parse_xyz(data: bytes, path: str | os.PathLike = "<bytes>") -> tuple[np.ndar
                 coords = [names.index(name) for name in _XYZ_NAMES]
             if named_normals:
                 normal_cols = [names.index(name) for name in named_normals]
-    elif columns == 6 and _all_unit_length(values[:, 3:6]):
+    elif columns == 6 and _mostly_unit_length(values[:, 3:6]):
         normal_cols = [3, 4, 5]
 
     used = coords + (normal_cols or [])

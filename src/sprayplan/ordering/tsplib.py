@@ -12,11 +12,13 @@ from pathlib import Path
 
 import numpy as np
 
+from sprayplan.checks import check_input_file
 from sprayplan.errors import PartFileError
 
 
 def _sections(path: Path) -> tuple[dict[str, str], dict[str, list[str]]]:
     """Header keywords and the token lists of the data sections of a TSPLIB file."""
+    check_input_file(path)
     try:
         text = path.read_text()
     except OSError as exc:

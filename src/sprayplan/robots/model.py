@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sprayplan.checks import check_input_file
 from sprayplan.errors import ConfigError, PartFileError
 
 TAU = 2.0 * math.pi
@@ -231,6 +232,7 @@ def load_robot(name_or_path: str | os.PathLike, setting: str = "robot") -> Robot
     path = Path(key)
     if path.suffix.lower() != ".toml":
         raise ConfigError(f"{setting} {key!r} is not a known robot: use one of {', '.join(PRESETS)} or a .toml file")
+    check_input_file(path)
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
