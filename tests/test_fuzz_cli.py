@@ -19,10 +19,8 @@ Library warnings are counted as stderr lines: outside pytest, Python prints each
 from __future__ import annotations
 
 import contextlib
-import copy
 import dataclasses
 import json
-import math
 import os
 import re
 import resource
@@ -152,7 +150,7 @@ def run_main(argv: list[str], capsys) -> Run:
             escaped = f"HANG: {exc}"
         except MemoryError:
             escaped = f"MemoryError (over {MEMORY_LIMIT_BYTES >> 30} GB)"
-        except BaseException as exc:  # noqa: BLE001 - anything leaving main is what we look for
+        except BaseException as exc:
             first = str(exc).strip().splitlines()[0][:160] if str(exc).strip() else ""
             escaped = f"{type(exc).__name__}: {first}"
     seconds = time.perf_counter() - start
