@@ -831,7 +831,7 @@ def test_unbounded_input_fails_fast(case, tmp_path, capsys):
 
 
 def _limit_child():
-    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    _soft, hard = resource.getrlimit(resource.RLIMIT_AS)
     resource.setrlimit(resource.RLIMIT_AS, (min(6 << 30, hard) if hard != resource.RLIM_INFINITY else 6 << 30, hard))
 
 
