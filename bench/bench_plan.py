@@ -51,7 +51,8 @@ def end_to_end(repeat: int) -> None:
                     text=True,
                 )
                 times.append(time.perf_counter() - start)
-                summary = out.stdout.strip().split(" -> ")[0]
+                # the last line is the summary; the lines before it are the progress display's (stdout, not a tty)
+                summary = out.stdout.strip().splitlines()[-1].split(" -> ")[0]
             runs = ", ".join(f"{t:.1f}" for t in times)
             print(f"| {name} | {runs} | {statistics.median(times):.1f} | {summary} |")
 
