@@ -866,6 +866,17 @@ def subprocess_runs(tmp_path_factory):
             preexec_fn=_limit_child,
         )
         started[case] = (proc, time.monotonic(), root, names, before)
+    try:
+        return _collect(started)
+    finally:  # a run interrupted while waiting must not leave its children running
+        for proc, *_ in started.values():
+            if proc.poll() is None:
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(proc.pid, signal.SIGKILL)
+
+
+def _collect(started: dict) -> dict:
+    """Each started case's outcome, its folder before and after; a case still running at the limit is killed."""
     results = {}
     for case, (proc, t0, root, names, before) in started.items():
         left = max(0.1, t0 + SUBPROCESS_LIMIT_S - time.monotonic())
