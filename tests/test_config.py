@@ -69,6 +69,14 @@ def test_whole_numbers_take_no_fractions():
         (lambda: JobConfig().replace(coating={"occlusion": "xray"}), "coating.occlusion must be one of"),
         (lambda: JobConfig().replace(motion={"speed_along": "air"}), "motion.speed_along must be one of"),
         (lambda: JobConfig().replace(painting={}), "unknown section 'painting'"),
+        (lambda: JobConfig().replace(paths={"direction": ["mm"]}), "paths.direction must be auto, x, y, z or three"),
+        (lambda: JobConfig().replace(paths={"direction": (0, 0, 0)}), "paths.direction must be"),
+        (lambda: JobConfig().replace(paths={"streamline_deg": ["a", 1]}), "paths.streamline_deg must be [alpha_min"),
+        (lambda: JobConfig().replace(paths={"split_angle_deg": 1e12}), "paths.split_angle_deg must be an angle"),
+        (
+            lambda: JobConfig().replace(targets={"spray_radius_mm": 1e308}),
+            "targets.spray_radius_mm must be at most 1e+07",
+        ),
     ],
 )
 def test_bad_values_give_one_line(make, words):

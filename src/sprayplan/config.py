@@ -350,9 +350,15 @@ class PathConfig(Section):
             if self.direction not in ("auto", "x", "y", "z"):
                 raise ConfigError(f"direction must be auto, x, y, z or a vector, got {self.direction!r}")
         else:
-            vector = tuple(float(v) for v in self.direction)
+            wanted = "auto, x, y, z or three finite numbers, not all 0"
+            try:
+                if isinstance(self.direction, (str, bytes)) or any(isinstance(v, (bool, str)) for v in self.direction):
+                    raise TypeError
+                vector = tuple(float(v) for v in self.direction)
+            except (TypeError, ValueError):
+                raise _fail(PathConfig, "direction", wanted, self.direction) from None
             if len(vector) != 3 or not all(math.isfinite(v) for v in vector) or not any(vector):
-                raise ConfigError(f"direction vector must be three finite numbers, not all 0, got {self.direction!r}")
+                raise _fail(PathConfig, "direction", wanted, self.direction)
             object.__setattr__(self, "direction", vector)
         if self.spacing_mode not in ("surface", "uniform"):
             raise ConfigError(f"spacing_mode must be surface or uniform, got {self.spacing_mode!r}")
@@ -389,9 +395,17 @@ class PathConfig(Section):
         if not 0.0 <= self.overlap < 1.0:
             raise ConfigError(f"overlap must be in [0, 1), got {self.overlap}")
         if self.streamline_deg is not None:
-            lo, hi = (float(v) for v in self.streamline_deg)
+            wanted = "[alpha_min, alpha_max] with 90 <= min <= max <= 180 (degrees)"
+            try:
+                if isinstance(self.streamline_deg, (str, bytes)) or any(
+                    isinstance(v, (bool, str)) for v in self.streamline_deg
+                ):
+                    raise TypeError
+                lo, hi = (float(v) for v in self.streamline_deg)
+            except (TypeError, ValueError):
+                raise _fail(PathConfig, "streamline_deg", wanted, self.streamline_deg) from None
             if not 90.0 <= lo <= hi <= 180.0:
-                raise ConfigError("streamline_deg must be [alpha_min, alpha_max] with 90 <= min <= max <= 180")
+                raise _fail(PathConfig, "streamline_deg", wanted, self.streamline_deg)
             object.__setattr__(self, "streamline_deg", (lo, hi))
 
     @property
