@@ -102,7 +102,8 @@ def test_the_command_line_names_the_stage_in_one_line(testdata, tmp_path, capsys
     part = testdata / "meshes" / "reach_curved_part.ply"
     code = main(["plan", str(part), "--units", "m", "--region", "z > 99999", "-o", str(tmp_path / "out")])
     err = capsys.readouterr().err
-    assert code == 2 and err.count("\n") == 1 and err.startswith("sprayplan: error: region: ")
+    # led by the option the user gave, then the stage and the part
+    assert code == 2 and err.count("\n") == 1 and err.startswith("sprayplan: error: --region: region: ")
     assert not (tmp_path / "out" / "plan.json").exists()
 
 

@@ -133,9 +133,10 @@ def check_input_file(path, error=None) -> str:
         raise make(name, "no such file (file not found)") from None
     except PermissionError:
         raise make(name, "cannot read the file: permission denied") from None
-    except (OSError, ValueError) as exc:  # ValueError: an embedded NUL byte
-        reason = getattr(exc, "strerror", None) or exc
-        raise make(name, f"not a usable file ({reason})") from None
+    except ValueError as exc:  # an embedded NUL byte
+        raise make(name, f"not a usable file name ({exc})") from None
+    except OSError as exc:
+        raise make(name, f"not a usable file ({exc.strerror or exc})") from None
     mode = info.st_mode
     if stat.S_ISREG(mode):
         return name

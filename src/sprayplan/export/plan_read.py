@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sprayplan.checks import MAX_COORDINATE_MM
 from sprayplan.errors import ConfigError, PartFileError
 from sprayplan.export.files import read_json_file
 from sprayplan.export.plan_json import FORMAT, READS
@@ -80,7 +81,7 @@ def plan_file_from_dict(data: dict, name: str = "plan.json") -> PlanFile:
     except (ConfigError, TypeError, ValueError) as exc:
         raise PartFileError(name, f"settings: {exc}") from None
     stations = tuple(_station(r, st, f"stations[{i}]") for i, st in enumerate(r.get(data, "stations", list)))
-    home = r.floats(r.get(data, "home_mm", list), "home_mm", (), length=3)
+    home = r.floats(r.get(data, "home_mm", list), "home_mm", (), length=3, bounded=True)
     unassigned = r.floats(r.get(data, "unassigned_points", list), "unassigned_points", (3,))
     plan = r.build(Plan, "", stations, home, unassigned, r.get(data, "part", str))
     part_file = data.get("part_file")
@@ -89,6 +90,10 @@ def plan_file_from_dict(data: dict, name: str = "plan.json") -> PlanFile:
     r.check(film, "film", (dict, type(None)))
     return PlanFile(plan, job, r.get(data, "totals", dict), part_file, film)
 
+
+#: The stroke arrays that place and time the gun: bounded by ``checks.MAX_COORDINATE_MM`` on reading, so that a
+#: broken file cannot make the film's or the kinematics' arithmetic overflow.
+_BOUNDED = ("points", "normals", "tcp", "dwell")
 
 _STROKE_ARRAYS = (("points", (3,)), ("normals", (3,)), ("tcp", (3,)), ("dwell", ()))
 _STATION_FLOATS = (("joints", (9,)), ("position_error_mm", ()), ("axis_error_deg", ()))
@@ -102,7 +107,10 @@ def _station(r: _Reader, st, where: str) -> StationPlan:
         at = f"{where}.strokes[{i}]"
         r.check(s, at, dict)
         n = len(r.get(s, "points", list, at))
-        arrays = {key: r.floats(r.get(s, key, list, at), f"{at}.{key}", tail, n) for key, tail in _STROKE_ARRAYS}
+        arrays = {
+            key: r.floats(r.get(s, key, list, at), f"{at}.{key}", tail, n, bounded=key in _BOUNDED)
+            for key, tail in _STROKE_ARRAYS
+        }
         strokes.append(
             r.build(
                 Stroke,
@@ -127,7 +135,7 @@ def _station(r: _Reader, st, where: str) -> StationPlan:
         StationPlan,
         where,
         r.get(st, "station", int, where),
-        r.floats(r.get(st, "platform_mm", list, where), f"{where}.platform_mm", (), length=3),
+        r.floats(r.get(st, "platform_mm", list, where), f"{where}.platform_mm", (), length=3, bounded=True),
         tuple(strokes),
         joined["joints"],
         joined["reachable"],
@@ -166,8 +174,11 @@ class _Reader:
             self.fail("", f"missing key {path}")
         return self.check(value, path, kind)
 
-    def floats(self, values: list, where: str, tail: tuple, length: int | None = None) -> np.ndarray:
-        """A float array of shape (length, *tail) from JSON numbers, null read as NaN."""
+    def floats(
+        self, values: list, where: str, tail: tuple, length: int | None = None, bounded: bool = False
+    ) -> np.ndarray:
+        """A float array of shape (length, *tail) from JSON numbers, null read as NaN; ``bounded``: the gun's
+        geometry (positions, normals, platform), which must lie within ``MAX_COORDINATE_MM``."""
         try:
             cells = np.array(values, dtype=object) if len(values) else np.zeros((0, *tail), dtype=object)
         except ValueError:
@@ -179,9 +190,14 @@ class _Reader:
         if bad is not _MISSING:
             self.fail(where, f"must hold numbers or null, got {_json_type(bad)}")
         try:
-            return np.array(cells, dtype=np.float64).reshape(cells.shape)
+            array = np.array(cells, dtype=np.float64).reshape(cells.shape)
         except OverflowError:
             self.fail(where, "holds a number too large for a float")
+        with np.errstate(invalid="ignore"):
+            beyond = np.abs(array) > MAX_COORDINATE_MM if bounded else np.zeros(array.shape, bool)
+        if beyond.any():
+            self.fail(where, f"holds {array[beyond].flat[0]:g}, beyond the plausible {MAX_COORDINATE_MM:g}")
+        return array
 
     def flags(self, values: list, where: str, length: int) -> np.ndarray:
         return np.array(self._items(values, where, length, bool), dtype=bool)
