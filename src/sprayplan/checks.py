@@ -243,11 +243,13 @@ def check_poses(poses, name: str = "poses", *, tol: float = 1e-3, allow_nan: boo
     finite = np.isfinite(out).all(axis=(1, 2))
     if not finite.all() and not allow_nan:
         raise DataError(f"{name} row {int(np.argmin(finite))}: NaN or inf in the pose")
-    rot = np.where(finite[:, None, None], out, np.eye(4))[:, :3, :3]
-    gram = np.abs(np.einsum("nji,njk->nik", rot, rot) - np.eye(3)).max(axis=(1, 2))
-    det = np.linalg.det(rot) if len(out) else np.zeros(0)
-    bottom = np.abs(out[:, 3] - [0.0, 0.0, 0.0, 1.0]).max(axis=1) if len(out) else np.zeros(0)
-    bad = ((gram > tol) | (np.abs(det - 1.0) > tol) | (bottom > tol)) & finite
+    rot = out[:, :3, :3]
+    with np.errstate(invalid="ignore", over="ignore"):  # rows with NaN give NaN here and are left out by `finite`
+        gram = np.abs(np.matmul(rot.transpose(0, 2, 1), rot) - np.eye(3)).max(axis=(1, 2), initial=0.0)
+        # det R = r0 . (r1 x r2) over the columns, in closed form (np.linalg.det factorises every matrix)
+        det = np.einsum("ni,ni->n", rot[:, :, 0], np.cross(rot[:, :, 1], rot[:, :, 2]))
+        bottom = np.abs(out[:, 3] - [0.0, 0.0, 0.0, 1.0]).max(axis=1, initial=0.0)
+        bad = ((gram > tol) | (np.abs(det - 1.0) > tol) | (bottom > tol)) & finite
     if bad.any():
         row = int(np.argmax(bad))
         if gram[row] <= tol and det[row] < 0:
