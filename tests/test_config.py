@@ -122,3 +122,15 @@ def test_the_toml_names_the_file_the_table_and_the_key(tmp_path):
         job_from_toml(path)
     with pytest.raises(PartFileError, match="is a folder"):
         job_from_toml(tmp_path)
+
+
+def test_the_tuning_section_carries_every_setting_of_the_speed_tuning():
+    from sprayplan.config import RefineConfig
+    from sprayplan.refine.stage import tuning_settings
+    from sprayplan.refine.tuning import TuningConfig
+
+    section = RefineConfig(min_dwell=0.3, max_dwell=3.0, band=0.2, smoothing=0.5, iterations=7, loss="linear")
+    tuning = tuning_settings(section)
+    assert tuning == TuningConfig(
+        min_dwell=0.3, max_dwell=3.0, band=0.2, smoothing=0.5, iterations=7, loss="linear", painted_fraction=0.1
+    )

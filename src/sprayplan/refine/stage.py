@@ -27,16 +27,9 @@ from sprayplan.types import Paths, Plan
 
 
 def tuning_settings(settings: RefineConfig) -> TuningConfig:
-    """The speed tuning's own settings (``tuning.TuningConfig``) from the job's ``[tuning]`` section."""
-    return TuningConfig(
-        min_dwell=settings.min_dwell,
-        max_dwell=settings.max_dwell,
-        smoothing=settings.smoothing,
-        iterations=settings.iterations,
-        loss=settings.loss,
-        painted_fraction=settings.painted_fraction,
-        band=settings.band,
-    )
+    """The speed tuning's own settings (``tuning.TuningConfig``) from the job's ``[tuning]`` section, which holds
+    every one of its fields under the same name."""
+    return TuningConfig(**{f.name: getattr(settings, f.name) for f in dataclasses.fields(TuningConfig)})
 
 
 def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None) -> tuple[Plan, dict, object]:
