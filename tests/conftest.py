@@ -19,3 +19,16 @@ TESTDATA = REPO / "tests" / "data"
 def testdata() -> Path:
     """The folder of real third-party parts bundled with the tests (meshes/, pointclouds/, tsplib/)."""
     return TESTDATA
+
+
+@pytest.fixture(scope="session")
+def planned_with_film(testdata, tmp_path_factory) -> Path:
+    """The reach part (x > -250) planned for a 50 um film with 60 measuring points, its pictures with it: a
+    plan folder written by ``sprayplan plan`` (shared by the viewer's tests)."""
+    from sprayplan.cli import main
+
+    out = tmp_path_factory.mktemp("planned")
+    part = testdata / "meshes" / "reach_curved_part.ply"
+    argv = ["-q", "plan", str(part), "--units", "m", "--region", "x > -250", "--thickness-um", "50"]
+    assert main([*argv, "--samples", "60", "-o", str(out)]) == 0
+    return out

@@ -338,7 +338,14 @@ def test_a_good_rerun_replaces_the_whole_folder(tray, tmp_path, capsys, prev):
     code, _, _ = run(capsys, "-q", "plan", tray, *TRAY_PLAN, "--step-mm", "25", "-o", prev)
     assert code == 0
     new = snapshot(prev)
-    assert sorted(new) == ["plan.json", "waypoints.csv"]  # the old film files went with the old folder
+    # the old film files went with the old folder; the pictures are of the new plan
+    assert "report/" in new
+    assert sorted(n for n in new if not n.startswith("report/")) == [
+        "plan.html",
+        "plan.json",
+        "waypoints.csv",
+    ]
+    assert "report/film_histogram.png" in old and "report/film_histogram.png" not in new  # no film, no histogram
     assert new["plan.json"] != old["plan.json"]
     assert sorted(os.listdir(tmp_path)) == ["prev", "tray.stl"]  # nothing left beside it
 
@@ -381,7 +388,12 @@ def test_simulate_writes_its_film_files_all_or_none(tmp_path, capsys, prev, monk
     code, _, _ = run(capsys, "simulate", prev, "--thickness-um", "40")
     assert code == 0
     after = snapshot(tmp_path)
-    assert sorted(after) == sorted(before)  # the same files, nothing left beside them
+    outside = lambda files: sorted(n for n in files if not n.startswith("prev/report/"))
+    assert outside(after) == outside(before)  # the same files, nothing left beside them
+    # the film views show the sides that face the most painted area, which a new spec may change
+    report = lambda files: sorted(n for n in files if n.startswith("prev/report/"))
+    assert len(report(after)) == len(report(before))
+    assert after["prev/plan.html"] != before["prev/plan.html"]  # drawn again with the new film
     for name in ("plan.json", "waypoints.csv", "notes.txt"):
         assert after[f"prev/{name}"] == before[f"prev/{name}"]
     assert after["prev/coating.json"] != before["prev/coating.json"]  # the 40 um spec

@@ -198,6 +198,15 @@ def assert_contract(argv, cwd_files_before, capsys, names=(), root=None, also=()
     return run
 
 
+def _is_output(change: str, output: str) -> bool:
+    """``change`` ("created X", "changed X") is of an allowed output: X itself, or under X when X ends in / (a
+    folder of outputs, replaced whole: its old files may go too)."""
+    what, _, path = change.partition(" ")
+    if output.endswith("/") and path.startswith(output):
+        return what in ("created", "changed", "removed")
+    return what in ("created", "changed") and path == output
+
+
 def assert_contract_or_success(argv, root: Path, capsys, names=(), outputs=()):
     """For generated cases: either a clean success (exit 0, no traceback, no stderr line but the log's own
     ``sprayplan:`` lines, only ``outputs`` created) or the contract."""
@@ -205,7 +214,7 @@ def assert_contract_or_success(argv, root: Path, capsys, names=(), outputs=()):
     run = run_main([str(a) for a in argv], capsys)
     after = snapshot(root)
     if run.code == 0 and not run.escaped:
-        extra = [k for k in diff(before, after) if not any(k == f"created {o}" for o in outputs)]
+        extra = [k for k in diff(before, after) if not any(_is_output(k, o) for o in outputs)]
         bad = [line for line in run.err_lines if not LINE_START.match(line) or "Traceback" in line]
         assert not extra and not bad, f"succeeded but: {extra + bad}"
         return run
@@ -1124,7 +1133,7 @@ def test_fuzz_plan_json(edits, good, capsys):
         for edit in edits:
             _edit_json(data, edit)
         (prev / "plan.json").write_text(json.dumps(data))
-        outputs = [f"prev/{n}" for n in ("coating.json", "thickness.csv", "thickness.ply")]
+        outputs = [f"prev/{n}" for n in ("coating.json", "thickness.csv", "thickness.ply", "plan.html", "report/")]
         assert_contract_or_success(
             ["simulate", prev, "--part", good / "plate.stl"], root, capsys, names=["plan.json"], outputs=outputs
         )

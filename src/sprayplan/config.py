@@ -692,11 +692,17 @@ class OutputConfig(Section):
         Predict the film (thickness.ply, thickness.csv, coating.json); always done with a film target.
     samples : int or None
         Also report the film at this many random points (seed 003: 420).
+    viewer : bool
+        Write plan.html, the 3D viewer of the plan (``sprayplan.view.html``).
+    report : bool
+        Write report/, the picture report (PNG images and report.md, ``sprayplan.view.report``).
     """
 
     SECTION = "output"
     simulate: bool = False
     samples: int | None = None
+    viewer: bool = True
+    report: bool = True
 
     def _check(self):
         _at_least(OutputConfig, "samples", self.samples, 1)

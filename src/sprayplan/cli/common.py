@@ -63,6 +63,16 @@ def check_outputs(outputs, inputs, folder: bool = False) -> None:
     refuse_inputs(outputs, inputs)
 
 
+def check_folder_outputs(outdir, names, option: str, inputs) -> None:
+    """:func:`check_outputs` for the outputs ``names`` inside the folder ``outdir``: ``report`` is a folder
+    (``export.job_files.OUTPUT_FOLDERS``), the others files."""
+    from sprayplan.view.files import OUTPUT_FOLDERS
+
+    paths = [(os.path.join(outdir, name), option) for name in names]
+    check_outputs([p for p, name in zip(paths, names) if name not in OUTPUT_FOLDERS], inputs)
+    check_outputs([p for p, name in zip(paths, names) if name in OUTPUT_FOLDERS], inputs, folder=True)
+
+
 def file_input(value: str | None) -> str | None:
     """An option that names either a preset or a file (``--robot``, ``--tool``, ``--process``): the file, if
     it is one."""

@@ -278,6 +278,7 @@ def cmd_paths(args) -> int:
 
 from sprayplan.cli.plan import cmd_plan, cmd_simulate  # noqa: E402 - the main job's commands
 from sprayplan.cli.robots import cmd_fk, cmd_ik  # noqa: E402 - the robot commands live in their own module
+from sprayplan.cli.view import cmd_view  # noqa: E402
 
 
 def _add_edge_options(group) -> None:
@@ -469,6 +470,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     group.add_argument("--process", help="spray process preset (seed000_circle, seed000_flat, bell003) or .toml")
     group.add_argument("--samples", type=int, help="also report the film at this many random points (seed 003: 420)")
+    _add_view_options(plan_cmd.add_argument_group("pictures"))
     plan_cmd.set_defaults(func=cmd_plan)
 
     sim = sub.add_parser("simulate", parents=[common], help="predict the film of a planned OUTDIR (coating.json)")
@@ -477,8 +479,21 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--thickness-um", type=float, help="film target (default: the plan's, else 50)")
     sim.add_argument("--tolerance-um", type=float, help="film spec: target +- this (default 5)")
     sim.add_argument("--samples", type=int, help="also report the film at this many random points (seed 003: 420)")
+    _add_view_options(sim.add_argument_group("pictures"))
     sim.set_defaults(func=cmd_simulate)
+
+    view = sub.add_parser(
+        "view", parents=[common], help="draw a plan folder: OUTDIR/plan.html (3D viewer) and OUTDIR/report/ (PNGs)"
+    )
+    view.add_argument("outdir", help="a folder written by 'sprayplan plan'")
+    _add_view_options(view)
+    view.set_defaults(func=cmd_view)
     return parser
+
+
+def _add_view_options(group) -> None:
+    group.add_argument("--no-viewer", action="store_true", help="do not write plan.html (the 3D viewer)")
+    group.add_argument("--no-report", action="store_true", help="do not write report/ (PNG pictures and report.md)")
 
 
 class _Formatter(logging.Formatter):

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import logging
-import os
 from pathlib import Path
 
 from sprayplan.cli.common import (
     ProgressDisplay,
     check_count,
+    check_folder_outputs,
     check_outputs,
     file_input,
     output_option,
@@ -42,7 +42,7 @@ def _job_config(args):
         "motion": given("speed_along"),
         "coating": given("process", "thickness_um", "tolerance_um"),
         "tuning": {"tune_speed": False} if getattr(args, "no_tune_speed", False) else {},
-        "output": {**({"simulate": True} if args.simulate else {}), **given("samples")},
+        "output": {**({"simulate": True} if args.simulate else {}), **given("samples"), **view_flags(args)},
     }
     if getattr(args, "seed", None) is not None:
         changes["stations"] = {"seed": args.seed}
@@ -50,6 +50,16 @@ def _job_config(args):
     if args.mode is not None:
         changes["mode"] = args.mode
     return job.replace(**{k: v for k, v in changes.items() if v or k == "mode"})
+
+
+def view_flags(args) -> dict:
+    """``[output]`` changes of ``--no-viewer`` and ``--no-report``."""
+    out = {}
+    if getattr(args, "no_viewer", False):
+        out["viewer"] = False
+    if getattr(args, "no_report", False):
+        out["report"] = False
+    return out
 
 
 def run_plan(part_path: str, outdir: Path, job, quiet: bool = False) -> str:
@@ -114,7 +124,7 @@ def cmd_simulate(args) -> int:
     from sprayplan.coating.stage import simulate_plan
     from sprayplan.export.files import staged_folder
     from sprayplan.export.film import film_report, write_coating
-    from sprayplan.export.job_files import FILM_FILES
+    from sprayplan.export.job_files import FILM_FILES, VIEW_FILES
     from sprayplan.export.plan_read import read_plan_file
     from sprayplan.io.load import load_part
     from sprayplan.surface.region import select_region
@@ -132,14 +142,24 @@ def cmd_simulate(args) -> int:
         raise ConfigError("plan.json does not name its part file: give it with --part")
     if not result.strokes or not any(stroke.spray_on for stroke in result.strokes):
         raise ConfigError(f"{outdir / 'plan.json'}: the plan paints nothing (no spray strokes): no film to predict")
-    outputs = [(outdir / name, "OUTDIR") for name in FILM_FILES]
-    check_outputs(outputs, [(part_file, "--part" if args.part else "part"), (outdir / "plan.json", "plan.json")])
+    views = view_flags(args)
+    view = {"viewer": views.get("viewer", True), "report": views.get("report", True)}
+    own = FILM_FILES + tuple(name for name, on in zip(VIEW_FILES, (view["viewer"], view["report"])) if on)
+    inputs = [(part_file, "--part" if args.part else "part"), (outdir / "plan.json", "plan.json")]
+    check_folder_outputs(outdir, own, "OUTDIR", inputs)
     part = select_region(load_part(part_file, units=job.load.units, up=job.load.up), job.load.region)
     with stage("coating"):
         film = simulate_plan(part, result, job)
     report = film_report(film, job, args.samples)
-    with staged_folder(outdir, FILM_FILES, whole=False) as folder:  # the three film files, or none
+    with staged_folder(outdir, own, whole=False) as folder:  # the film files and their pictures, or none
         write_coating(folder, film, job, report)
+        if view["viewer"] or view["report"]:
+            from sprayplan.view.files import write_view_files
+            from sprayplan.view.scene import make_scene
+
+            scene = make_scene(result, job, read.totals, film, report)
+            with stage("pictures"):
+                write_view_files(folder, scene, **view)
     print(_coating_line(report, outdir))
     return 0
 
@@ -151,6 +171,6 @@ def cmd_plan(args) -> int:
     _check_samples(args.samples)
     job = _job_config(args)
     inputs = [(args.part, "part"), (args.config, "-c"), (file_input(job.coating.process), "--process")]
-    check_outputs([(os.path.join(args.output, name), "-o") for name in JOB_FILES], inputs)
+    check_folder_outputs(args.output, JOB_FILES, "-o", inputs)
     print(run_plan(args.part, Path(args.output), job, quiet=getattr(args, "quiet", False)))
     return 0

@@ -142,7 +142,10 @@ def _place(moves) -> None:
     except BaseException as exc:
         for final in reversed(placed):
             with contextlib.suppress(OSError):
-                os.unlink(final)
+                if final.is_dir() and not final.is_symlink():  # a folder of outputs (report/)
+                    shutil.rmtree(final)
+                else:
+                    os.unlink(final)
         for old, final in reversed(moved):
             try:
                 os.rename(old, final)

@@ -1,14 +1,17 @@
-"""The files of a finished job: plan.json and waypoints.csv, and the film files when the plan has a film (whose
-summary plan.json keeps); written all or nothing (``export.files.staged_folder``)."""
+"""The files of a finished job: plan.json and waypoints.csv, the film files when the plan has a film (whose
+summary plan.json keeps), and the pictures (plan.html and report/, unless ``[output]`` turns them off); written
+all or nothing (``export.files.staged_folder``)."""
 
 from __future__ import annotations
 
 import os
 
+from sprayplan.view.files import VIEW_FILES
+
 #: The files a job writes into its output folder (plan.json and waypoints.csv always, the rest with a film).
 PLAN_FILES = ("plan.json", "waypoints.csv")
 FILM_FILES = ("thickness.ply", "thickness.csv", "coating.json")
-JOB_FILES = PLAN_FILES + FILM_FILES
+JOB_FILES = PLAN_FILES + FILM_FILES + VIEW_FILES
 
 
 def write_job(
@@ -64,4 +67,10 @@ def write_job_files(folder, result, part_file: str | None = None, report: dict |
     written = write_plan(folder, result.plan, job, result.totals, part_file, report)
     if report is not None:
         written += write_coating(folder, result.film, job, report)
+    if job.output.viewer or job.output.report:
+        from sprayplan.view.files import write_view_files
+        from sprayplan.view.scene import scene_from_result
+
+        scene = scene_from_result(result, report)
+        written += write_view_files(folder, scene, viewer=job.output.viewer, report=job.output.report)
     return written

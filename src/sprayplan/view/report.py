@@ -1,0 +1,439 @@
+"""The picture report of a plan (``OUT/report/``): PNG images drawn with matplotlib's Agg backend (no display
+needed) and ``report.md``, which holds the summary tables and shows the images, so that a report can be
+attached to a job and read without any tool.
+
+Images (``size_px`` each, default 1200 x 900):
+
+- ``film_top.png`` and two sides (``film_<side>.png``, the two of +x, -x, +y, -y and below that face the most
+  painted area): the film on the part, in an orthographic view, on the viewer's colour scale
+  (``view.colours``); the back of a surface (facing away) is drawn light grey;
+- ``film_histogram.png``: the film over the painted area, area-weighted, the spec band shaded;
+- ``strokes_stopNN.png``: each station's strokes from above, numbered in the order they are run;
+- ``gantry_tour.png``: the stations, their working circles and the gantry's tour, from above;
+- ``measuring_points.png`` (when the plan asked for seed 003's measuring points): the film at each point, as
+  the seed's figure 17.
+
+Triangles are drawn back to front (painter's order by their centres' depth) after the thinning of
+``view.decimate``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from sprayplan.view.colours import GREY, STATION_COLOURS, film_scale
+from sprayplan.view.decimate import thin_surface
+from sprayplan.view.scene import Scene, Surface
+
+log = logging.getLogger(__name__)
+
+#: Views: name -> (direction the viewer looks in, the image's up), all orthographic.
+VIEWS = {
+    "top": ((0.0, 0.0, -1.0), (0.0, 1.0, 0.0)),
+    "below": ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0)),
+    "from +x": ((-1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
+    "from -x": ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
+    "from +y": ((0.0, -1.0, 0.0), (0.0, 0.0, 1.0)),
+    "from -y": ((0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
+}
+_FILE = {"top": "top", "below": "below", "from +x": "px", "from -x": "nx", "from +y": "py", "from -y": "ny"}
+BACK = "#e6e6e6"
+
+
+@dataclass(frozen=True)
+class ReportSettings:
+    """How the report draws.
+
+    Attributes
+    ----------
+    size_px : (int, int)
+        Width and height of every image, pixels.
+    max_faces : int
+        Triangles drawn in a film view (thinned beyond, ``view.decimate``).
+    max_labels : int
+        Stroke numbers written per station image at most (every k-th stroke beyond).
+    """
+
+    size_px: tuple = (1200, 900)
+    max_faces: int = 40_000
+    max_labels: int = 40
+
+
+def view_frame(name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(right, up, toward the viewer) unit vectors of a named view: image x = p . right, y = p . up."""
+    d, up = (np.array(v) for v in VIEWS[name])
+    return np.cross(d, up), up, -d
+
+
+def facing_area(surface: Surface, painted: np.ndarray) -> dict[str, float]:
+    """Painted area each view sees, mm^2: the sum over painted vertices of area x max(0, n . toward viewer)."""
+    out = {}
+    for name in VIEWS:
+        _, _, toward = view_frame(name)
+        out[name] = float((surface.area_mm2[painted] * np.maximum(surface.normals[painted] @ toward, 0.0)).sum())
+    return out
+
+
+def film_views(scene: Scene) -> list[str]:
+    """Top, and the two other views that see the most painted area (ties: the order of ``VIEWS``)."""
+    painted = scene.painted
+    if painted is None or not painted.any():
+        return ["top", "from -y", "from +x"]
+    area = facing_area(scene.surface, painted)
+    others = sorted((name for name in VIEWS if name != "top"), key=lambda n: -area[n])
+    return ["top", *others[:2]]
+
+
+def _figure(settings: ReportSettings):
+    from matplotlib.figure import Figure
+
+    dpi = 100
+    w, h = settings.size_px
+    return Figure(figsize=(w / dpi, h / dpi), dpi=dpi)
+
+
+def _save(fig, path: str) -> None:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from sprayplan.export.files import atomic_output
+
+    FigureCanvasAgg(fig)
+    with atomic_output(path, "wb") as handle:
+        fig.savefig(handle, format="png", dpi=fig.dpi, pil_kwargs={"compress_level": 3})
+
+
+def _polygons(surface: Surface, name: str):
+    """The surface's triangles in a view, back to front: (k, 3, 2) corners, facing-the-viewer flags, order."""
+    right, up, toward = view_frame(name)
+    v = surface.vertices
+    tri = surface.faces
+    uv = np.column_stack([v @ right, v @ up])
+    depth = (v @ toward)[tri].mean(axis=1)
+    n = surface.normals[tri].sum(axis=1)
+    facing = n @ toward > 0
+    order = np.argsort(depth, kind="stable")
+    return uv[tri[order]], facing[order], order
+
+
+def draw_film(ax, scene: Scene, surface: Surface, name: str) -> None:
+    """The film (or the bare part) in one view, onto a matplotlib axes."""
+    from matplotlib.collections import PolyCollection
+    from matplotlib.colors import to_rgba
+
+    right, up, _ = view_frame(name)
+    if len(surface.faces):
+        polys, facing, order = _polygons(surface, name)
+        if surface.thickness_um is not None:
+            scale = film_scale(scene.target_um, scene.tolerance_um)
+            film = surface.thickness_um[surface.faces[order]].mean(axis=1)
+            colours = np.column_stack([scale.rgb(film), np.ones(len(film))])
+        else:
+            colours = np.tile(to_rgba(GREY), (len(polys), 1))
+        colours[~facing] = to_rgba(BACK)
+        ax.add_collection(PolyCollection(polys, facecolors=colours, edgecolors=colours, linewidths=0.3), autolim=False)
+        ax.update_datalim(polys.reshape(-1, 2))
+    else:
+        p = surface.vertices
+        uv = np.column_stack([p @ right, p @ up])
+        colour = (
+            film_scale(scene.target_um, scene.tolerance_um).rgb(surface.thickness_um)
+            if surface.thickness_um is not None
+            else GREY
+        )
+        ax.scatter(uv[:, 0], uv[:, 1], s=1, c=colour, linewidths=0)
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+
+
+def _axis_labels(ax, name: str) -> None:
+    right, up, _ = view_frame(name)
+    label = {(1, 0, 0): "x", (-1, 0, 0): "-x", (0, 1, 0): "y", (0, -1, 0): "-y", (0, 0, 1): "z", (0, 0, -1): "-z"}
+    ax.set_xlabel(f"{label[tuple(round(c) for c in right)]} (mm)")
+    ax.set_ylabel(f"{label[tuple(round(c) for c in up)]} (mm)")
+
+
+def _colour_bar(fig, ax, scene: Scene) -> None:
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+
+    scale = film_scale(scene.target_um, scene.tolerance_um)
+    mappable = ScalarMappable(Normalize(scale.cmin, scale.cmax), scale.matplotlib())
+    bar = fig.colorbar(mappable, ax=ax, shrink=0.8, pad=0.02)
+    values, labels = scale.ticks
+    bar.set_ticks(values, labels=labels)
+    bar.set_label(f"dry film, um (spec {scene.target_um:g} +- {scene.tolerance_um:g})")
+
+
+def film_picture(path: str, scene: Scene, surface: Surface, name: str, settings: ReportSettings) -> None:
+    fig = _figure(settings)
+    ax = fig.add_subplot()
+    draw_film(ax, scene, surface, name)
+    _axis_labels(ax, name)
+    if surface.thickness_um is not None:
+        _colour_bar(fig, ax, scene)
+        title = f"{scene.name}: dry film, {name} (light grey: the back of a surface)"
+    else:
+        title = f"{scene.name}: {name} (no film simulated)"
+    ax.set_title(title, fontsize=11)
+    _finish(fig, ax)
+    _save(fig, path)
+
+
+def histogram_picture(path: str, scene: Scene, settings: ReportSettings) -> None:
+    s = scene.surface
+    painted = scene.painted
+    t, w = s.thickness_um[painted], s.area_mm2[painted]
+    lo, hi = scene.target_um - scene.tolerance_um, scene.target_um + scene.tolerance_um
+    fig = _figure(settings)
+    ax = fig.add_subplot()
+    left = min(float(t.min()), lo - scene.tolerance_um)
+    right = max(float(t.max()), hi + scene.tolerance_um)
+    bins = np.linspace(left, right, 61)
+    share = 100.0 * w / w.sum()
+    ax.axvspan(lo, hi, color="#c7e9c0", alpha=0.6, label=f"spec {scene.target_um:g} +- {scene.tolerance_um:g} um")
+    ax.hist(t, bins=bins, weights=share, color="#3182bd", edgecolor="white", linewidth=0.5, label="painted area")
+    ax.axvline(scene.target_um, color="#238b45", linewidth=1.5, label="target")
+    mean = float((t * w).sum() / w.sum())
+    ax.axvline(mean, color="#444444", linestyle="--", linewidth=1.2, label=f"mean {mean:.1f} um")
+    inside = float(w[(t >= lo) & (t <= hi)].sum() / w.sum())
+    ax.set_xlabel("dry film, um")
+    ax.set_ylabel("share of the painted area, % per bin")
+    ax.set_title(
+        f"{scene.name}: film over the painted area ({w.sum() / 1e6:.3f} m^2), {100 * inside:.1f} % in spec", fontsize=11
+    )
+    ax.legend(loc="upper right", fontsize=9)
+    _finish(fig, ax)
+    _save(fig, path)
+
+
+class _Backdrop:
+    """The part seen from above, light grey, drawn once as an image and shown behind every layout."""
+
+    def __init__(self, surface: Surface | None, faces: int = 20_000, width_px: int = 1600):
+        self.image = None
+        if surface is None or not len(surface.vertices):
+            return
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.collections import PolyCollection
+        from matplotlib.figure import Figure
+
+        thin = thin_surface(surface, faces).surface
+        lo, hi = thin.vertices[:, :2].min(axis=0), thin.vertices[:, :2].max(axis=0)
+        span = np.maximum(hi - lo, 1e-6)
+        lo, hi = lo - 0.01 * span, hi + 0.01 * span
+        height_px = int(np.clip(width_px * (hi[1] - lo[1]) / (hi[0] - lo[0]), 16, 4 * width_px))
+        fig = Figure(figsize=(width_px / 100, height_px / 100), dpi=100)
+        canvas = FigureCanvasAgg(fig)
+        ax = fig.add_axes((0, 0, 1, 1))
+        ax.set_axis_off()
+        ax.set_xlim(lo[0], hi[0])
+        ax.set_ylim(lo[1], hi[1])
+        if len(thin.faces):
+            polys = thin.vertices[thin.faces][:, :, :2]
+            ax.add_collection(
+                PolyCollection(polys, facecolors="#dddddd", edgecolors="#dddddd", linewidths=0.3), autolim=False
+            )
+        else:
+            ax.scatter(thin.vertices[:, 0], thin.vertices[:, 1], s=0.5, c="#cccccc", linewidths=0)
+        fig.patch.set_alpha(0.0)
+        canvas.draw()
+        self.image = np.asarray(canvas.buffer_rgba()).copy()
+        self.extent = (lo[0], hi[0], lo[1], hi[1])
+
+    def draw(self, ax) -> None:
+        if self.image is not None:
+            ax.imshow(self.image, extent=self.extent, origin="upper", interpolation="bilinear", zorder=0)
+            x0, x1, y0, y1 = self.extent
+            ax.update_datalim(np.array([[x0, y0], [x1, y1]]))
+
+
+def _finish(fig, ax, right: float = 0.97) -> None:
+    """Fixed margins (tight_layout measures every label: slow, and the images are all alike)."""
+    fig.subplots_adjust(left=0.08, right=right, bottom=0.08, top=0.92)
+
+
+def station_picture(path: str, scene: Scene, place: int, settings: ReportSettings, backdrop: _Backdrop) -> None:
+    from matplotlib import colormaps
+    from matplotlib.patches import Circle
+
+    st = scene.plan.stations[place]
+    fig = _figure(settings)
+    ax = fig.add_subplot()
+    backdrop.draw(ax)
+    spray = [(i, s) for i, s in enumerate(st.strokes) if s.spray_on]
+    cmap = colormaps["viridis"]
+    step = max(1, int(np.ceil(len(spray) / settings.max_labels)))
+    for k, (_i, s) in enumerate(spray):
+        colour = cmap(k / max(len(spray) - 1, 1))
+        ax.plot(
+            s.tcp[:, 0], s.tcp[:, 1], color=colour, linewidth=1.2, zorder=2, linestyle="-" if s.kind == "spray" else ":"
+        )
+        ax.plot(s.tcp[0, 0], s.tcp[0, 1], "o", color=colour, markersize=3, zorder=3)
+        if k % step == 0 or k == len(spray) - 1:
+            ax.annotate(
+                str(k + 1),
+                s.tcp[0, :2],
+                fontsize=7,
+                zorder=4,
+                xytext=(3, 3),
+                textcoords="offset points",
+                bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.8),
+            )
+    for s in st.strokes:
+        if not s.spray_on:
+            ax.plot(s.tcp[:, 0], s.tcp[:, 1], color="#999999", linewidth=0.6, linestyle="--", zorder=1)
+    p = st.platform_mm
+    ax.add_patch(Circle(p[:2], scene.working_radius_mm, fill=False, ec="#7f7f7f", linestyle="--", zorder=1))
+    ax.plot(p[0], p[1], "s", color=STATION_COLOURS[place % len(STATION_COLOURS)], markersize=8, zorder=5)
+    ax.update_datalim(np.array([p[:2] - scene.working_radius_mm, p[:2] + scene.working_radius_mm]))
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    every = "" if step == 1 else f", every {step}th numbered"
+    ax.set_title(
+        f"{scene.name}: stop {place + 1} of {len(scene.plan.stations)} (station {st.index}), "
+        f"{len(spray)} strokes from above, numbered at their start in the order run{every}; "
+        "square: the platform, dashed circle: its working circle",
+        fontsize=9,
+        wrap=True,
+    )
+    _finish(fig, ax)
+    _save(fig, path)
+
+
+def tour_picture(path: str, scene: Scene, settings: ReportSettings, backdrop: _Backdrop) -> None:
+    from matplotlib.patches import Circle
+
+    plan = scene.plan
+    fig = _figure(settings)
+    ax = fig.add_subplot()
+    backdrop.draw(ax)
+    stops = np.vstack([plan.home_mm, *[st.platform_mm for st in plan.stations], plan.home_mm])
+    for a, b in itertools.pairwise(stops):
+        ax.annotate("", b[:2], a[:2], arrowprops=dict(arrowstyle="-|>", color="#2ca02c", lw=1.5), zorder=3)
+    for k, st in enumerate(plan.stations):
+        p = st.platform_mm
+        colour = STATION_COLOURS[k % len(STATION_COLOURS)]
+        ax.add_patch(Circle(p[:2], scene.working_radius_mm, fill=False, ec=colour, alpha=0.7, zorder=2))
+        ax.plot(p[0], p[1], "o", color=colour, markersize=7, zorder=4)
+        ax.annotate(f"{k + 1}", p[:2], xytext=(5, 5), textcoords="offset points", fontsize=10, zorder=5)
+        ax.update_datalim(np.array([p[:2] - scene.working_radius_mm, p[:2] + scene.working_radius_mm]))
+    ax.plot(plan.home_mm[0], plan.home_mm[1], "s", color="#2ca02c", markersize=9, zorder=5)
+    ax.annotate("home", plan.home_mm[:2], xytext=(6, -12), textcoords="offset points", fontsize=10)
+    ax.update_datalim(stops[:, :2])
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    from sprayplan.view.html import _number
+
+    travel = _number(scene.totals.get("platform_travel_mm"))
+    ax.set_title(
+        f"{scene.name}: gantry tour, {len(plan.stations)} stops numbered in visiting order"
+        + (f", {travel / 1000:.2f} m of travel" if travel is not None else "")
+        + f"; circles: working circles (r {scene.working_radius_mm:.0f} mm)",
+        fontsize=10,
+    )
+    _finish(fig, ax)
+    _save(fig, path)
+
+
+def measuring_picture(path: str, scene: Scene, settings: ReportSettings) -> None:
+    index = scene.measuring_points
+    t = scene.surface.thickness_um[index]
+    lo, hi = scene.target_um - scene.tolerance_um, scene.target_um + scene.tolerance_um
+    fig = _figure(settings)
+    ax = fig.add_subplot()
+    number = np.arange(1, len(t) + 1)
+    ax.axhspan(lo, hi, color="#c7e9c0", alpha=0.6, label=f"spec {scene.target_um:g} +- {scene.tolerance_um:g} um")
+    ax.plot(number, t, "-", color="#3182bd", linewidth=0.8)
+    ax.plot(number, t, "o", color="#3182bd", markersize=2.5, label="film at the point")
+    ax.axhline(scene.target_um, color="#238b45", linewidth=1.2, label="target")
+    inside = float(((t >= lo) & (t <= hi)).mean())
+    ax.set_xlim(0, len(t) + 1)
+    pad = 2 * scene.tolerance_um or 0.1 * scene.target_um
+    ax.set_ylim(min(float(t.min()), lo) - pad, max(float(t.max()), hi) + pad)
+    ax.set_xlabel("measuring point")
+    ax.set_ylabel("dry film, um")
+    ax.set_title(
+        f"{scene.name}: film at {len(t)} measuring points (seed 003, fig. 17): mean {t.mean():.1f} um, "
+        f"{100 * inside:.1f} % in spec",
+        fontsize=11,
+    )
+    ax.legend(loc="upper right", fontsize=9)
+    _finish(fig, ax)
+    _save(fig, path)
+
+
+def write_report_files(folder: str, scene: Scene, settings: ReportSettings | None = None) -> list[str]:
+    """Draw every image and write report.md into ``folder`` (an existing, empty folder); returns the paths.
+
+    The images are drawn headless (matplotlib's Agg canvas, never pyplot), so no display is needed.
+    """
+    settings = settings or ReportSettings()
+    images: list[tuple[str, str]] = []
+
+    def out(name: str) -> str:
+        return os.path.join(folder, name)
+
+    surface = scene.surface
+    if surface is not None:
+        drawn = thin_surface(surface, settings.max_faces).surface
+        for name in film_views(scene):
+            file = f"film_{_FILE[name]}.png"
+            film_picture(out(file), scene, drawn, name, settings)
+            images.append((file, f"The {'film' if surface.thickness_um is not None else 'part'}, {name}"))
+        if scene.painted is not None and scene.painted.any():
+            histogram_picture(out("film_histogram.png"), scene, settings)
+            images.append(("film_histogram.png", "The film over the painted area"))
+        if scene.measuring_points is not None and len(scene.measuring_points):
+            measuring_picture(out("measuring_points.png"), scene, settings)
+            images.append(("measuring_points.png", "The film at the measuring points"))
+    backdrop = _Backdrop(surface)
+    if scene.plan.stations:
+        tour_picture(out("gantry_tour.png"), scene, settings, backdrop)
+        images.append(("gantry_tour.png", "The gantry tour"))
+    for place, st in enumerate(scene.plan.stations):
+        file = f"strokes_stop{place + 1:02d}.png"
+        station_picture(out(file), scene, place, settings, backdrop)
+        images.append((file, f"Stop {place + 1} (station {st.index}): its strokes in order"))
+    from sprayplan.export.files import atomic_output
+
+    with atomic_output(out("report.md"), "w", encoding="utf-8") as handle:
+        handle.write(report_markdown(scene, images))
+    return [out(f) for f, _ in images] + [out("report.md")]
+
+
+def report_markdown(scene: Scene, images: list[tuple[str, str]]) -> str:
+    """report.md: the summary tables (as the viewer's), the stations' table and the images."""
+    from sprayplan.view.html import summary_rows
+
+    lines = [f"# sprayplan report: {scene.name}", ""]
+    for note in scene.notes:
+        lines += [f"> {note}", ""]
+    for title, rows in summary_rows(scene):
+        lines += [f"## {title[0].upper()}{title[1:]}", "", "| | |", "|---|---|"]
+        lines += [f"| {k} | {v} |" for k, v in rows] + [""]
+    lines += [
+        "## Stations",
+        "",
+        "| stop | station | platform x, y, z (mm) | spray strokes | waypoints | unreachable |",
+        "|---|---|---|---|---|---|",
+    ]
+    for place, st in enumerate(scene.plan.stations):
+        p = st.platform_mm
+        spray = sum(1 for s in st.strokes if s.spray_on)
+        lines.append(
+            f"| {place + 1} | {st.index} | {p[0]:.0f}, {p[1]:.0f}, {p[2]:.0f} | {spray} | {len(st.reachable)} "
+            f"| {int((~st.reachable).sum())} |"
+        )
+    lines.append("")
+    for file, caption in images:
+        lines += [f"## {caption}", "", f"![{caption}]({file})", ""]
+    return "\n".join(lines)
