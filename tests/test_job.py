@@ -62,6 +62,9 @@ def test_progress_reports_every_stage_in_order(both_routes):
         counts = [(done, total) for stage, done, total in calls if stage == name and total > 0]
         assert counts and counts[-1][0] == counts[-1][1]
         assert [d for d, _ in counts] == list(range(1, counts[-1][1] + 1))
+    # the outputs stage counts the report's images, from none drawn to all of them
+    counts = [(done, total) for stage, done, total in calls if stage == "outputs" and total > 0]
+    assert [d for d, _ in counts] == list(range(counts[-1][1] + 1))
 
 
 def test_until_stops_after_that_stage(testdata):

@@ -275,7 +275,11 @@ def run_job(
     if outdir is not None:
         from sprayplan.export.job_files import write_job
 
-        state = _run_stage(Stage("outputs", lambda s, p: (write_job(outdir, s), s)[1]), state, progress)
+        def outputs(s: JobState, p: Progress) -> JobState:
+            write_job(outdir, s, progress=lambda done, total: p("outputs", done, total))
+            return s
+
+        state = _run_stage(Stage("outputs", outputs), state, progress)
     return state
 
 

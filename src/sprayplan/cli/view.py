@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 
-from sprayplan.cli.common import check_folder_outputs, output_option, stage
+from sprayplan.cli.common import ProgressDisplay, check_folder_outputs, output_option, stage
 from sprayplan.errors import ConfigError
 
 
@@ -22,8 +22,15 @@ def cmd_view(args) -> int:
         scene = scene_from_folder(outdir)  # the whole folder is read and checked before anything is written
     own = [name for name, on in zip(VIEW_FILES, (viewer, report)) if on]
     check_folder_outputs(outdir, own, "OUTDIR", [(os.path.join(outdir, "plan.json"), "plan.json")])
-    with stage("pictures"):
-        written = write_views(outdir, scene, viewer=viewer, report=report)
+    display = ProgressDisplay(quiet=getattr(args, "quiet", False))
+    try:
+        with stage("pictures"):
+            display("pictures", 0, 0)
+            written = write_views(outdir, scene, viewer, report, lambda done, total: display("pictures", done, total))
+    except BaseException:
+        display.close(finished=False)
+        raise
+    display.close()
     for note in scene.notes:
         print(f"note: {note}")
     print("wrote " + ", ".join(p + ("/" if os.path.isdir(p) else "") for p in written))

@@ -15,7 +15,7 @@ JOB_FILES = PLAN_FILES + FILM_FILES + VIEW_FILES
 
 
 def write_job(
-    outdir, result, part_file: str | os.PathLike | None = None, own: tuple[str, ...] = JOB_FILES
+    outdir, result, part_file: str | os.PathLike | None = None, own: tuple[str, ...] = JOB_FILES, progress=None
 ) -> list[str]:
     """Write a job's files into ``outdir``, all or nothing; returns the paths written.
 
@@ -33,6 +33,8 @@ def write_job(
         The part's file as plan.json names it (default: the file the job read).
     own : tuple of str
         The names of the files a run writes in ``outdir`` (an earlier run's are replaced, not kept).
+    progress : callable, optional
+        ``progress(done, total)`` while the report's images are drawn.
 
     Raises
     ------
@@ -49,11 +51,13 @@ def write_job(
 
         report = film_report(result.film, result.job, result.job.output.samples, result.chosen)
     with staged_folder(outdir, own) as stage:
-        names = [os.path.basename(p) for p in write_job_files(stage, result, part_file, report)]
+        names = [os.path.basename(p) for p in write_job_files(stage, result, part_file, report, progress)]
     return [os.path.join(outdir, name) for name in names]
 
 
-def write_job_files(folder, result, part_file: str | None = None, report: dict | None = None) -> list[str]:
+def write_job_files(
+    folder, result, part_file: str | None = None, report: dict | None = None, progress=None
+) -> list[str]:
     """Write a job's files straight into ``folder`` (an existing folder: the staging folder of :func:`write_job`).
 
     ``report``: the film's report when already computed (``export.film.film_report``).
@@ -72,5 +76,7 @@ def write_job_files(folder, result, part_file: str | None = None, report: dict |
         from sprayplan.view.scene import scene_from_result
 
         scene = scene_from_result(result, report)
-        written += write_view_files(folder, scene, viewer=job.output.viewer, report=job.output.report)
+        written += write_view_files(
+            folder, scene, viewer=job.output.viewer, report=job.output.report, progress=progress
+        )
     return written

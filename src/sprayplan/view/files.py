@@ -14,9 +14,10 @@ VIEW_FILES = ("plan.html", "report")
 OUTPUT_FOLDERS = ("report",)
 
 
-def write_view_files(folder, scene: Scene, viewer: bool = True, report: bool = True) -> list[str]:
+def write_view_files(folder, scene: Scene, viewer: bool = True, report: bool = True, progress=None) -> list[str]:
     """Write ``folder/plan.html`` and ``folder/report/`` (an existing folder: a staging folder, whose
-    ``report`` must not exist yet); returns the paths written (the report's folder once)."""
+    ``report`` must not exist yet); returns the paths written (the report's folder once).
+    ``progress(done, total)``: after each of the report's images."""
     from sprayplan.view.html import write_viewer
     from sprayplan.view.report import write_report_files
 
@@ -30,17 +31,17 @@ def write_view_files(folder, scene: Scene, viewer: bool = True, report: bool = T
     if report:
         path = os.path.join(folder, "report")
         os.mkdir(path)
-        write_report_files(path, scene)
+        write_report_files(path, scene, progress=progress)
         written.append(path)
     return written
 
 
-def write_views(outdir, scene: Scene, viewer: bool = True, report: bool = True) -> list[str]:
+def write_views(outdir, scene: Scene, viewer: bool = True, report: bool = True, progress=None) -> list[str]:
     """Write plan.html and report/ into an existing plan folder ``outdir``, all or nothing: both are drawn into
     a temporary folder beside it and moved in together, replacing earlier ones; the plan's other files are
     left alone. Returns the paths written."""
     from sprayplan.export.files import staged_folder
 
     with staged_folder(outdir, VIEW_FILES, whole=False) as stage:
-        names = [os.path.basename(p) for p in write_view_files(stage, scene, viewer, report)]
+        names = [os.path.basename(p) for p in write_view_files(stage, scene, viewer, report, progress)]
     return [os.path.join(os.fspath(outdir), name) for name in names]

@@ -357,6 +357,25 @@ def _flag_traces(scene: Scene, go) -> tuple[list, dict]:
     return traces, counts
 
 
+def _camera(traces) -> tuple[dict, dict]:
+    """The scene's aspect ratio (the data's true proportions, the longest axis 1) and a camera that sees all of
+    it from the front left, above."""
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for t in traces:
+        if getattr(t, "x", None) is None:
+            continue
+        xyz = np.column_stack([np.asarray(getattr(t, k), float) for k in "xyz"])
+        xyz = xyz[np.isfinite(xyz).all(axis=1)]
+        if len(xyz):
+            lo, hi = np.minimum(lo, xyz.min(axis=0)), np.maximum(hi, xyz.max(axis=0))
+    span = np.where(np.isfinite(hi - lo) & (hi > lo), hi - lo, 1.0)
+    ratio = span / span.max()
+    direction = np.array([-0.55, -0.65, 0.52])
+    # nearer for a long, thin part (a hull), farther for a squat one (a roof and its gantry above it)
+    eye = (1.35 + 0.6 * float(np.sort(ratio)[1])) * direction / np.linalg.norm(direction)
+    return dict(zip("xyz", (float(r) for r in ratio))), dict(zip("xyz", (float(e) for e in eye)))
+
+
 def build_figure(scene: Scene, limits: ViewerLimits | None = None):
     """The plotly figure of a scene, and what was drawn of it (counts, for the summary and the tests)."""
     import plotly.graph_objects as go
@@ -367,14 +386,17 @@ def build_figure(scene: Scene, limits: ViewerLimits | None = None):
     flags, flag_counts = _flag_traces(scene, go)
     traces = part + strokes + _gun_axis_trace(scene, limits, go) + _station_traces(scene, go) + flags
     figure = go.Figure(traces)
+    ratio, eye = _camera(traces)
     axis = dict(showbackground=False, gridcolor="#e5e5e5", zerolinecolor="#cccccc")
     figure.update_layout(
         scene=dict(
-            aspectmode="data",
+            domain=dict(x=[0.2, 0.94], y=[0.0, 1.0]),  # the legend on the left, the colour bar on the right
+            aspectmode="manual",  # true proportions (as "data"), and a camera far enough for the longest axis
+            aspectratio=ratio,
             xaxis=dict(title="x (mm)", **axis),
             yaxis=dict(title="y (mm)", **axis),
             zaxis=dict(title="z (mm)", **axis),
-            camera=dict(eye=dict(x=-1.3, y=-1.5, z=1.1)),
+            camera=dict(eye=eye),
         ),
         legend=dict(groupclick="toggleitem", itemsizing="constant", x=0.0, y=1.0, bgcolor="rgba(255,255,255,0.8)"),
         margin=dict(l=0, r=0, t=0, b=0),

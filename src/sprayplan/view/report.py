@@ -163,7 +163,7 @@ def _colour_bar(fig, ax, scene: Scene) -> None:
 
     scale = film_scale(scene.target_um, scene.tolerance_um)
     mappable = ScalarMappable(Normalize(scale.cmin, scale.cmax), scale.matplotlib())
-    bar = fig.colorbar(mappable, ax=ax, shrink=0.8, pad=0.02)
+    bar = fig.colorbar(mappable, ax=ax, shrink=0.8, pad=0.02, panchor=False)  # the view stays centred
     values, labels = scale.ticks
     bar.set_ticks(values, labels=labels)
     bar.set_label(f"dry film, um (spec {scene.target_um:g} +- {scene.tolerance_um:g})")
@@ -271,13 +271,18 @@ def station_picture(path: str, scene: Scene, place: int, settings: ReportSetting
     for k, (_i, s) in enumerate(spray):
         colour = cmap(k / max(len(spray) - 1, 1))
         ax.plot(
-            s.tcp[:, 0], s.tcp[:, 1], color=colour, linewidth=1.2, zorder=2, linestyle="-" if s.kind == "spray" else ":"
+            s.points[:, 0],
+            s.points[:, 1],
+            color=colour,
+            linewidth=1.2,
+            zorder=2,
+            linestyle="-" if s.kind == "spray" else ":",
         )
-        ax.plot(s.tcp[0, 0], s.tcp[0, 1], "o", color=colour, markersize=3, zorder=3)
+        ax.plot(s.points[0, 0], s.points[0, 1], "o", color=colour, markersize=3, zorder=3)
         if k % step == 0 or k == len(spray) - 1:
             ax.annotate(
                 str(k + 1),
-                s.tcp[0, :2],
+                s.points[0, :2],
                 fontsize=7,
                 zorder=4,
                 xytext=(3, 3),
@@ -286,7 +291,7 @@ def station_picture(path: str, scene: Scene, place: int, settings: ReportSetting
             )
     for s in st.strokes:
         if not s.spray_on:
-            ax.plot(s.tcp[:, 0], s.tcp[:, 1], color="#999999", linewidth=0.6, linestyle="--", zorder=1)
+            ax.plot(s.points[:, 0], s.points[:, 1], color="#999999", linewidth=0.6, linestyle="--", zorder=1)
     p = st.platform_mm
     ax.add_patch(Circle(p[:2], scene.working_radius_mm, fill=False, ec="#7f7f7f", linestyle="--", zorder=1))
     ax.plot(p[0], p[1], "s", color=STATION_COLOURS[place % len(STATION_COLOURS)], markersize=8, zorder=5)
@@ -298,7 +303,7 @@ def station_picture(path: str, scene: Scene, place: int, settings: ReportSetting
     every = "" if step == 1 else f", every {step}th numbered"
     ax.set_title(
         f"{scene.name}: stop {place + 1} of {len(scene.plan.stations)} (station {st.index}), "
-        f"{len(spray)} strokes from above, numbered at their start in the order run{every}; "
+        f"{len(spray)} strokes (their paths on the part) from above, numbered at their start in the order run{every}; "
         "square: the platform, dashed circle: its working circle",
         fontsize=9,
         wrap=True,
@@ -371,28 +376,39 @@ def measuring_picture(path: str, scene: Scene, settings: ReportSettings) -> None
     _save(fig, path)
 
 
-def write_report_files(folder: str, scene: Scene, settings: ReportSettings | None = None) -> list[str]:
+def write_report_files(folder: str, scene: Scene, settings: ReportSettings | None = None, progress=None) -> list[str]:
     """Draw every image and write report.md into ``folder`` (an existing, empty folder); returns the paths.
 
     The images are drawn headless (matplotlib's Agg canvas, never pyplot), so no display is needed.
+    ``progress(done, total)`` is called after each image.
     """
     settings = settings or ReportSettings()
     images: list[tuple[str, str]] = []
+    surface = scene.surface
+    film = surface is not None and scene.painted is not None and bool(scene.painted.any())
+    measured = scene.measuring_points is not None and len(scene.measuring_points) > 0
+    total = (
+        (3 if surface is not None else 0)
+        + film
+        + measured
+        + (len(scene.plan.stations) + 1 if scene.plan.stations else 0)
+    )
 
     def out(name: str) -> str:
+        if progress is not None and name.endswith(".png"):
+            progress(len(images), total)
         return os.path.join(folder, name)
 
-    surface = scene.surface
     if surface is not None:
         drawn = thin_surface(surface, settings.max_faces).surface
         for name in film_views(scene):
             file = f"film_{_FILE[name]}.png"
             film_picture(out(file), scene, drawn, name, settings)
             images.append((file, f"The {'film' if surface.thickness_um is not None else 'part'}, {name}"))
-        if scene.painted is not None and scene.painted.any():
+        if film:
             histogram_picture(out("film_histogram.png"), scene, settings)
             images.append(("film_histogram.png", "The film over the painted area"))
-        if scene.measuring_points is not None and len(scene.measuring_points):
+        if measured:
             measuring_picture(out("measuring_points.png"), scene, settings)
             images.append(("measuring_points.png", "The film at the measuring points"))
     backdrop = _Backdrop(surface)
@@ -405,9 +421,11 @@ def write_report_files(folder: str, scene: Scene, settings: ReportSettings | Non
         images.append((file, f"Stop {place + 1} (station {st.index}): its strokes in order"))
     from sprayplan.export.files import atomic_output
 
-    with atomic_output(out("report.md"), "w", encoding="utf-8") as handle:
+    if progress is not None:
+        progress(len(images), total)
+    with atomic_output(os.path.join(folder, "report.md"), "w", encoding="utf-8") as handle:
         handle.write(report_markdown(scene, images))
-    return [out(f) for f, _ in images] + [out("report.md")]
+    return [os.path.join(folder, f) for f, _ in images] + [os.path.join(folder, "report.md")]
 
 
 def report_markdown(scene: Scene, images: list[tuple[str, str]]) -> str:
