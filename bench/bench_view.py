@@ -6,8 +6,10 @@ Parts: the demo roof (z > 1000, 50 um target: what ``sprayplan demo`` plans), th
 speeds). Each is planned once with ``--no-viewer --no-report``; then, ``--repeat`` times each (median
 reported): the scene read from the folder (``view.scene.scene_from_folder``), plan.html written
 (``view.html.write_viewer``), report/ drawn (``view.report.write_report_files``), and plan.html opened in
-Debian's chromium through playwright (from ``goto`` until the plot's canvas exists, then until the WebGL
-scene has drawn: ``requestAnimationFrame`` twice).
+Debian's chromium through playwright (from ``goto`` until the plot's canvas exists and two animation frames
+have passed), alternately with a page of plotly.js alone (a one-point 3D figure), which is what any plotly
+3D page costs in that browser on that machine at that moment (WebGL here is SwiftShader, on the CPU).
+``--keep DIR`` keeps the planned folders, and a second run into the same DIR reuses them.
 
 Usage::
 
@@ -17,7 +19,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import os
 import shutil
 import statistics
 import sys
@@ -32,16 +33,9 @@ except ImportError:
 
 from _data import meshes_dir
 
-CHROMIUM = os.environ.get("SPRAYPLAN_CHROMIUM") or shutil.which("chromium")
-FLAGS = [
-    "--no-sandbox",
-    "--use-angle=swiftshader",
-    "--enable-unsafe-swiftshader",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-]
+from sprayplan.view.browser import FLAGS, find_chromium
+
+CHROMIUM = find_chromium()
 
 
 def parts() -> dict:
@@ -66,6 +60,8 @@ def plan_folder(key: str, root: Path) -> tuple[Path, float]:
 
     label, part, options = parts()[key]
     out = root / key
+    if (out / "plan.json").exists():  # planned by an earlier run into the same --keep folder
+        return out, float("nan")
     start = time.perf_counter()
     if part is None:  # the demo's part and region
         from sprayplan.demo import DEMO_REGION, car_roof
@@ -84,30 +80,40 @@ def folder_size(path: Path) -> int:
     return sum(p.stat().st_size for p in path.rglob("*") if p.is_file())
 
 
-def browser_times(page_path: Path, repeat: int) -> tuple[list[float], list[float]] | None:
+def baseline_page(root: Path) -> Path:
+    """plotly.js alone: a one-point 3D figure written the same way (what any plotly 3D page costs)."""
+    import plotly.graph_objects as go
+
+    path = root / "plotly_alone.html"
+    go.Figure(go.Scatter3d(x=[0.0], y=[0.0], z=[0.0])).write_html(path, include_plotlyjs=True, div_id="sprayplan-plan")
+    return path
+
+
+def browser_times(page_path: Path, repeat: int, baseline: Path) -> tuple[list[float], list[float]] | None:
+    """Seconds until the plot is ready, for the page and for plotly.js alone, alternately in one browser."""
     if CHROMIUM is None:
         print("(no chromium: the browser's load time is not measured; apt-get install chromium)")
         return None
     from playwright.sync_api import sync_playwright
 
-    ready, drawn = [], []
+    ready, alone = [], []
     with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=list(FLAGS))
         for _ in range(repeat):
-            page = browser.new_page(viewport={"width": 1400, "height": 1000})
-            start = time.perf_counter()
-            page.goto(page_path.as_uri())
-            page.wait_for_function(
-                "() => { const d = document.getElementById('sprayplan-plan');"
-                " return d && d._fullLayout && d.querySelector('canvas'); }",
-                timeout=300_000,
-            )
-            ready.append(time.perf_counter() - start)
-            page.evaluate("() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
-            drawn.append(time.perf_counter() - start)
-            page.close()
+            for path, times in ((page_path, ready), (baseline, alone)):
+                page = browser.new_page(viewport={"width": 1400, "height": 1000})
+                start = time.perf_counter()
+                page.goto(path.as_uri())
+                page.wait_for_function(
+                    "() => { const d = document.getElementById('sprayplan-plan');"
+                    " return d && d._fullLayout && d.querySelector('canvas'); }",
+                    timeout=300_000,
+                )
+                page.evaluate("() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
+                times.append(time.perf_counter() - start)
+                page.close()
         browser.close()
-    return ready, drawn
+    return ready, alone
 
 
 def main() -> None:
@@ -127,7 +133,7 @@ def main() -> None:
         label = parts()[key][0]
         folder, planned = plan_folder(key, root)
         scene_s, viewer_s, report_s = [], [], []
-        for k in range(args.repeat):
+        for _ in range(args.repeat):
             t = time.perf_counter()
             scene = scene_from_folder(folder)
             scene_s.append(time.perf_counter() - t)
@@ -143,7 +149,7 @@ def main() -> None:
         html_mb = (folder / "plan.html").stat().st_size / 1e6
         report_mb = folder_size(folder / "report") / 1e6
         images = len(list((folder / "report").glob("*.png")))
-        browser = browser_times(folder / "plan.html", args.repeat)
+        browser = browser_times(folder / "plan.html", args.repeat, baseline_page(root))
         med = statistics.median
         rows.append(
             (
@@ -163,7 +169,7 @@ def main() -> None:
     print()
     print(
         "| part | planned (s, once) | triangles drawn | waypoints drawn | scene read (s) | plan.html (s) "
-        "| plan.html (MB) | report/ (s) | images / MB | browser: plot ready / drawn (s) |"
+        "| plan.html (MB) | report/ (s) | images / MB | browser: plan.html drawn / plotly.js alone (s) |"
     )
     print("|---|---|---|---|---|---|---|---|---|---|")
     for row in rows:

@@ -132,6 +132,22 @@ def test_the_strokes_carry_their_plan_data(planned):
     assert transfers["line"]["dash"] == "dash"
 
 
+def test_the_layer_buttons_switch_whole_legend_groups(planned):
+    data, layout = _figure(planned)
+    (menu,) = layout["updatemenus"]
+    labels = [b["label"] for b in menu["buttons"]]
+    assert labels == ["part", "strokes", "transfers", "gun axis", "gantry", "flagged"]
+    for button in menu["buttons"]:
+        index = button["args"][1]
+        assert index == button["args2"][1]
+        groups = {data[i]["legendgroup"] for i in index}
+        wanted = {"gantry": {"stations", "tour"}}.get(button["label"], {button["label"]})
+        assert groups == wanted and set(index) == {i for i, t in enumerate(data) if t["legendgroup"] in wanted}
+        first, second = button["args"][0]["visible"], button["args2"][0]["visible"]
+        hidden_at_first = button["label"] == "gun axis"
+        assert set(first) == {True if hidden_at_first else "legendonly"} and set(second) != set(first)
+
+
 def test_stations_tour_and_flags_match_the_plan(planned):
     data, _ = _figure(planned)
     plan = read_plan_file(planned / "plan.json").plan
@@ -369,3 +385,24 @@ def test_a_thinned_viewer_stays_within_its_limits(planned):
     assert sum(np.isfinite(np.asarray(t.x, float)).sum() for t in lines) <= 1_000 + 2 * len(scene.plan.strokes)
     axis = next(t for t in data.data if t.legendgroup == "gun axis")
     assert np.isfinite(np.asarray(axis.x, float)).sum() <= 2 * (50 + 2 * len(scene.plan.strokes))
+
+
+def test_a_point_cloud_film_is_drawn_as_coloured_points(testdata, tmp_path):
+    out = tmp_path / "cloud"
+    part = testdata / "pointclouds" / "reach_part_normals_ascii.pcd"
+    argv = ["-q", "plan", str(part), "--units", "m", "--region", "x > -200", "--simulate", "-o", str(out)]
+    assert main(argv) == 0
+    film = read_thickness_ply(out / "thickness.ply")
+    assert len(film.faces) == 0 and len(film.points) > 10
+    (trace,) = [t for t in _figure(out)[0] if t.get("legendgroup") == "part"]
+    assert trace["type"] == "scatter3d" and trace["mode"] == "markers"
+    assert np.array_equal(trace["marker"]["color"], film.thickness_um.astype(np.float32))
+    assert np.array_equal(_points(trace), film.points.astype(np.float32))
+    # the report draws each sample as a disc of its area: the film's colours cover much of the picture
+    scale = film_scale(50.0, 5.0)
+    pixels = _pixels(out / "report" / "film_top.png").reshape(-1, 3)
+    colours = scale.rgb(film.thickness_um)
+    near = np.zeros(len(pixels), bool)
+    for c in np.unique(colours.round(3), axis=0):
+        near |= np.abs(pixels - c).max(axis=1) < 0.02
+    assert near.mean() > 0.05

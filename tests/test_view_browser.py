@@ -3,36 +3,22 @@ the browser is the system's). Skipped, saying how to get it, when no Chromium is
 
 from __future__ import annotations
 
-import os
-import shutil
-
 import numpy as np
 import pytest
 
+from sprayplan.view.browser import FLAGS, HOW_TO_GET, find_chromium
 from sprayplan.view.html import PLOT_ID, read_viewer_figure
 
-CHROMIUM = os.environ.get("SPRAYPLAN_CHROMIUM") or shutil.which("chromium") or shutil.which("chromium-browser")
-HOW = "install Debian's chromium (apt-get install chromium) or set SPRAYPLAN_CHROMIUM to a Chromium binary"
+CHROMIUM = find_chromium()
 
-pytestmark = pytest.mark.skipif(CHROMIUM is None, reason=f"no Chromium for the browser test: {HOW}")
-
-#: Chromium's flags for a closed network and no GPU (WebGL through SwiftShader, on the CPU).
-FLAGS = [
-    "--no-sandbox",
-    "--use-angle=swiftshader",
-    "--enable-unsafe-swiftshader",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-]
+pytestmark = pytest.mark.skipif(CHROMIUM is None, reason=f"no Chromium for the browser test: {HOW_TO_GET}")
 
 
 @pytest.fixture(scope="module")
 def browser():
     playwright = pytest.importorskip("playwright.sync_api", reason="playwright (the test extra) is not installed")
     with playwright.sync_playwright() as p:
-        chromium = p.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
+        chromium = p.chromium.launch(executable_path=CHROMIUM, args=list(FLAGS))
         yield chromium
         chromium.close()
 
@@ -79,7 +65,7 @@ def test_plan_html_opens_in_chromium_and_shows_the_film(browser, planned_with_fi
     page.close()
 
 
-def test_a_legend_click_switches_a_layer(browser, planned_with_film):
+def test_a_legend_click_switches_a_trace_and_a_button_a_layer(browser, planned_with_film):
     page, errors = _open(browser, planned_with_film / "plan.html")
     names = page.evaluate(f"() => document.getElementById('{PLOT_ID}').data.map(t => t.name)")
     index = names.index("transfers (gun off)")
@@ -87,5 +73,13 @@ def test_a_legend_click_switches_a_layer(browser, planned_with_film):
     page.wait_for_timeout(1_000)  # plotly waits for a second click (a double click) first
     visible = page.evaluate(f"() => document.getElementById('{PLOT_ID}').data[{index}].visible")
     assert visible == "legendonly"
+    # a layer button switches every trace of its layer: here all the stations' strokes, off and on again
+    strokes = [i for i, n in enumerate(names) if n.startswith("stop ")]
+    for expected in ("legendonly", True):
+        page.locator("g.updatemenu-button", has_text="strokes").click()
+        page.wait_for_timeout(1_000)
+        shown = page.evaluate(f"() => document.getElementById('{PLOT_ID}').data.map(t => t.visible)")
+        assert [shown[i] for i in strokes] == [expected] * len(strokes)
+        assert shown[0] is None  # the part stays
     assert errors == []
     page.close()

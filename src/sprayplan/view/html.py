@@ -173,7 +173,7 @@ def _part_traces(scene: Scene, limits: ViewerLimits, go) -> tuple[list, dict]:
         else:
             trace = go.Mesh3d(color=GREY, hoverinfo="skip", **mesh)
     else:
-        marker = dict(size=2)
+        marker = dict(size=float(np.clip(12.0 - 2.0 * np.log10(max(len(s.vertices), 1)), 2.0, 8.0)))
         if film:
             marker.update(color=_f4(s.thickness_um), **colour)
         else:
@@ -376,6 +376,42 @@ def _camera(traces) -> tuple[dict, dict]:
     return dict(zip("xyz", (float(r) for r in ratio))), dict(zip("xyz", (float(e) for e in eye)))
 
 
+#: The layer buttons above the view: (label, legend groups switched together).
+LAYERS = (
+    ("part", ("part",)),
+    ("strokes", ("strokes",)),
+    ("transfers", ("transfers",)),
+    ("gun axis", ("gun axis",)),
+    ("gantry", ("stations", "tour")),
+    ("flagged", ("flagged",)),
+)
+
+
+def _layer_buttons(traces) -> dict:
+    """One toggle button per layer: a click hides all of its traces, the next click shows them again (the
+    gun axis, hidden at first, the other way round)."""
+    buttons = []
+    for label, groups in LAYERS:
+        index = [i for i, t in enumerate(traces) if t.legendgroup in groups]
+        if not index:
+            continue
+        shown, hidden = [True] * len(index), ["legendonly"] * len(index)  # hidden: still in the legend
+        first, second = (hidden, shown) if traces[index[0]].visible is None else (shown, hidden)
+        buttons.append(
+            dict(label=label, method="restyle", args=[{"visible": first}, index], args2=[{"visible": second}, index])
+        )
+    return dict(
+        type="buttons",
+        direction="right",
+        showactive=False,
+        x=0.2,
+        xanchor="left",
+        y=1.0,
+        yanchor="top",
+        buttons=buttons,
+    )
+
+
 def build_figure(scene: Scene, limits: ViewerLimits | None = None):
     """The plotly figure of a scene, and what was drawn of it (counts, for the summary and the tests)."""
     import plotly.graph_objects as go
@@ -402,6 +438,7 @@ def build_figure(scene: Scene, limits: ViewerLimits | None = None):
         margin=dict(l=0, r=0, t=0, b=0),
         paper_bgcolor="white",
         uirevision="sprayplan",
+        updatemenus=[_layer_buttons(traces)],
     )
     drawn = {**part_info, **stroke_info, "flagged": flag_counts}
     return figure, drawn
@@ -517,7 +554,8 @@ def _header(scene: Scene, drawn: dict) -> str:
     return (
         f"<header><h1>sprayplan: {html.escape(scene.name or 'plan')}</h1>"
         f"<div class='tables'>{''.join(tables)}</div>{notes}{drawn_line}"
-        "<p class='drawn'>Click a legend entry to show or hide it, its group title to switch a whole layer; "
+        "<p class='drawn'>The buttons above the view switch a whole layer on and off, a click on a legend entry "
+        "one trace (a station's strokes, say); "
         "drag to turn, scroll to zoom; hover a stroke for its station, stroke, waypoint, speed and dwell.</p></header>"
     )
 

@@ -125,7 +125,7 @@ def draw_film(ax, scene: Scene, surface: Surface, name: str) -> None:
     from matplotlib.collections import PolyCollection
     from matplotlib.colors import to_rgba
 
-    right, up, _ = view_frame(name)
+    right, up, toward = view_frame(name)
     if len(surface.faces):
         polys, facing, order = _polygons(surface, name)
         if surface.thickness_um is not None:
@@ -137,15 +137,30 @@ def draw_film(ax, scene: Scene, surface: Surface, name: str) -> None:
         colours[~facing] = to_rgba(BACK)
         ax.add_collection(PolyCollection(polys, facecolors=colours, edgecolors=colours, linewidths=0.3), autolim=False)
         ax.update_datalim(polys.reshape(-1, 2))
-    else:
+    else:  # a point cloud: each sample a disc of the area it stands for, back to front
+        from matplotlib.collections import EllipseCollection
+
         p = surface.vertices
         uv = np.column_stack([p @ right, p @ up])
-        colour = (
-            film_scale(scene.target_um, scene.tolerance_um).rgb(surface.thickness_um)
-            if surface.thickness_um is not None
-            else GREY
+        order = np.argsort(p @ toward, kind="stable")
+        if surface.thickness_um is not None:
+            colours = film_scale(scene.target_um, scene.tolerance_um).rgb(surface.thickness_um)
+        else:
+            colours = np.tile(to_rgba(GREY)[:3], (len(p), 1))
+        colours[surface.normals @ toward <= 0] = to_rgba(BACK)[:3]
+        size = 2.0 * np.sqrt(np.maximum(surface.area_mm2, 1e-9) / np.pi)
+        discs = EllipseCollection(
+            size[order],
+            size[order],
+            np.zeros(len(p)),
+            units="xy",
+            offsets=uv[order],
+            offset_transform=ax.transData,
+            facecolors=colours[order],
+            edgecolors="none",
         )
-        ax.scatter(uv[:, 0], uv[:, 1], s=1, c=colour, linewidths=0)
+        ax.add_collection(discs, autolim=False)
+        ax.update_datalim(np.vstack([uv.min(axis=0) - size.max(), uv.max(axis=0) + size.max()]))
     ax.set_aspect("equal")
     ax.autoscale_view()
 

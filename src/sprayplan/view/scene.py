@@ -153,19 +153,14 @@ def make_scene(plan, job, totals: dict, film=None, report: dict | None = None, p
         notes.append(NO_FILM)
         if part is not None:
             surface = _bare(part)
+    return _scene(plan, job, totals, surface, report, notes)
+
+
+def _scene(plan, job, totals: dict, surface: Surface | None, report: dict | None, notes) -> Scene:
     target, tolerance, painted = _spec(job, report)
+    name = os.path.basename(plan.name)
     return Scene(
-        os.path.basename(plan.name),
-        plan,
-        job,
-        dict(totals),
-        surface,
-        report,
-        target,
-        tolerance,
-        painted,
-        _working_radius(job),
-        tuple(notes),
+        name, plan, job, dict(totals), surface, report, target, tolerance, painted, _working_radius(job), tuple(notes)
     )
 
 
@@ -224,20 +219,7 @@ def scene_from_folder(folder: str | os.PathLike) -> Scene:
         else:
             notes.append(NO_FILM)
         surface = _part_from_file(read.part_file, job, notes)
-    target, tolerance, painted = _spec(job, report)
-    return Scene(
-        os.path.basename(read.plan.name),
-        read.plan,
-        job,
-        dict(read.totals),
-        surface,
-        report,
-        target,
-        tolerance,
-        painted,
-        _working_radius(job),
-        tuple(notes),
-    )
+    return _scene(read.plan, job, read.totals, surface, report, notes)
 
 
 def _read_coating(path: str) -> dict:
