@@ -110,8 +110,11 @@ def test_demo_runs_on_the_bundled_roof(tmp_path, capsys, monkeypatch):
     span = np.ptp(table[:, :2], axis=0)
     assert 1250 < span[0] <= 2635 / 2 and 900 < span[1] <= 1959 / 2
     assert "targets" in stdout and "stations" in stdout and "film: mean" in stdout
-    for name in ("plan.json", "waypoints.csv", "coating.json", "thickness.ply", "thickness.csv"):
+    for name in ("plan.json", "waypoints.csv", "coating.json", "thickness.ply", "thickness.csv", "plan.html"):
         assert (tmp_path / name).stat().st_size > 0
+    assert (tmp_path / "report" / "report.md").exists()
+    # the plan names the part where it is, not the staging folder it was planned in
+    assert json.loads((tmp_path / "plan.json").read_text())["part"] == str(tmp_path / "roof.stl")
     # the roof the demo wrote, with the demo's own region, is the seed's whole 2635 x 1959 mm roof: its
     # targets (the demo's targets step, 1 s) cover all of it
     roof = str(tmp_path / "roof.stl")

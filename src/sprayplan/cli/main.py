@@ -178,6 +178,9 @@ def cmd_demo(args) -> int:
         write_targets_csv(folder / "targets.csv", targets)
         lines.append(_targets_line(targets, part, config, elapsed, out / "targets.csv"))
         result = run_shown(str(folder / "roof.stl"), job, quiet=getattr(args, "quiet", False))
+        # the part is named by where it will be, not by the staging folder it was planned from
+        plan = dataclasses.replace(result.plan, name=os.fspath(out / "roof.stl"))
+        result = dataclasses.replace(result, plan=plan)
         write_job_files(folder, result, part_file=os.path.abspath(out / "roof.stl"))
     lines.append(summary_line(result, out))
     print("\n".join(lines))
