@@ -765,6 +765,10 @@ class ExportConfig(Section):
         script waits for it before it moves); the "station done" output the script sets at its end.
     ur_max_moves : int
         Most moves in one URScript file (a station's script is split into parts beyond it; >= 20).
+    ur_gantry_offset_mm : float
+        URScript holds the gantry at its station: a spray waypoint where the plan (its SQP fallback) moves the
+        gantry farther than this from the station is left out, nearer ones are sprayed with the arm's joints
+        from the station (the TCP then that much off the plan's pose; 0 to 200 mm).
     rapid_gun_signal, rapid_tool, rapid_wobj : str
         RAPID names of the gun's digital output, the tool data and the work object (identifiers, at most 32
         characters, not a reserved word).
@@ -804,6 +808,7 @@ class ExportConfig(Section):
     ur_ready_input: int = 0
     ur_done_output: int = 1
     ur_max_moves: int = 2000
+    ur_gantry_offset_mm: float = 2.0
     rapid_gun_signal: str = "doGun"
     rapid_tool: str = "tSprayGun"
     rapid_wobj: str = "wPart"
@@ -854,6 +859,7 @@ class ExportConfig(Section):
         for key in ("ur_max_moves", "krl_max_moves"):
             _within(ExportConfig, key, getattr(self, key), 20, 1_000_000)
         _within(ExportConfig, "rapid_max_lines", self.rapid_max_lines, 50, 1_000_000)
+        _within(ExportConfig, "ur_gantry_offset_mm", self.ur_gantry_offset_mm, 0.0, 200.0)
         names = {}
         for key in ("rapid_gun_signal", "rapid_tool", "rapid_wobj"):
             value = getattr(self, key)

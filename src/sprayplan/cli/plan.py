@@ -49,6 +49,9 @@ def _job_config(args):
         changes["ordering"] = changes["ordering"] | {"seed": args.seed}
     if args.mode is not None:
         changes["mode"] = args.mode
+    if getattr(args, "program", None) or getattr(args, "strict", False):
+        changes["export"] = {"programs": tuple(dict.fromkeys(args.program or job.export.programs))}
+        changes["export"] |= {"strict": True} if args.strict else {}
     return job.replace(**{k: v for k, v in changes.items() if v or k == "mode"})
 
 
@@ -152,5 +155,23 @@ def cmd_plan(args) -> int:
     job = _job_config(args)
     inputs = [(args.part, "part"), (args.config, "-c"), (file_input(job.coating.process), "--process")]
     check_outputs([(os.path.join(args.output, name), "-o") for name in JOB_FILES], inputs)
-    print(run_plan(args.part, Path(args.output), job, quiet=getattr(args, "quiet", False)))
+    if job.export.programs:
+        programs = os.path.join(args.output, "programs")
+        check_outputs(
+            [(programs, "-o"), *((os.path.join(programs, f), "-o") for f in job.export.programs)], inputs, True
+        )
+    result = run_shown(args.part, job, getattr(args, "quiet", False), Path(args.output))
+    _program_warnings(result)
+    print(summary_line(result, Path(args.output)))
     return 0
+
+
+def _program_warnings(result) -> None:
+    """What the robot programs left out, one line each on stderr."""
+    import sys
+
+    from sprayplan.programs.stage import warnings_of
+
+    for built in result.programs:
+        for line in warnings_of(built):
+            print(f"sprayplan: warning: {line}", file=sys.stderr)

@@ -17,7 +17,8 @@ Targets are the poses the plan's joints give the TCP (forward kinematics of ``q9
 poses where the analytic IK solved them, and what the arm really does where SQP did (within the plan's
 ``position_tol_mm``). A spray waypoint the plan marks unreachable splits its stroke: it is left out, with the gun
 off over it. URScript cannot move the gantry during a station, so for it a waypoint where SQP moved the gantry
-beyond ``position_tol_mm`` of the station's position is left out too.
+farther than ``[export] ur_gantry_offset_mm`` from the station's position is left out too (nearer ones are
+sprayed with the plan's arm joints, the TCP off the plan's pose by the gantry's offset).
 
 Speeds keep the plan's timing: the move into waypoint i takes the time the plan gives its segment (the gun
 tip's ``tcp_speed_mm_s``), so its TCP speed is the TCP's path length over that time (the contact point's
@@ -114,12 +115,13 @@ def _where(order: int, data: dict, k: int) -> dict:
 
 def spray_runs(plan, job, fmt: str, cell: Cell | None = None) -> tuple[list[list[Run]], dict]:
     """The runs of every station (in visiting order) and what was left out: ``unreachable_waypoints`` (spray
-    waypoints the plan does not reach), ``gantry_offset_waypoints`` (URScript: the plan moves the gantry there),
+    waypoints the plan does not reach), ``gantry_offset_waypoints`` (URScript: the plan moves the gantry there
+    farther than ``ur_gantry_offset_mm`` from the station),
     ``split_runs`` (runs longer than a file allows, split with one waypoint in both parts), ``duplicate_waypoints``
     (a target equal to the one before)."""
     cell = cell or Cell(gantry_for(job.kinematics))
     limit = run_limit(job, fmt)
-    tol = job.kinematics.position_tol_mm * (1 + 1e-6) + 1e-9
+    tol = job.export.ur_gantry_offset_mm + 1e-9
     report: dict = {"unreachable_waypoints": [], "gantry_offset_waypoints": [], "split_runs": 0,
                     "duplicate_waypoints": 0}  # fmt: skip
     out = []
@@ -131,8 +133,7 @@ def spray_runs(plan, job, fmt: str, cell: Cell | None = None) -> tuple[list[list
         q9 = target_q9(st, fmt)
         poses = cell.poses(q9[:, :6], q9[:, 6:]) if len(q9) else np.zeros((0, 4, 4))
         if fmt == "urscript" and len(q9):
-            wanted = wanted_targets(data["tcp"], data["normals"], cell.gantry.gun.spray_distance_mm)
-            off = ok & (np.linalg.norm(poses[:, :3, 3] - wanted, axis=1) > tol)
+            off = ok & (np.linalg.norm(st.q9[:, 6:] - st.platform_mm, axis=1) > tol)
             for k in np.flatnonzero(off):
                 report["gantry_offset_waypoints"].append(_where(order, data, k))
             ok &= ~off
