@@ -34,7 +34,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from sprayplan.errors import InputError
-from sprayplan.programs.model import JOINT, LINEAR, Cell, CellProgram, Move, StationProgram, offset_along_z
+from sprayplan.programs.model import (
+    JOINT,
+    LINEAR,
+    Cell,
+    CellProgram,
+    Move,
+    StationProgram,
+    angle_between_deg,
+    offset_along_z,
+)
 from sprayplan.robots.stage import HOME_JOINTS, gantry_for
 
 #: The approach tried at the set distance, then at half, a quarter and an eighth of it.
@@ -42,9 +51,16 @@ APPROACH_TRIES = (1.0, 0.5, 0.25, 0.125)
 #: Largest joint step (rad) between points 5 mm apart on an approach line: more means a singularity on the way.
 LINE_STEP_RAD = 0.2
 LINE_SAMPLE_MM = 5.0
-#: Two waypoints closer than this (mm, and 1e-9 rad) are one target.
-SAME_MM = 1e-6
-MIN_SPEED_MM_S = 0.01
+#: Two consecutive waypoints whose targets are this close (mm and degrees: the read-back check's tolerances)
+#: are one target: the program moves to it once, in the time the plan gives both segments (a controller could
+#: not time a move of a few micrometres).
+SAME_MM = 0.01
+SAME_DEG = 0.01
+#: The slowest TCP speed written (a move that is almost a pure reorientation about the TCP), mm/s.
+MIN_SPEED_MM_S = 0.001
+#: Blend radii are computed this much (mm) below their cap, so that the cap holds on the positions as written
+#: (to 1e-4 mm) too.
+BLEND_MARGIN_MM = 2e-4
 
 
 @dataclass(frozen=True)
@@ -176,7 +192,7 @@ def _without_duplicates(index: np.ndarray, poses: np.ndarray, report: dict) -> n
         last = poses[keep[-1]]
         same = (
             np.linalg.norm(poses[k, :3, 3] - last[:3, 3]) <= SAME_MM
-            and np.abs(poses[k, :3, :3] - last[:3, :3]).max() <= 1e-9
+            and angle_between_deg(poses[k, :3, :3], last[:3, :3]) <= SAME_DEG
         )
         if same:
             report["duplicate_waypoints"] += 1
@@ -328,7 +344,8 @@ def _run_moves(cell, cfg, run: Run, data, poses, q9, lead_on, lead_off, report) 
         speed = lengths[j - 1] / seconds if seconds > 0 else float(data["speed"][k])
         blend = 0.0
         if j < len(index) - 1:
-            blend = min(cfg.blend_mm, cfg.blend_share * lengths[j - 1], cfg.blend_share * lengths[j])
+            cap = min(cfg.blend_mm, cfg.blend_share * lengths[j - 1], cfg.blend_share * lengths[j])
+            blend = max(0.0, cap - BLEND_MARGIN_MM)
         moves.append(Move(LINEAR, "spray", poses[k], q9[k, :6].copy(), q9[k, 6:].copy(),
                           max(speed, MIN_SPEED_MM_S), blend, source=(run.order, k)))  # fmt: skip
     moves.append(Move(LINEAR, "retract", end[1], end[2], q9[last, 6:].copy(), cfg.approach_speed_mm_s, 0.0))

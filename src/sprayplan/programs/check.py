@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sprayplan.programs.build import APPROACH_TRIES, station_arrays, target_q9, wanted_targets
+from sprayplan.programs.build import APPROACH_TRIES, MIN_SPEED_MM_S, station_arrays, target_q9, wanted_targets
 from sprayplan.programs.model import (
     JOINT,
     LINEAR,
@@ -62,8 +62,9 @@ class CheckResult:
     ----------
     failures : list of str
         One line per problem (``file:line: what``); empty when the program is the plan.
-    moves, runs, waypoints, vias : int
-        Moves read, spray runs, plan waypoints the program moves to, via points.
+    moves, runs, waypoints, vias, duplicates : int
+        Moves read, spray runs, plan waypoints the program moves to, via points, and waypoints the program
+        reaches as one target with the waypoint before them (within 0.01 mm and 0.01 degree).
     left_out : list of (int, int)
         (station order, waypoint index) of reachable spray waypoints the program does not move to.
     max_position_mm, max_angle_deg, max_joint_rad, max_speed_mm_s, max_external_mm, max_gun_mm : float
@@ -78,6 +79,7 @@ class CheckResult:
     runs: int = 0
     waypoints: int = 0
     vias: int = 0
+    duplicates: int = 0
     left_out: list = field(default_factory=list)
     max_position_mm: float = 0.0
     max_angle_deg: float = 0.0
@@ -179,6 +181,9 @@ class _Station:
 def _check_station(order, moves, fmt, plan, job, cell, result: CheckResult) -> None:
     station = _Station(order, plan.stations[order], fmt, job, cell)
     cfg = job.export
+    for home in (moves[0], moves[-1]):
+        if any(on for _, on in home.events):
+            result.fail(home, "the gun must not be switched on at home")
     matched = np.zeros(len(station.q9), bool)
     k, pointer = 1, 0
     while k < len(moves) - 1:
@@ -233,9 +238,16 @@ def _check_run(station, transfer, chain, fmt, cfg, cell, job, result, matched, p
         k = _match(station, move.pose, previous + 1, stroke)
         if k is not None and _only_duplicates(station, previous, k):
             indices.append(k)
+            result.duplicates += k - previous - 1
+            matched[previous + 1 : k] = True  # one target with the waypoint before them
             previous = k
-        else:
-            indices.append(-1)  # a via point: checked against its segment
+        elif fmt == "urscript":
+            indices.append(-1)  # a via point (only URScript has them): checked against its segment
+        else:  # not the next waypoint: compared with it (and taken for it)
+            k = min(previous + 1, len(station.poses) - 1)
+            indices.append(k)
+            matched[k] = True
+            previous = k
         targets.append(move)
     if indices[-1] < 0:
         result.fail(chain[-2], "a run must end at a plan waypoint, not a via point")
@@ -255,8 +267,8 @@ def _check_run(station, transfer, chain, fmt, cfg, cell, job, result, matched, p
         result.fail(chain[-1], f"the retract's speed is not approach_speed_mm_s ({cfg.approach_speed_mm_s:g} mm/s)")
     if chain[-1].events:
         result.fail(chain[-1], "the gun must not switch on the retract")
-    _check_gun([start_pose, *(m.pose for m in chain[:-1])], chain[:-1], a, indices, cfg, fmt, result)
-    return previous + 1
+    _check_gun([start_pose, *(m.pose for m in chain[:-1])], chain[:-1], a, indices, cfg, fmt, result, transfer.events)
+    return previous  # a run split for a file's size starts again at the waypoint this one ends at
 
 
 class _PoseOnly:
@@ -270,7 +282,12 @@ class _PoseOnly:
 def _only_duplicates(station, a: int, b: int) -> bool:
     """Waypoints strictly between a and b have a's pose (a duplicate the program moves to once)."""
     between = station.poses[a + 1 : b]
-    return all(np.linalg.norm(p[:3, 3] - station.poses[a, :3, 3]) <= POSITION_MM for p in between)
+    here = station.poses[a]
+    return all(
+        np.linalg.norm(p[:3, 3] - here[:3, 3]) <= POSITION_MM
+        and angle_between_deg(p[:3, :3], here[:3, :3]) <= ANGLE_DEG
+        for p in between
+    )
 
 
 def _check_targets(station, targets, indices, fmt, cell, result) -> None:
@@ -314,16 +331,35 @@ def _check_config(move, joints, branch, external_mm, fmt, cell: Cell, result) ->
     if config != expected:
         result.fail(move, f"configuration data {config} are not those of the plan's joints {expected}")
         return
-    q, ok = cell.joints_on_branch(move.pose[None], external_mm, use, joints)
-    q, ok = q[0], bool(ok[0])
-    if fmt == "krl":  # the one turn in (-2 pi, 2 pi) with T's sign
-        negative = np.array([(config[1] >> i) & 1 for i in range(6)], bool)
-        q = np.where(negative & (q >= 0), q - 2 * np.pi, np.where(~negative & (q < 0), q + 2 * np.pi, q))
-    elif tuple(int(v) for v in rapid_config(q, use)[0][:3]) != config[:3]:
-        ok = False
-    error = float(np.abs(q - joints).max())
+    solutions = cell.solutions(move.pose[None], external_mm)
+    raw, ok = solutions.q[0, use], bool(solutions.valid[0, use])
+    q = np.array([_turn(raw[j], joints[j], config, j, fmt) for j in range(6)])
+    error = float(np.abs(q - joints).max()) if np.isfinite(q).all() else math.inf
     if not ok or error > POSE_JOINT_RAD:
         result.fail(move, f"the pose solved on its configuration data is {error:.3g} rad from the plan's joints")
+
+
+def _turn(angle: float, plan: float, config: tuple, j: int, fmt: str) -> float:
+    """The turn ``angle + 2 pi k`` the configuration data name for joint j (RAPID: the quadrant of axes 1, 4,
+    6; KRL: every axis's sign), the one nearest the plan's joint where they name none (RAPID's axes 2, 3, 5);
+    a joint on the border of two quadrants or signs (within the precision of a written pose) may take either
+    side. NaN when none fits."""
+    candidates = angle + 2 * np.pi * np.arange(-2, 3)
+    eps = POSE_JOINT_RAD
+    if fmt == "rapid" and j in (0, 3, 5):
+        cf = config[(0, 3, 5).index(j)]
+        degrees = np.degrees(candidates)
+        fits = (degrees >= 90.0 * cf - np.degrees(eps)) & (degrees < 90.0 * (cf + 1) + np.degrees(eps))
+    elif fmt == "krl":
+        negative = (config[1] >> j) & 1
+        fits = (candidates < eps) if negative else (candidates > -eps)
+        fits &= np.abs(candidates) < 2 * np.pi + eps
+    else:
+        fits = np.ones(len(candidates), bool)
+    if not fits.any():
+        return math.nan
+    chosen = candidates[fits]
+    return float(chosen[np.argmin(np.abs(chosen - plan))])
 
 
 def _check_vias(targets, indices, result) -> None:
@@ -346,7 +382,8 @@ def _check_speeds(station, targets, indices, first, cfg, fmt, result) -> None:
     """The approach (and its via points) at ``approach_speed_mm_s``, slowed so that the gun's opening lead fits
     on it; the move into each further waypoint (and the via points before it) at the TCP's path over the plan's
     time for the segment (``targets[first]`` is the run's first waypoint)."""
-    approach = float(np.linalg.norm(targets[first].pose[:3, 3] - targets[0].pose[:3, 3]))
+    measured = float(np.linalg.norm(targets[first].pose[:3, 3] - targets[0].pose[:3, 3]))
+    approach = min((cfg.approach_mm * t for t in APPROACH_TRIES), key=lambda d: abs(d - measured))
     lead = 0.0 if fmt == "rapid" and cfg.rapid_paint else cfg.lead_on_s
     v_app = cfg.approach_speed_mm_s if lead <= 0 else min(cfg.approach_speed_mm_s, approach / lead)
     for m in targets[1 : first + 1]:
@@ -359,6 +396,7 @@ def _check_speeds(station, targets, indices, first, cfg, fmt, result) -> None:
         seconds = float(station.data["seconds"][previous + 1 : i + 1].sum())
         length = float(np.linalg.norm(station.poses[i, :3, 3] - station.poses[previous, :3, 3]))
         expected = length / seconds if seconds > 0 else float(station.data["speed"][i])
+        expected = max(expected, MIN_SPEED_MM_S)  # a near pure reorientation: the slowest speed written
         for m in pending:
             _speed(m, expected, result)
         pending, previous = [], i
@@ -421,9 +459,10 @@ def _check_backoff(station, move, i, cfg, cell, fmt, result, is_approach: bool) 
         _check_config(move, q[0], branch, station.q9[i, 6:], fmt, cell, result)
 
 
-def _check_gun(poses, chain, approach: int, indices, cfg, fmt, result) -> None:
+def _check_gun(poses, chain, approach: int, indices, cfg, fmt, result, at_start=()) -> None:
     """With its leads, the gun is open from the run's first waypoint (``chain[approach]``'s target) to its last
-    (``chain[-1]``'s), nowhere else. ``poses``: the approach pose, then each move's target."""
+    (``chain[-1]``'s), nowhere else. ``poses``: the approach pose, then each move's target; ``at_start``: the
+    events of the joint move before the chain (URScript: at its end, where the robot stands)."""
     paint = fmt == "rapid" and cfg.rapid_paint
     lead = {True: 0.0 if paint else cfg.lead_on_s, False: 0.0 if paint else cfg.lead_off_s}
     positions = [p[:3, 3] for p in poses]
@@ -431,6 +470,7 @@ def _check_gun(poses, chain, approach: int, indices, cfg, fmt, result) -> None:
     ends = np.cumsum([0.0, *lengths])  # path position of the approach pose, then of each move's target
     times = np.cumsum([0.0] + [length / m.speed_mm_s for length, m in zip(lengths, chain)])
     events = [(times[j + 1] - d / m.speed_mm_s + lead[on], on, m) for j, m in enumerate(chain) for d, on in m.events]
+    events = [(lead[on], on, chain[0]) for _, on in at_start] + events
     if sum(i >= 0 for i in indices) < 2:
         if events:
             result.fail(chain[0], "a run of one waypoint must not switch the gun")

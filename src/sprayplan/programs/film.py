@@ -89,11 +89,12 @@ def program_paths(read, job, name: str = ""):
     lead = {True: 0.0 if paint else cfg.lead_on_s, False: 0.0 if paint else cfg.lead_off_s}
     standoff = job.paths.standoff_mm
     pieces = []
-    for poses, chain in _chains(read, cell):
+    for joint, poses, chain in _chains(read, cell):
         lengths = np.linalg.norm(np.diff(poses[:, :3, 3], axis=0), axis=1)
         times = np.concatenate([[0.0], np.cumsum(lengths / np.array([m.speed_mm_s for m in chain]))])
         switches = sorted(
-            (times[j + 1] - d / m.speed_mm_s + lead[on], on) for j, m in enumerate(chain) for d, on in m.events
+            [(lead[on], on) for _, on in joint.events]
+            + [(times[j + 1] - d / m.speed_mm_s + lead[on], on) for j, m in enumerate(chain) for d, on in m.events]
         )
         state, since, intervals = False, 0.0, []
         for t, on in switches:
@@ -116,8 +117,8 @@ def program_paths(read, job, name: str = ""):
 
 
 def _chains(read, cell: Cell):
-    """(poses (n + 1, 4, 4), moves (n)) of each run of consecutive linear moves, the first pose being where
-    the joint move before them ends."""
+    """(joint move, poses (n + 1, 4, 4), moves (n)) of each run of consecutive linear moves after a joint move,
+    the first pose being where the joint move ends."""
     moves = list(read.moves)
     gantry = {}
     for s in read.scripts:
@@ -134,7 +135,7 @@ def _chains(read, cell: Cell):
         while j < len(moves) and moves[j].kind != JOINT:
             j += 1
         chain = moves[k + 1 : j]
-        yield np.array([start, *(m.pose for m in chain)]), chain
+        yield moves[k], np.array([start, *(m.pose for m in chain)]), chain
         k = j
 
 

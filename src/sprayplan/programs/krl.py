@@ -24,10 +24,12 @@ from sprayplan.programs.model import (
     ReadMove,
     ReadProgram,
     fixed,
+    fixed_down,
     kuka_abc,
     matrix_from_abc,
     parse_number,
 )
+from sprayplan.programs.rapid import _stations
 from sprayplan.programs.text import chunks
 
 IND = "  "
@@ -80,7 +82,7 @@ def _main(cell, job, names) -> str:
         ";FOLD INI",
         f"{IND}BAS (#INITMOV,0 )",
         ";ENDFOLD (INI)",
-        f"{IND}; sprayplan {__version__}: spray program for {cell.name or 'the part'}, {len(cell.stations)} stations",
+        f"{IND}; sprayplan {__version__}: spray program for {cell.name or 'the part'}, {_stations(cell)}",
         f"{IND}; mm, degrees (A, B, C about Z, Y, X), m/s; E1..E3 the gantry (mm); S, T from the plan's joints",
         f"{IND}TOOL_DATA[{cfg.krl_tool}]={{{_frame_text(cell.tool2flange)}}}",
         f"{IND}BASE_DATA[{cfg.krl_base}]={{{_frame_text(np.eye(4))}}}",
@@ -113,13 +115,14 @@ def _sub(name, moves, notes, cfg, configs) -> tuple[str, str]:
         if v != speed:
             src.append(f"{IND}$VEL.CP={v}")
             speed = v
-        if move.blend_mm > 0 and fixed(move.blend_mm, 4) != blend:
-            blend = fixed(move.blend_mm, 4)
+        radius = fixed_down(move.blend_mm, 4)
+        if float(radius) > 0 and radius != blend:
+            blend = radius
             src.append(f"{IND}$APO.CDIS={blend}")
         for distance, on in move.events:
             state = "TRUE" if on else "FALSE"
             src.append(f"{IND}TRIGGER WHEN PATH=-{fixed(distance, 4)} DELAY=0 DO $OUT[{cfg.krl_gun_output}]={state}")
-        src.append(f"{IND}LIN XP{k}{' C_DIS' if move.blend_mm > 0 else ''}")
+        src.append(f"{IND}LIN XP{k}{' C_DIS' if float(radius) > 0 else ''}")
     return "\n".join(src + ["END", ""]), "\n".join(dat + ["ENDDAT", ""])
 
 

@@ -183,6 +183,13 @@ def fixed(value: float, decimals: int) -> str:
     return text
 
 
+def fixed_down(value: float, decimals: int) -> str:
+    """``value`` (>= 0) rounded down to ``decimals`` as :func:`fixed` writes it: a blend radius written never
+    exceeds the one computed."""
+    scale = 10.0**decimals
+    return fixed(math.floor(float(value) * scale + 1e-6) / scale, decimals)
+
+
 def parse_number(text: str, where: tuple) -> float:
     """A finite decimal number (no ``inf``, ``nan`` or ``_``), else :class:`ProgramError` at ``where``
     (path, line)."""

@@ -24,6 +24,7 @@ from sprayplan.programs.model import (
     ReadMove,
     ReadProgram,
     fixed,
+    fixed_down,
     matrix_from_wxyz,
     parse_number,
     quaternion_wxyz,
@@ -59,7 +60,9 @@ def robtarget(move, config) -> str:
 def _zone(blend_mm: float) -> str:
     if blend_mm <= 0:
         return "fine"
-    r, ori = fixed(blend_mm, 4), fixed(blend_mm / 10.0, 4)
+    r, ori = fixed_down(blend_mm, 4), fixed_down(blend_mm / 10.0, 4)
+    if float(r) == 0:
+        return "fine"
     return f"[FALSE,{r},{r},{r},{ori},{r},{ori}]"
 
 
@@ -88,7 +91,7 @@ def _main_module(cell, job, names) -> str:
     cog = job_gun_position(job)
     lines = [
         f"MODULE {cfg.name}_main",
-        f"{IND}! sprayplan {__version__}: spray program for {cell.name or 'the part'}, {len(cell.stations)} stations",
+        f"{IND}! sprayplan {__version__}: spray program for {cell.name or 'the part'}, {_stations(cell)}",
         f"{IND}! mm, degrees; quaternions [w, x, y, z]; robtargets in the work object {cfg.rapid_wobj} (the part frame)",
         f"{IND}! gantry in eax_a..eax_c (mm); cf1, cf4, cf6, cfx from the plan's joints (docs/programs.md)",
         f"{IND}PERS tooldata {cfg.rapid_tool} := [TRUE,[[{_pos(tool[:3, 3])}],[{_quat(tool[:3, :3])}]],"
@@ -104,6 +107,10 @@ def _main_module(cell, job, names) -> str:
     lines += [f"{IND * 2}SetDO {cfg.rapid_gun_signal}, 0;"] if not cfg.rapid_paint else []
     lines += [f"{IND}ENDPROC", "ENDMODULE", ""]
     return "\n".join(lines)
+
+
+def _stations(cell) -> str:
+    return f"{len(cell.stations)} station{'' if len(cell.stations) == 1 else 's'}"
 
 
 def job_gun_position(job) -> np.ndarray:
@@ -409,11 +416,13 @@ def _brush_event(previous, pose, event, where) -> tuple:
     axis, value, on = event
     if previous is None:
         raise ProgramError(*where, "a brush event before the first move")
-    start = previous.pose[:3, 3] if previous.pose is not None else None
-    if start is None:
-        raise ProgramError(*where, "a brush event on a move after a joint move (no straight segment)")
     k = "XYZ".index(axis)
     end = pose[:3, 3]
+    if previous.pose is None:  # after a joint move the segment's start is not in the file: only at the target
+        if abs(value - end[k]) > 1e-3:
+            raise ProgramError(*where, "a brush event after a joint move must be at the move's target")
+        return (0.0, on)
+    start = previous.pose[:3, 3]
     span = end[k] - start[k]
     fraction = (value - start[k]) / span if span else np.nan
     if not (-1e-9 <= fraction <= 1 + 1e-9):

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from sprayplan import __version__
+from sprayplan.programs.build import BLEND_MARGIN_MM
 from sprayplan.programs.model import (
     JOINT,
     LINEAR,
@@ -28,6 +29,7 @@ from sprayplan.programs.model import (
     ReadMove,
     ReadProgram,
     fixed,
+    fixed_down,
     matrix_from_rotvec,
     parse_number,
     rotvec,
@@ -95,9 +97,10 @@ def _script(name, moves, part2base, st, cell, job, part) -> str:
         if move.kind == JOINT:
             q = ", ".join(fixed(v, 8) for v in move.joints)
             lines.append(f"{IND}movej([{q}], a={jacc}, v={jvel}, r=0)")
+            lines += [f"{IND}set_standard_digital_out({gun}, {on})" for _, on in move.events]
             continue
         verb = "movep" if move.role in ("spray", "via-spray") else "movel"
-        v, r = fixed(move.speed_mm_s / 1000.0, 7), fixed(move.blend_mm / 1000.0, 7)
+        v, r = fixed(move.speed_mm_s / 1000.0, 7), fixed_down(move.blend_mm / 1000.0, 7)
         lines.append(f"{IND}{verb}(pose_trans(part_frame, {_p(move.pose)}), a={acc}, v={v}, r={r})")
         for _, on in move.events:  # where the move's blend begins (or at its target): with_via_points
             lines.append(f"{IND}set_standard_digital_out({gun}, {on})")
@@ -135,18 +138,30 @@ def with_via_points(moves: list[Move], share: float, blend_mm: float) -> list[Mo
         at_end = [on for d, on in zip(ds, states) if d <= 1e-9]
         if at_end:  # an event at the target itself: the robot stops there
             end = dataclasses.replace(end, blend_mm=0.0, events=tuple((0.0, on) for on in at_end))
-        vias = [(d, on) for d, on in zip(ds, states) if d > 1e-9]
+        events = [(d, on) for d, on in zip(ds, states) if d > 1e-9]
+        if previous.kind == JOINT or previous.blend_mm == 0:  # events at the stop point the move starts from
+            at_start = [on for d, on in events if d >= length - 1e-9]
+            if at_start:
+                out[-1] = previous = dataclasses.replace(
+                    previous, events=previous.events + tuple((0.0, on) for on in at_start)
+                )
+                events = [(d, on) for d, on in events if d < length - 1e-9]
+        vias = events
         bounds = [0.0] + [d for d, _ in vias] + [length]
         pieces = []
         for i, (d, on) in enumerate(vias, 1):
-            radius = min(blend_mm, q * min(bounds[i] - bounds[i - 1], bounds[i + 1] - bounds[i]))
+            radius = max(
+                0.0, min(blend_mm, q * min(bounds[i] - bounds[i - 1], bounds[i + 1] - bounds[i])) - BLEND_MARGIN_MM
+            )
             e = d - radius
-            pose = _interpolate(previous.pose, move.pose, 1.0 - e / length)
+            fraction = 1.0 - e / length
+            assert -1e-9 <= fraction <= 1 + 1e-9, (d, radius, length)
+            pose = _interpolate(previous.pose, move.pose, min(max(fraction, 0.0), 1.0))
             pieces.append(Move(LINEAR, f"via-{move.role}", pose, move.joints, move.external_mm, move.speed_mm_s, radius,
                                ((radius, on),)))  # fmt: skip
         if pieces:
             e1, r1 = vias[0][0] - pieces[0].blend_mm, pieces[0].blend_mm
-            end = dataclasses.replace(end, blend_mm=min(end.blend_mm, share * e1, e1 - r1))
+            end = dataclasses.replace(end, blend_mm=max(0.0, min(end.blend_mm, share * e1 - BLEND_MARGIN_MM, e1 - r1)))
             ek, dk = vias[-1][0] - pieces[-1].blend_mm, vias[-1][0]
             if previous.kind == LINEAR:
                 out[-1] = dataclasses.replace(
@@ -292,12 +307,14 @@ def _read_script(path: Path, cfg):
         raise ProgramError(path, 0, "set_tcp, part_frame and the wait for the ready input must come before the moves")
     if io["done"] is None:
         raise ProgramError(path, 0, "the script never sets its done output")
+    io.pop("last", None)
     return tcp, frame, moves, io
 
 
 def _output(io, moves, number, on, cfg, where) -> None:
     """A ``set_standard_digital_out``: the gun (an event of the move before it, at its blend's start) or the
     done output (off before the moves, on after them)."""
+    was, io["last"] = io.get("last"), "gun off" if number == cfg.ur_gun_output and not on and moves else ""
     if number == cfg.ur_gun_output:
         io["gun"] = number
         if moves:
@@ -309,6 +326,9 @@ def _output(io, moves, number, on, cfg, where) -> None:
         io["done"] = None
     elif number == cfg.ur_done_output and on:
         io["done"] = number
+        if was == "gun off" and moves:  # the gun's closing at the script's end is no move's event
+            last = moves[-1]
+            moves[-1] = dataclasses.replace(last, events=last.events[:-1])
     else:
         raise ProgramError(*where, f"set_standard_digital_out({number}, {on}): not the gun's or the done output")
 
