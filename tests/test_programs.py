@@ -61,7 +61,7 @@ def exported(plans, tmp_path_factory):
     def get(name, fmt, **export):
         key = (name, fmt, tuple(sorted(export.items())))
         if key not in cache:
-            part, job, plan = plans[name]
+            _part, job, plan = plans[name]
             job = job.replace(export=export) if export else job
             folder = root / f"{name}-{len(cache)}"
             (built,), (summary,) = export_plan(plan, job, [fmt], folder)
@@ -81,7 +81,7 @@ def spray_reachable(plan) -> int:
 @pytest.mark.parametrize("fmt", FORMATS)
 @pytest.mark.parametrize("name", ["roof", "reach", "tray"])
 def test_every_program_reads_back_as_its_plan(plans, exported, name, fmt):
-    folder, built, summary, read, result, job = exported(name, fmt)
+    folder, _built, summary, read, result, _job = exported(name, fmt)
     _, _, plan = plans[name]
     assert result.failures == []
     assert result.runs > 0 and result.waypoints > 0
@@ -339,7 +339,7 @@ def test_rapid_configuration_data_follow_the_joints():
 
 
 def test_files_are_split_to_their_limits(plans, exported):
-    _, job, plan = plans["reach"]
+    _, _job, plan = plans["reach"]
     ur = exported("reach", "urscript", ur_max_moves=40)
     assert ur[4].failures == []
     scripts = [s for s in ur[3].scripts]
