@@ -176,6 +176,7 @@ class _Station:
         self.wanted = wanted_targets(self.data["tcp"], self.data["normals"], cell.gantry.gun.spray_distance_mm)
         self.branch = cell.branches(self.q9[:, :6]) if n else np.zeros(0, int)
         self.spray = self.data["spray"] & st.reachable
+        self.pending: list = []  # (move, joints, branch, gantry) whose configuration data are checked at the end
 
 
 def _check_station(order, moves, fmt, plan, job, cell, result: CheckResult) -> None:
@@ -202,23 +203,32 @@ def _check_station(order, moves, fmt, plan, job, cell, result: CheckResult) -> N
             return
         result.runs += 1
         k = j
+    _check_configs(station.pending, fmt, cell, result)
     left = np.flatnonzero(station.spray & ~matched)
     result.left_out += [(order, int(i)) for i in left]
 
 
 def _match(station: _Station, pose, start: int, stroke: int | None = None) -> int | None:
     """The first reachable spray waypoint at or after ``start`` (of ``stroke`` when given) whose pose (from the
-    plan's joints) is ``pose``; a transfer's waypoints share their poses with the strokes' ends and are skipped."""
-    mask = station.spray[start:]
-    if stroke is not None:
-        mask = mask & (station.data["stroke"][start:] == stroke)
-    rest = station.poses[start:]
-    if not len(rest):
-        return None
-    close = mask & (np.linalg.norm(rest[:, :3, 3] - pose[:3, 3], axis=1) <= POSITION_MM)
-    for i in np.flatnonzero(close):
-        if angle_between_deg(rest[i, :3, :3], pose[:3, :3]) <= ANGLE_DEG:
-            return start + int(i)
+    plan's joints) is ``pose``; a transfer's waypoints share their poses with the strokes' ends and are skipped.
+    The next 64 waypoints are looked at first (a run's next target is almost always among them)."""
+    for stop in (start + 64, len(station.poses)):
+        mask = station.spray[start:stop]
+        if stroke is not None:
+            mask = mask & (station.data["stroke"][start:stop] == stroke)
+        rest = station.poses[start:stop]
+        if len(rest):
+            close = mask & (np.linalg.norm(rest[:, :3, 3] - pose[:3, 3], axis=1) <= POSITION_MM)
+            found = np.flatnonzero(close)
+            if len(found):
+                ok = (
+                    angle_between_deg(rest[found, :3, :3], np.broadcast_to(pose[:3, :3], (len(found), 3, 3)))
+                    <= ANGLE_DEG
+                )
+                if ok.any():
+                    return start + int(found[np.argmax(ok)])
+        if stop >= len(station.poses):
+            break
     return None
 
 
@@ -291,34 +301,52 @@ def _only_duplicates(station, a: int, b: int) -> bool:
 
 
 def _check_targets(station, targets, indices, fmt, cell, result) -> None:
-    for move, i in zip(targets, indices):
-        if i < 0:
-            continue
-        expected = station.poses[i]
-        dp = float(np.linalg.norm(move.pose[:3, 3] - expected[:3, 3]))
-        da = float(angle_between_deg(move.pose[:3, :3], expected[:3, :3]))
-        result.max_position_mm = max(result.max_position_mm, dp)
-        result.max_angle_deg = max(result.max_angle_deg, da)
-        if dp > POSITION_MM or da > ANGLE_DEG:
-            result.fail(move, f"waypoint {i}: {dp:.4g} mm, {da:.4g} deg from the pose the plan's joints give")
-        if station.st.method[i] == "analytic":
-            dw = float(np.linalg.norm(move.pose[:3, 3] - station.wanted[i]))
-            axis = -station.data["normals"][i]
-            dz = math.degrees(math.acos(min(1.0, float(move.pose[:3, 2] @ axis / np.linalg.norm(axis)))))
-            if dw > POSITION_MM or dz > ANGLE_DEG:
-                result.fail(move, f"waypoint {i}: {dw:.4g} mm, {dz:.4g} deg from the plan's spray target and gun axis")
-        if fmt in ("rapid", "krl"):
-            ext = float(np.abs(move.external_mm - station.q9[i, 6:]).max())
-            result.max_external_mm = max(result.max_external_mm, ext)
-            if ext > EXTERNAL_MM:
-                result.fail(move, f"waypoint {i}: external axes {move.external_mm.tolist()} are not the gantry's")
-            _check_config(move, station.q9[i, :6], int(station.branch[i]), station.q9[i, 6:], fmt, cell, result)
+    use = [(m, i) for m, i in zip(targets, indices) if i >= 0]
+    moves = [m for m, _ in use]
+    k = np.array([i for _, i in use], int)
+    poses = np.array([m.pose for m in moves])
+    dp = np.linalg.norm(poses[:, :3, 3] - station.poses[k, :3, 3], axis=1)
+    da = angle_between_deg(poses[:, :3, :3], station.poses[k, :3, :3])
+    result.max_position_mm = max(result.max_position_mm, float(dp.max()))
+    result.max_angle_deg = max(result.max_angle_deg, float(da.max()))
+    for j in np.flatnonzero((dp > POSITION_MM) | (da > ANGLE_DEG)):
+        result.fail(moves[j], f"waypoint {k[j]}: {dp[j]:.4g} mm, {da[j]:.4g} deg from the pose the plan's joints give")
+    analytic = station.st.method[k] == "analytic"
+    axis = -station.data["normals"][k]
+    axis = axis / np.linalg.norm(axis, axis=1)[:, None]
+    dw = np.linalg.norm(poses[:, :3, 3] - station.wanted[k], axis=1)
+    dz = np.degrees(
+        np.arctan2(np.linalg.norm(np.cross(poses[:, :3, 2], axis), axis=1), (poses[:, :3, 2] * axis).sum(1))
+    )
+    for j in np.flatnonzero(analytic & ((dw > POSITION_MM) | (dz > ANGLE_DEG))):
+        result.fail(
+            moves[j], f"waypoint {k[j]}: {dw[j]:.4g} mm, {dz[j]:.4g} deg from the plan's spray target and gun axis"
+        )
+    if fmt in ("rapid", "krl"):
+        ext = np.abs(np.array([m.external_mm for m in moves]) - station.q9[k, 6:]).max(axis=1)
+        result.max_external_mm = max(result.max_external_mm, float(ext.max()))
+        for j in np.flatnonzero(ext > EXTERNAL_MM):
+            result.fail(
+                moves[j], f"waypoint {k[j]}: external axes {moves[j].external_mm.tolist()} are not the gantry's"
+            )
+        station.pending += [(m, station.q9[i, :6], int(station.branch[i]), station.q9[i, 6:]) for m, i in use]
 
 
-def _check_config(move, joints, branch, external_mm, fmt, cell: Cell, result) -> None:
-    """The target's configuration data are those of ``joints``, and its pose solved on that configuration gives
-    ``joints`` back: RAPID's cfx names the branch and cf1, cf4, cf6 the turns of axes 1, 4, 6; KRL's S names the
-    branch and T every joint's sign (which fixes its turn within +-2 pi)."""
+def _check_configs(pending, fmt, cell: Cell, result) -> None:
+    """Every target's configuration data are those of its joints, and its pose solved on that configuration
+    gives the joints back (:func:`_check_config`, the IK of all targets at once)."""
+    if not pending:
+        return
+    solutions = cell.solutions(np.array([p[0].pose for p in pending]), np.array([p[3] for p in pending]))
+    for n, (move, joints, branch, _) in enumerate(pending):
+        _check_config(move, joints, branch, (solutions.q[n], solutions.valid[n]), fmt, result)
+
+
+def _check_config(move, joints, branch, solved, fmt, result) -> None:
+    """The target's configuration data are those of ``joints``, and its pose solved on that configuration
+    (``solved``: the pose's eight IK solutions and their validity) gives ``joints`` back: RAPID's cfx names the
+    branch and cf1, cf4, cf6 the turns of axes 1, 4, 6; KRL's S names the branch and T every joint's sign (which
+    fixes its turn within +-2 pi)."""
     config = tuple(move.config)
     if fmt == "rapid":
         expected = tuple(int(v) for v in rapid_config(joints, branch)[0])
@@ -331,8 +359,7 @@ def _check_config(move, joints, branch, external_mm, fmt, cell: Cell, result) ->
     if config != expected:
         result.fail(move, f"configuration data {config} are not those of the plan's joints {expected}")
         return
-    solutions = cell.solutions(move.pose[None], external_mm)
-    raw, ok = solutions.q[0, use], bool(solutions.valid[0, use])
+    raw, ok = solved[0][use], bool(solved[1][use])
     q = np.array([_turn(raw[j], joints[j], config, j, fmt) for j in range(6)])
     error = float(np.abs(q - joints).max()) if np.isfinite(q).all() else math.inf
     if not ok or error > POSE_JOINT_RAD:
@@ -456,7 +483,7 @@ def _check_backoff(station, move, i, cfg, cell, fmt, result, is_approach: bool) 
         if not ok[0] or error > JOINT_RAD:
             result.fail(move, f"the joint target is {error:.3g} rad from the plan's branch at the approach pose")
     elif fmt in ("rapid", "krl"):
-        _check_config(move, q[0], branch, station.q9[i, 6:], fmt, cell, result)
+        station.pending.append((move, q[0], branch, station.q9[i, 6:]))
 
 
 def _check_gun(poses, chain, approach: int, indices, cfg, fmt, result, at_start=()) -> None:

@@ -249,11 +249,14 @@ def matrix_from_rotvec(v) -> np.ndarray:
 
 
 def angle_between_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(...) the rotation angle between rotation matrices, degrees (accurate near 0)."""
-    rel = np.swapaxes(a, -1, -2) @ b
-    return np.degrees(np.linalg.norm(Rotation.from_matrix(rel.reshape(-1, 3, 3)).as_rotvec(), axis=1)).reshape(
-        np.shape(a)[:-2]
+    """(...) the rotation angle between rotation matrices (..., 3, 3), degrees (accurate near 0 and near 180:
+    ``atan2`` of the relative rotation's sine and cosine)."""
+    rel = np.swapaxes(np.asarray(a, float), -1, -2) @ np.asarray(b, float)
+    cos = (np.trace(rel, axis1=-2, axis2=-1) - 1.0) / 2.0
+    vee = np.stack(
+        [rel[..., 2, 1] - rel[..., 1, 2], rel[..., 0, 2] - rel[..., 2, 0], rel[..., 1, 0] - rel[..., 0, 1]], -1
     )
+    return np.degrees(np.arctan2(np.linalg.norm(vee, axis=-1) / 2.0, cos))
 
 
 # --- the robot ----------------------------------------------------------------------------------------------
