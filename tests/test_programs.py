@@ -137,23 +137,30 @@ def _index(plan, w) -> int:
 
 
 @pytest.mark.parametrize("fmt", FORMATS)
-@pytest.mark.parametrize("name", ["roof", "reach"])
+@pytest.mark.parametrize("name", ["roof", "reach", "tray"])
 def test_the_film_of_a_program_read_back_is_the_plans(plans, exported, name, fmt):
+    """The film predicted from the program as read back (its poses, speeds, gun signals and leads) against the
+    plan's as its joints run it, over the waypoints the program sprays: the same deposit within 0.1 %, and no
+    sample more than 0.1 % of the thickest film apart. The occlusion model is off for the sample-by-sample
+    comparison: its views are placed by the gun's travel, so a sample on a shadow's border may flip with a
+    micrometre of rounding (docs/programs.md); the deposit is compared with it on too."""
     from sprayplan.coating.stage import simulate_plan
     from sprayplan.programs.film import compare, program_paths, reference_paths, simulate_paths
 
     part, job, plan = plans[name]
     *_, read, result, job = exported(name, fmt)
-    film = simulate_paths(part, *program_paths(read, job), job)
-    reference = simulate_paths(part, *reference_paths(plan, job, fmt, result.left_out), job)
-    found = compare(film, reference)
-    # the plan as its joints run it, over the waypoints the program sprays: same deposit within 0.1 %, and
-    # nowhere more than 0.1 % of the thickest film apart
+    plain = job.replace(coating={"occlusion": "none"})
+    program = program_paths(read, job, vias=result.via_moves)
+    reference = reference_paths(plan, job, fmt, result.left_out)
+    found = compare(simulate_paths(part, *program, plain), simulate_paths(part, *reference, plain))
     assert found["volume_difference"] <= 1e-3 and found["max_difference"] <= 1e-3
-    if not result.left_out and spray_reachable(plan) == sum(
-        len(s) for s in plan.strokes if s.spray_on
-    ):  # nothing left out: the plan's own film (its gun poses where SQP moved them as the plan says)
-        assert compare(film, simulate_plan(part, plan, job))["volume_difference"] <= 1e-3
+    if name == "tray":  # with the occlusion model on; and, where the program leaves nothing out (RAPID and
+        # KRL move the gantry as SQP does), the plan's own film: its deposit
+        film = simulate_paths(part, *program, job)
+        assert compare(film, simulate_paths(part, *reference, job))["volume_difference"] <= 1e-3
+        if fmt != "urscript":
+            assert not result.left_out
+            assert compare(film, simulate_plan(part, plan, job))["volume_difference"] <= 1e-3
 
 
 def test_a_wrong_program_is_caught_by_the_checks(plans, exported, tmp_path):
@@ -698,3 +705,16 @@ def test_an_unwritable_output_folder_is_one_line_and_nothing_written(reach_folde
     code, _, err = run(capsys, "export", reach_folder, "--format", "krl", "-o", locked / "programs")
     assert code == 2 and len(err.strip().splitlines()) == 1 and str(locked / "programs") in err
     assert os.listdir(locked) == []
+
+
+def test_a_program_that_reads_back_wrong_is_a_bug_and_writes_nothing(reach_folder, tmp_path, capsys, monkeypatch):
+    import sprayplan.programs.rapid as rapid
+
+    monkeypatch.setattr(rapid, "_zone", lambda blend_mm: "[FALSE,99,99,99,9.9,99,9.9]" if blend_mm > 0 else "fine")
+    copy = tmp_path / "plan"
+    shutil.copytree(reach_folder, copy)
+    shutil.rmtree(copy / "programs")
+    before = snapshot(tmp_path)
+    code, _, err = run(capsys, "export", copy, "--format", "rapid")
+    assert code == 1 and "internal error: ProgramCheckError" in err and "blend" in err
+    assert snapshot(tmp_path) == before

@@ -225,7 +225,7 @@ def _write(outdir, state: JobState) -> None:
         from sprayplan.programs.stage import default_folder, write_built
 
         plan_file = os.path.abspath(os.path.join(outdir, "plan.json"))
-        write_built(default_folder(outdir), list(state.programs), state.job, state.plan.name, plan_file)
+        write_built(default_folder(outdir), list(state.programs), state.plan, state.job, plan_file)
 
 
 @dataclass(frozen=True)

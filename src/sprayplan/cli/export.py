@@ -74,7 +74,7 @@ def cmd_export(args) -> int:
     if args.strict:
         job = job.replace(export={"strict": True})
     with stage("export"):
-        builts, summaries = export_plan(read.plan, job, formats, folder, read.plan.name, os.path.abspath(plan_file))
+        builts, summaries = export_plan(read.plan, job, formats, folder, os.path.abspath(plan_file))
     for built in builts:
         for line in warnings_of(built):
             print(f"sprayplan: warning: {line}", file=sys.stderr)

@@ -62,6 +62,8 @@ class CheckResult:
     ----------
     failures : list of str
         One line per problem (``file:line: what``); empty when the program is the plan.
+    via_moves : list of str
+        The ``where`` of each via point (``film.program_paths`` joins a move's pieces there).
     moves, runs, waypoints, vias, duplicates : int
         Moves read, spray runs, plan waypoints the program moves to, via points, and waypoints the program
         reaches as one target with the waypoint before them (within 0.01 mm and 0.01 degree).
@@ -79,6 +81,7 @@ class CheckResult:
     runs: int = 0
     waypoints: int = 0
     vias: int = 0
+    via_moves: list = field(default_factory=list)
     duplicates: int = 0
     left_out: list = field(default_factory=list)
     max_position_mm: float = 0.0
@@ -263,6 +266,7 @@ def _check_run(station, transfer, chain, fmt, cfg, cell, job, result, matched, p
         result.fail(chain[-2], "a run must end at a plan waypoint, not a via point")
         return None
     result.vias += sum(i == -1 for i in indices)
+    result.via_moves += [m.where for m, i in zip(targets, indices) if i == -1]
     for i in indices:
         if i >= 0:
             matched[i] = True

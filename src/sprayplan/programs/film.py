@@ -21,8 +21,9 @@ from sprayplan.programs.model import JOINT, Cell
 from sprayplan.robots.stage import gantry_for
 from sprayplan.types import Paths, Stroke
 
-#: A stretch shorter than this (mm of the gun tip) paints nothing and is left out.
-TINY_MM = 1e-9
+#: A stretch of the gun tip shorter than this (mm: the gun switching check's tolerance) is left out: the few
+#: micrometres the program sprays on an approach where its written numbers make the gun open a hair early.
+TINY_MM = 0.01
 #: How far (mm) a via point may lie off its straight move, as written (URScript: 1e-4 mm digits).
 VIA_MM = 1e-3
 
@@ -33,44 +34,29 @@ class _Piece:
 
     poses: np.ndarray
     seconds: float
+    via: bool = False  # ends at a via point: the next piece continues its move
 
 
 def _merged(pieces: list) -> list:
-    """Consecutive stretches that continue one straight move at one speed (split by a via point) joined again,
-    so that the film's time steps fall as they would on the unsplit move."""
+    """Pieces split by a via point (URScript) joined again, so that the film's time steps fall as they do on
+    the plan's unsplit segment."""
     out: list = []
     for piece in pieces:
-        if out:
+        if out and out[-1].via and np.linalg.norm(piece.poses[0, :3, 3] - out[-1].poses[1, :3, 3]) <= VIA_MM:
             last = out[-1]
-            a, b = last.poses[:, :3, 3], piece.poses[:, :3, 3]
-            la, lb = float(np.linalg.norm(a[1] - a[0])), float(np.linalg.norm(b[1] - b[0]))
-            joined = (
-                np.linalg.norm(b[0] - a[1]) <= VIA_MM
-                and _off_line(a[0], b[1], a[1]) <= VIA_MM
-                and (a[1] - a[0]) @ (b[1] - b[0]) > 0
-                and abs(la / last.seconds - lb / piece.seconds) <= 1e-6 * la / last.seconds
-                and np.abs(piece.poses[0, :3, :3] - last.poses[1, :3, :3]).max() <= 1e-6
-            )
-            if joined:
-                out[-1] = _Piece(np.array([last.poses[0], piece.poses[1]]), last.seconds + piece.seconds)
-                continue
+            out[-1] = _Piece(np.array([last.poses[0], piece.poses[1]]), last.seconds + piece.seconds, piece.via)
+            continue
         out.append(piece)
     return out
 
 
-def _off_line(a, b, p) -> float:
-    """Distance of p from the line through a and b."""
-    ab = b - a
-    return float(np.linalg.norm(np.cross(p - a, ab)) / max(np.linalg.norm(ab), 1e-300))
-
-
-def _paths(pieces, name: str, cell: Cell, standoff_mm: float):
+def _paths(pieces, name: str, cell: Cell, standoff_mm: float, merge: bool = True):
     """``(Paths, overrides)``: each piece as a two-waypoint stroke of the gun tip (the TCP back along the gun
     axis by the spray distance) at the tip's speed over the piece's time."""
     from sprayplan.coating.process import StrokeOverride
 
     strokes, overrides = [], []
-    for piece in _merged(pieces):
+    for piece in _merged(pieces) if merge else pieces:
         axis = piece.poses[:, :3, 2]
         tip = piece.poses[:, :3, 3] - cell.gantry.gun.spray_distance_mm * axis
         length = float(np.linalg.norm(tip[1] - tip[0]))
@@ -81,8 +67,11 @@ def _paths(pieces, name: str, cell: Cell, standoff_mm: float):
     return Paths(tuple(strokes), standoff_mm, 0.0, name), overrides
 
 
-def program_paths(read, job, name: str = ""):
-    """``(Paths, overrides)`` of what the read-back program sprays (``read``: ``stage.read_programs``)."""
+def program_paths(read, job, name: str = "", vias=()):
+    """``(Paths, overrides)`` of what the read-back program sprays (``read``: ``stage.read_programs``);
+    ``vias``: the ``where`` of the via points (``check.CheckResult.via_moves``), where a move's pieces are
+    joined again."""
+    vias = set(vias)
     cfg = job.export
     cell = Cell(gantry_for(job.kinematics))
     paint = read.fmt == "rapid" and cfg.rapid_paint
@@ -112,7 +101,9 @@ def program_paths(read, job, name: str = ""):
                     continue
                 span = times[j + 1] - times[j]
                 f = np.array([(a - times[j]) / span, (b - times[j]) / span])
-                pieces.append(_Piece(_between(poses[j], poses[j + 1], f), b - a))
+                pieces.append(
+                    _Piece(_between(poses[j], poses[j + 1], f), b - a, chain[j].where in vias and b == times[j + 1])
+                )
     return _paths(pieces, name, cell, standoff)
 
 
@@ -168,7 +159,7 @@ def reference_paths(plan, job, fmt: str, left_out=()):
                 if (order, int(p)) in left_out or (order, int(k)) in left_out:
                     continue
                 pieces.append(_Piece(poses[[p, k]], float(data["seconds"][p + 1 : k + 1].sum())))
-    return _paths(pieces, plan.name, cell, job.paths.standoff_mm)
+    return _paths(pieces, plan.name, cell, job.paths.standoff_mm, merge=False)
 
 
 def simulate_paths(part, paths, overrides, job):

@@ -3,8 +3,9 @@
 
 Every program is built in memory first (so ``--strict`` and every other refusal happen before anything is
 written), then written into a temporary folder beside the output, read back there by its own strict reader
-(the move counts of the summary come from that reading), and moved into place only when every format is
-complete (``export.files.staged_folder``).
+(the move counts of the summary come from that reading) and checked against the plan move by move
+(``check.check_program``; a difference is a bug, raised as :class:`ProgramCheckError`, and nothing is
+written), and moved into place only when every format is complete (``export.files.staged_folder``).
 """
 
 from __future__ import annotations
@@ -33,6 +34,10 @@ LEFT_OUT = {
     "gantry_offset_waypoints": "where the plan moves the gantry within a station (URScript cannot)",
     "unapproachable_waypoints": "at a run's end the arm cannot back off from along the gun axis",
 }
+
+
+class ProgramCheckError(RuntimeError):
+    """A program read back differs from its plan: a defect of the writer (or of the reader), never bad input."""
 
 
 @dataclass(frozen=True)
@@ -121,7 +126,7 @@ def read_programs(folder, job, fmt: str):
     return read_krl(folder, job)
 
 
-def summary(built: Built, read, job, plan_name: str, source: str | None) -> dict:
+def summary(built: Built, read, job, plan_name: str, source: str | None, result=None) -> dict:
     """What ``summary.json`` holds: the files with their size and move count, the totals, what was left out."""
     counts: dict = {}
     for move in read.moves:
@@ -150,6 +155,20 @@ def summary(built: Built, read, job, plan_name: str, source: str | None) -> dict
         "settings": dict(_plain(job.export)),
         "seconds": round(built.seconds, 3),
     }
+    if result is not None:
+        out["check"] = {
+            "ok": result.ok,
+            "runs": result.runs,
+            "waypoints": result.waypoints,
+            "via_points": result.vias,
+            "max_position_mm": result.max_position_mm,
+            "max_angle_deg": result.max_angle_deg,
+            "max_joint_rad": result.max_joint_rad,
+            "max_speed_mm_s": result.max_speed_mm_s,
+            "max_external_mm": result.max_external_mm,
+            "max_gun_mm": result.max_gun_mm,
+            "max_blend_share": result.max_blend_share,
+        }
     return out
 
 
@@ -177,17 +196,20 @@ def warnings_of(built: Built) -> list[str]:
     return lines
 
 
-def write_built(folder, builts: list[Built], job, plan_name: str, source: str | None = None) -> list[dict]:
+def write_built(folder, builts: list[Built], plan, job, source: str | None = None) -> list[dict]:
     """Write each format's files into ``folder/<format>/`` all or nothing (``staged_folder``: the formats'
     folders go in together; other files in ``folder`` are left alone); each is read back in the temporary
-    folder first. Returns the summaries.
+    folder first and checked against ``plan``. Returns the summaries.
 
     Raises
     ------
     OutputError
         ``folder`` cannot be written (nothing is then created or changed).
+    ProgramCheckError
+        A program read back is not its plan (a bug; nothing is written).
     """
     from sprayplan.export.files import atomic_output, staged_folder
+    from sprayplan.programs.check import check_program
 
     summaries = []
     with staged_folder(folder, tuple(b.fmt for b in builts), whole=False) as stage:
@@ -198,7 +220,13 @@ def write_built(folder, builts: list[Built], job, plan_name: str, source: str | 
                 with atomic_output(target / name, "w", encoding="ascii", newline="\n") as handle:
                     handle.write(text)
             read = read_programs(target, job, built.fmt)
-            data = summary(built, read, job, plan_name, source)
+            result = check_program(read, plan, job)
+            if not result.ok:
+                raise ProgramCheckError(
+                    f"the {built.fmt} program read back differs from the plan ({len(result.failures)} differences; "
+                    f"the first: {result.failures[0]}): a defect, please report it"
+                )
+            data = summary(built, read, job, plan.name, source, result)
             with atomic_output(target / SUMMARY, "w", encoding="utf-8") as handle:
                 json.dump(data, handle, indent=1)
                 handle.write("\n")
@@ -206,11 +234,11 @@ def write_built(folder, builts: list[Built], job, plan_name: str, source: str | 
     return summaries
 
 
-def export_plan(plan, job, formats, folder, plan_name: str = "", source: str | None = None, strict=None):
+def export_plan(plan, job, formats, folder, source: str | None = None, strict=None):
     """Build every format's programs of a plan (all refusals first), then write them into ``folder/<format>/``
     all or nothing. Returns ``(builts, summaries)``."""
     builts = [build(plan, job, fmt, strict) for fmt in formats]
-    return builts, write_built(folder, builts, job, plan_name or plan.name, source)
+    return builts, write_built(folder, builts, plan, job, source)
 
 
 def default_folder(outdir) -> str:
