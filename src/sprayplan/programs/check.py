@@ -179,7 +179,8 @@ class _Station:
         self.wanted = wanted_targets(self.data["tcp"], self.data["normals"], cell.gantry.gun.spray_distance_mm)
         self.branch = cell.branches(self.q9[:, :6]) if n else np.zeros(0, int)
         self.spray = self.data["spray"] & st.reachable
-        self.pending: list = []  # (move, joints, branch, gantry) whose configuration data are checked at the end
+        # (move, joints, branch, gantry, exact pose) whose configuration data are checked at the end
+        self.pending: list = []
 
 
 def _check_station(order, moves, fmt, plan, job, cell, result: CheckResult) -> None:
@@ -214,7 +215,18 @@ def _check_station(order, moves, fmt, plan, job, cell, result: CheckResult) -> N
 def _match(station: _Station, pose, start: int, stroke: int | None = None) -> int | None:
     """The first reachable spray waypoint at or after ``start`` (of ``stroke`` when given) whose pose (from the
     plan's joints) is ``pose``; a transfer's waypoints share their poses with the strokes' ends and are skipped.
-    The next 64 waypoints are looked at first (a run's next target is almost always among them)."""
+    The next waypoint, then the next 64 are looked at first (a run's next target is almost always among them)."""
+    if (
+        start < len(station.poses)
+        and station.spray[start]
+        and (stroke is None or station.data["stroke"][start] == stroke)
+    ):
+        here = station.poses[start]
+        if (
+            np.linalg.norm(here[:3, 3] - pose[:3, 3]) <= POSITION_MM
+            and angle_between_deg(here[:3, :3], pose[:3, :3]) <= ANGLE_DEG
+        ):
+            return start
     for stop in (start + 64, len(station.poses)):
         mask = station.spray[start:stop]
         if stroke is not None:
@@ -333,64 +345,63 @@ def _check_targets(station, targets, indices, fmt, cell, result) -> None:
             result.fail(
                 moves[j], f"waypoint {k[j]}: external axes {moves[j].external_mm.tolist()} are not the gantry's"
             )
-        station.pending += [(m, station.q9[i, :6], int(station.branch[i]), station.q9[i, 6:]) for m, i in use]
+        station.pending += [
+            (m, station.q9[i, :6], int(station.branch[i]), station.q9[i, 6:], station.poses[i]) for m, i in use
+        ]
 
 
 def _check_configs(pending, fmt, cell: Cell, result) -> None:
     """Every target's configuration data are those of its joints, and its pose solved on that configuration
-    gives the joints back (:func:`_check_config`, the IK of all targets at once)."""
+    gives the joints back: RAPID's cfx names the branch and cf1, cf4, cf6 the turns of axes 1, 4, 6; KRL's S
+    names the branch and T every joint's sign (which fixes its turn within +-2 pi). The pose solved is the one
+    the joints give (which the target was checked to be, within 0.01 mm and 0.01 degree): the written pose's
+    rounding would move the joints by more than 1e-4 rad near a singularity. All targets at once."""
     if not pending:
         return
-    solutions = cell.solutions(np.array([p[0].pose for p in pending]), np.array([p[3] for p in pending]))
-    for n, (move, joints, branch, _) in enumerate(pending):
-        _check_config(move, joints, branch, (solutions.q[n], solutions.valid[n]), fmt, result)
+    moves = [p[0] for p in pending]
+    joints = np.array([p[1] for p in pending])
+    branch = np.array([p[2] for p in pending])
+    config = np.array([tuple(m.config) for m in moves], int)
+    expected = rapid_config(joints, branch) if fmt == "rapid" else krl_status_turn(joints, branch)
+    wrong = (config != expected).any(axis=1)
+    for n in np.flatnonzero(wrong):
+        result.fail(
+            moves[n], f"configuration data {tuple(config[n])} are not those of the plan's joints {tuple(expected[n])}"
+        )
+    if fmt == "rapid":  # cfx = 4 shoulder + 2 elbow + wrist
+        cfx = config[:, 3]
+        use = 4 * (cfx >> 2) + 2 * (cfx & 1) + ((cfx >> 1) & 1)
+    else:  # S = shoulder + 2 elbow + 4 wrist
+        status = config[:, 0]
+        use = 4 * (status & 1) + 2 * ((status >> 2) & 1) + ((status >> 1) & 1)
+    solutions = cell.solutions(np.array([p[4] for p in pending]), np.array([p[3] for p in pending]))
+    rows = np.arange(len(pending))
+    raw, ok = solutions.q[rows, use], solutions.valid[rows, use]
+    q = _turns(raw, joints, config, fmt)
+    error = np.where(np.isfinite(q).all(axis=1), np.abs(q - joints).max(axis=1), np.inf)
+    for n in np.flatnonzero(~wrong & (~ok | (error > POSE_JOINT_RAD))):
+        result.fail(moves[n], f"the pose solved on its configuration data is {error[n]:.3g} rad from the plan's joints")
 
 
-def _check_config(move, joints, branch, solved, fmt, result) -> None:
-    """The target's configuration data are those of ``joints``, and its pose solved on that configuration
-    (``solved``: the pose's eight IK solutions and their validity) gives ``joints`` back: RAPID's cfx names the
-    branch and cf1, cf4, cf6 the turns of axes 1, 4, 6; KRL's S names the branch and T every joint's sign (which
-    fixes its turn within +-2 pi)."""
-    config = tuple(move.config)
-    if fmt == "rapid":
-        expected = tuple(int(v) for v in rapid_config(joints, branch)[0])
-        cfx = config[3]
-        use = 4 * (cfx >> 2) + 2 * (cfx & 1) + ((cfx >> 1) & 1)  # cfx = 4 shoulder + 2 elbow + wrist
-    else:
-        expected = tuple(int(v) for v in krl_status_turn(joints, branch)[0])
-        status = config[0]
-        use = 4 * (status & 1) + 2 * ((status >> 2) & 1) + ((status >> 1) & 1)  # S = shoulder + 2 elbow + 4 wrist
-    if config != expected:
-        result.fail(move, f"configuration data {config} are not those of the plan's joints {expected}")
-        return
-    raw, ok = solved[0][use], bool(solved[1][use])
-    q = np.array([_turn(raw[j], joints[j], config, j, fmt) for j in range(6)])
-    error = float(np.abs(q - joints).max()) if np.isfinite(q).all() else math.inf
-    if not ok or error > POSE_JOINT_RAD:
-        result.fail(move, f"the pose solved on its configuration data is {error:.3g} rad from the plan's joints")
-
-
-def _turn(angle: float, plan: float, config: tuple, j: int, fmt: str) -> float:
-    """The turn ``angle + 2 pi k`` the configuration data name for joint j (RAPID: the quadrant of axes 1, 4,
-    6; KRL: every axis's sign), the one nearest the plan's joint where they name none (RAPID's axes 2, 3, 5);
-    a joint on the border of two quadrants or signs (within the precision of a written pose) may take either
-    side. NaN when none fits."""
-    candidates = angle + 2 * np.pi * np.arange(-2, 3)
+def _turns(angle: np.ndarray, plan: np.ndarray, config: np.ndarray, fmt: str) -> np.ndarray:
+    """(n, 6) the turns ``angle + 2 pi k`` the configuration data name for each joint (RAPID: the quadrant of
+    axes 1, 4, 6; KRL: every axis's sign), the one nearest the plan's joint where they name none (RAPID's axes
+    2, 3, 5); a joint on the border of two quadrants or signs (within the precision of a written pose) may take
+    either side. NaN where none fits."""
     eps = POSE_JOINT_RAD
-    if fmt == "rapid" and j in (0, 3, 5):
-        cf = config[(0, 3, 5).index(j)]
-        degrees = np.degrees(candidates)
-        fits = (degrees >= 90.0 * cf - np.degrees(eps)) & (degrees < 90.0 * (cf + 1) + np.degrees(eps))
-    elif fmt == "krl":
-        negative = (config[1] >> j) & 1
-        fits = (candidates < eps) if negative else (candidates > -eps)
-        fits &= np.abs(candidates) < 2 * np.pi + eps
+    candidates = angle[:, :, None] + 2 * np.pi * np.arange(-2, 3)  # (n, 6, 5)
+    fits = np.ones(candidates.shape, bool)
+    if fmt == "rapid":
+        degrees = np.degrees(candidates[:, [0, 3, 5]])
+        cf = config[:, :3, None].astype(float)
+        fits[:, [0, 3, 5]] = (degrees >= 90.0 * cf - np.degrees(eps)) & (degrees < 90.0 * (cf + 1) + np.degrees(eps))
     else:
-        fits = np.ones(len(candidates), bool)
-    if not fits.any():
-        return math.nan
-    chosen = candidates[fits]
-    return float(chosen[np.argmin(np.abs(chosen - plan))])
+        negative = ((config[:, 1:2] >> np.arange(6)) & 1).astype(bool)[:, :, None]
+        fits = np.where(negative, candidates < eps, candidates > -eps) & (np.abs(candidates) < 2 * np.pi + eps)
+    distance = np.where(fits, np.abs(candidates - plan[:, :, None]), np.inf)
+    best = np.argmin(distance, axis=2)
+    out = np.take_along_axis(candidates, best[:, :, None], axis=2)[:, :, 0]
+    return np.where(np.isfinite(np.min(distance, axis=2)), out, np.nan)
 
 
 def _check_vias(targets, indices, result) -> None:
@@ -487,7 +498,7 @@ def _check_backoff(station, move, i, cfg, cell, fmt, result, is_approach: bool) 
         if not ok[0] or error > JOINT_RAD:
             result.fail(move, f"the joint target is {error:.3g} rad from the plan's branch at the approach pose")
     elif fmt in ("rapid", "krl"):
-        station.pending.append((move, q[0], branch, station.q9[i, 6:]))
+        station.pending.append((move, q[0], branch, station.q9[i, 6:], offset_along_z(base, distance)))
 
 
 def _check_gun(poses, chain, approach: int, indices, cfg, fmt, result, at_start=()) -> None:

@@ -36,9 +36,10 @@ IND = "  "
 HEADER = ("&ACCESS RVP", "&REL 1")
 
 
-def _frame_text(pose) -> str:
+def _frame_text(pose, abc=None) -> str:
+    """``X ..,Y ..,Z ..,A ..,B ..,C ..`` of a pose; ``abc``: its A, B, C when already computed."""
     x, y, z = (fixed(v, 4) for v in pose[:3, 3])
-    a, b, c = (fixed(v, 6) for v in kuka_abc(pose[:3, :3]))
+    a, b, c = (fixed(v, 6) for v in (kuka_abc(pose[:3, :3]) if abc is None else abc))
     return f"X {x},Y {y},Z {z},A {a},B {b},C {c}"
 
 
@@ -47,9 +48,9 @@ def _external(external_mm) -> str:
     return ",".join(f"E{k + 1} {v}" for k, v in enumerate(e))
 
 
-def e6pos(move, config) -> str:
+def e6pos(move, config, abc=None) -> str:
     s, t = (int(v) for v in config)
-    return f"{{{_frame_text(move.pose)},S {s},T {t},{_external(move.external_mm)}}}"
+    return f"{{{_frame_text(move.pose, abc)},S {s},T {t},{_external(move.external_mm)}}}"
 
 
 def e6axis(move) -> str:
@@ -102,6 +103,8 @@ def _sub(name, moves, notes, cfg, configs) -> tuple[str, str]:
     src = [*HEADER, f"DEF {name}( )"]
     dat = [*HEADER, f"DEFDAT {name}"]
     speed = blend = None
+    linear = [m for m in moves if m.kind != JOINT]
+    abc = dict(zip(map(id, linear), kuka_abc(np.array([m.pose[:3, :3] for m in linear])))) if linear else {}
     for k, move in enumerate(moves, 1):
         note = notes.get(id(move))
         if note:
@@ -110,7 +113,7 @@ def _sub(name, moves, notes, cfg, configs) -> tuple[str, str]:
             dat.append(f"{IND}DECL E6AXIS XJ{k}={e6axis(move)}")
             src.append(f"{IND}PTP XJ{k}")
             continue
-        dat.append(f"{IND}DECL E6POS XP{k}={e6pos(move, configs[id(move)])}")
+        dat.append(f"{IND}DECL E6POS XP{k}={e6pos(move, configs[id(move)], abc[id(move)])}")
         v = fixed(move.speed_mm_s / 1000.0, 7)
         if v != speed:
             src.append(f"{IND}$VEL.CP={v}")
@@ -263,11 +266,19 @@ def _read_sub(folder: Path, name: str, cfg) -> list:
             f = _fields(match.group(3), (*_FRAME_KEYS, "S", "T", *_E), where)
             if any(f[k] != int(f[k]) or f[k] < 0 for k in ("S", "T")) or f["S"] > 7 or f["T"] > 63:
                 raise ProgramError(*where, f"S must be 0 to 7 and T 0 to 63, whole numbers: {text[:80]!r}")
-            targets[match.group(2)] = (_pose(f), (int(f["S"]), int(f["T"])), _ext(f, where))
+            targets[match.group(2)] = (f, (int(f["S"]), int(f["T"])), _ext(f, where))  # posed below, at once
         else:
             f = _fields(match.group(3), (*(f"A{k}" for k in range(1, 7)), *_E), where)
             joints = np.radians([f[f"A{k}"] for k in range(1, 7)])
             targets[match.group(2)] = (joints, _ext(f, where))
+    linear = [k for k, t in targets.items() if k.startswith("XP")]
+    if linear:
+        fields = [targets[k][0] for k in linear]
+        poses = np.repeat(np.eye(4)[None], len(linear), axis=0)
+        poses[:, :3, 3] = [[f["X"], f["Y"], f["Z"]] for f in fields]
+        poses[:, :3, :3] = matrix_from_abc([[f["A"], f["B"], f["C"]] for f in fields])
+        for k, pose in zip(linear, poses):
+            targets[k] = (pose, *targets[k][1:])
     moves = []
     speed = blend = None
     pending: list = []

@@ -52,9 +52,20 @@ def _extax(external_mm) -> str:
     return ",".join([fixed(v, 4) for v in external_mm] + [UNUSED] * 3)
 
 
-def robtarget(move, config) -> str:
+def robtarget(move, config, quaternion: str | None = None) -> str:
+    """A robtarget literal; ``quaternion``: the orientation's text when already computed (:func:`_quaternions`)."""
     cf = ",".join(str(int(c)) for c in config)
-    return f"[[{_pos(move.pose[:3, 3])}],[{_quat(move.pose[:3, :3])}],[{cf}],[{_extax(move.external_mm)}]]"
+    q = _quat(move.pose[:3, :3]) if quaternion is None else quaternion
+    return f"[[{_pos(move.pose[:3, 3])}],[{q}],[{cf}],[{_extax(move.external_mm)}]]"
+
+
+def _quaternions(moves) -> dict:
+    """``id(move)`` -> the quaternion text of every linear move, computed at once."""
+    linear = [m for m in moves if m.kind == LINEAR]
+    if not linear:
+        return {}
+    q = quaternion_wxyz(np.array([m.pose[:3, :3] for m in linear]))
+    return {id(m): ",".join(fixed(v, 9) for v in row) for m, row in zip(linear, q)}
 
 
 def _zone(blend_mm: float) -> str:
@@ -124,6 +135,7 @@ def _part_module(name, moves, notes, cfg, configs) -> str:
     tool = f"{cfg.rapid_tool}\\WObj:={cfg.rapid_wobj}"
     body = []
     previous = None
+    quaternions = _quaternions(moves)
     for move in moves:
         note = notes.get(id(move))
         if note:
@@ -134,7 +146,7 @@ def _part_module(name, moves, notes, cfg, configs) -> str:
                      f"{fixed(cfg.gantry_speed_mm_s, 4)},{fixed(cfg.joint_speed_deg_s, 4)}]")  # fmt: skip
             body.append(f"MoveAbsJ [[{joints}],[{_extax(move.external_mm)}]], {speed}, fine, {tool};")
         else:
-            target = robtarget(move, configs[id(move)])
+            target = robtarget(move, configs[id(move)], quaternions[id(move)])
             speed = f"[{fixed(move.speed_mm_s, 4)},{','.join(LINEAR_SPEED_REST)}]"
             zone = _zone(move.blend_mm)
             if cfg.rapid_paint:
@@ -288,18 +300,47 @@ def _rotation(value, where) -> np.ndarray:
     return matrix_from_wxyz(q)
 
 
+_N = r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?"
+_I = r"[+-]?\d+"
+_FAST = (
+    rf"(MoveL|TriggL|PaintL) \[\[({_N}),({_N}),({_N})\],\[({_N}),({_N}),({_N}),({_N})\],\[({_I}),({_I}),({_I}),({_I})\],"
+    rf"\[({_N}),({_N}),({_N}),9E\+09,9E\+09,9E\+09\]\], \[({_N}),({_N}),({_N}),({_N})\], (?:(trGun1(?:\\T2:=trGun2)?), )?"
+    rf"(fine|\[FALSE,({_N}),({_N}),({_N}),({_N}),({_N}),({_N})\]), "
+)
+
+
+def _fast_linear(match, where):
+    """(pose, external, config, speed, blend, triggers) of a linear move in the writer's own layout."""
+    g = match.groups()
+    pose = np.eye(4)
+    pose[:3, 3] = [float(v) for v in g[1:4]]
+    q = np.array([float(v) for v in g[4:8]])
+    if abs(np.linalg.norm(q) - 1.0) > 1e-6:
+        raise ProgramError(*where, f"quaternion {q.tolist()} is not of unit length")
+    pose[:3, :3] = matrix_from_wxyz(q)
+    config = tuple(int(v) for v in g[8:12])
+    if not 0 <= config[3] <= 7:
+        raise ProgramError(*where, f"robconf must be 4 whole numbers, cfx 0 to 7, got {list(config)}")
+    external = np.array([float(v) for v in g[12:15]])
+    speed = float(g[15])
+    blend = 0.0 if g[20] == "fine" else _zone_values(np.array([float(v) for v in g[21:27]]), g[20], where)
+    return pose, external, config, speed, blend, g[19]
+
+
 def _read_part(path: Path, name: str, cfg) -> list:
     data, body = _body(path, name, name)
     if data:
         raise ProgramError(path, data[0][0], f"unknown declaration: {data[0][1][:60]!r}")
     tool = f"{cfg.rapid_tool}\\WObj:={cfg.rapid_wobj}"
+    fast_move = re.compile(_FAST + re.escape(tool) + ";")
     moves, pending, previous = [], {}, None
     for n, line in body:
         where = (path, n)
         head, _, rest = line.partition(" ")
         if not line.endswith(";"):
             raise ProgramError(*where, f"a statement must end with ';': {line[:60]!r}")
-        args = split_arguments(rest[:-1], where)
+        fast = fast_move.match(line) if head in ("MoveL", "TriggL", "PaintL") else None
+        args = [] if fast else split_arguments(rest[:-1], where)
         if head == "MoveAbsJ" and not pending:
             _expect(len(args) == 4 and args[2] == "fine" and args[3] == tool, where, line)
             target = aggregate(args[0], where)
@@ -323,11 +364,17 @@ def _read_part(path: Path, name: str, cfg) -> list:
             pending[len(pending)] = (axis, _number(value, where), brush == str(cfg.rapid_brush_on))
         elif (head, cfg.rapid_paint) in (("MoveL", False), ("TriggL", False), ("PaintL", True)):
             expect = 5 if head == "TriggL" else 4
-            _expect(len(args) == expect and args[-1] == tool, where, line)
-            pose, external, config = _robtarget(args[0], where)
-            speed = numbers(aggregate(args[1], where), (4,), "speeddata", where)
+            fast = fast_move.match(line)
+            if fast and (fast.group(20) is not None) == (head == "TriggL"):
+                pose, external, config, v, blend, trig = _fast_linear(fast, where)
+                speed = [v]
+                args = [None, None, trig, None, tool] if head == "TriggL" else [None, None, None, tool]
+            else:
+                _expect(len(args) == expect and args[-1] == tool, where, line)
+                pose, external, config = _robtarget(args[0], where)
+                speed = numbers(aggregate(args[1], where), (4,), "speeddata", where)
+                blend = _zone_read(args[-2], where)
             _expect(speed[0] > 0, where, line)
-            blend = _zone_read(args[-2], where)
             events = ()
             if head == "TriggL":
                 events = _trigg_events(args[2], pending, where)
@@ -391,7 +438,10 @@ def _zone_read(text: str, where) -> float:
     zone = aggregate(text, where)
     if not (isinstance(zone, list) and len(zone) == 7 and zone[0] is False):
         raise ProgramError(*where, f"zonedata must be fine or [FALSE, 6 numbers], got {text[:60]!r}")
-    values = numbers(zone[1:], (6,), "zonedata", where)
+    return _zone_values(numbers(zone[1:], (6,), "zonedata", where), text, where)
+
+
+def _zone_values(values: np.ndarray, text: str, where) -> float:
     if (values < 0).any() or values[0] <= 0 or not (values[[1, 2, 4]] == values[0]).all():
         raise ProgramError(
             *where, f"zonedata must give one path zone r > 0 (pzone_tcp, pzone_ori, pzone_eax, zone_leax), got {text}"

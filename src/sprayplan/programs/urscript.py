@@ -40,9 +40,11 @@ IND = "  "
 SEQUENCE_HEADER = "step,station,script,x_mm,y_mm,z_mm"
 
 
-def _p(pose) -> str:
+def _p(pose, vector=None) -> str:
+    """``p[x, y, z, rx, ry, rz]`` of a pose (m, rotation vector); ``vector``: its rotation vector when already
+    computed."""
     pos = ", ".join(fixed(v / 1000.0, 7) for v in pose[:3, 3])
-    rot = ", ".join(fixed(v, 9) for v in rotvec(pose[:3, :3]))
+    rot = ", ".join(fixed(v, 9) for v in (rotvec(pose[:3, :3]) if vector is None else vector))
     return f"p[{pos}, {rot}]"
 
 
@@ -93,6 +95,8 @@ def _script(name, moves, part2base, st, cell, job, part) -> str:
         f"{IND * 2}sync()",
         f"{IND}end",
     ]
+    linear = [m for m in moves if m.kind != JOINT]
+    vectors = dict(zip(map(id, linear), rotvec(np.array([m.pose[:3, :3] for m in linear])))) if linear else {}
     for move in moves:
         if move.kind == JOINT:
             q = ", ".join(fixed(v, 8) for v in move.joints)
@@ -101,7 +105,7 @@ def _script(name, moves, part2base, st, cell, job, part) -> str:
             continue
         verb = "movep" if move.role in ("spray", "via-spray") else "movel"
         v, r = fixed(move.speed_mm_s / 1000.0, 7), fixed_down(move.blend_mm / 1000.0, 7)
-        lines.append(f"{IND}{verb}(pose_trans(part_frame, {_p(move.pose)}), a={acc}, v={v}, r={r})")
+        lines.append(f"{IND}{verb}(pose_trans(part_frame, {_p(move.pose, vectors[id(move)])}), a={acc}, v={v}, r={r})")
         for _, on in move.events:  # where the move's blend begins (or at its target): with_via_points
             lines.append(f"{IND}set_standard_digital_out({gun}, {on})")
     lines += [
@@ -294,7 +298,7 @@ def _read_script(path: Path, cfg):
             _positive(match.group(2), match.group(3), where)
             moves.append(ReadMove(JOINT, None, joints, None, 0.0, 0.0, where=f"{path.name}:{n}"))
         elif match := _MOVEL.fullmatch(text):
-            pose = _pose(f"p[{match.group(2)}]", where)
+            pose = _numbers(match.group(2), 6, where)  # a pose once every move is read (one conversion)
             _positive(match.group(3), match.group(4), where)
             v = parse_number(match.group(4), where) * 1000.0
             r = parse_number(match.group(5), where) * 1000.0
@@ -303,6 +307,14 @@ def _read_script(path: Path, cfg):
             moves.append(ReadMove(LINEAR, pose, None, None, v, r, where=f"{path.name}:{n}", config=(match.group(1),)))
         else:
             raise ProgramError(*where, f"unknown statement: {text[:60]!r}")
+    linear = [k for k, m in enumerate(moves) if m.kind == LINEAR]
+    if linear:
+        values = np.array([moves[k].pose for k in linear])
+        poses = np.repeat(np.eye(4)[None], len(linear), axis=0)
+        poses[:, :3, 3] = values[:, :3] * 1000.0
+        poses[:, :3, :3] = matrix_from_rotvec(values[:, 3:])
+        for k, pose in zip(linear, poses):
+            moves[k] = dataclasses.replace(moves[k], pose=pose)
     if tcp is None or frame is None or io["ready"] is None:
         raise ProgramError(path, 0, "set_tcp, part_frame and the wait for the ready input must come before the moves")
     if io["done"] is None:
