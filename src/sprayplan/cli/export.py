@@ -79,8 +79,14 @@ def cmd_export(args) -> int:
         for line in warnings_of(built):
             print(f"sprayplan: warning: {line}", file=sys.stderr)
     for data in summaries:
-        print(
-            f"{data['program_format']}: {len(data['files'])} files, {data['moves']} moves, {data['bytes']} bytes in "
-            f"{data['seconds']:.2f} s -> {os.path.join(folder, data['program_format'])}"
-        )
+        print(summary_text(data, os.path.join(folder, data["program_format"])))
     return 0
+
+
+def summary_text(data: dict, folder) -> str:
+    """The line the command line prints for one format's programs (from its summary.json)."""
+    left = sum(len(v) for v in data["left_out"].values())
+    return (
+        f"{data['program_format']}: {len(data['files'])} files, {data['moves']} moves, {data['bytes']} bytes, "
+        f"{left} spray waypoints left out, read back and checked -> {folder}"
+    )

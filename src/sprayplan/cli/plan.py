@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 from pathlib import Path
@@ -163,6 +164,13 @@ def cmd_plan(args) -> int:
     result = run_shown(args.part, job, getattr(args, "quiet", False), Path(args.output))
     _program_warnings(result)
     print(summary_line(result, Path(args.output)))
+    for built in result.programs:
+        from sprayplan.cli.export import summary_text
+        from sprayplan.programs.stage import SUMMARY
+
+        folder = os.path.join(args.output, "programs", built.fmt)
+        with open(os.path.join(folder, SUMMARY), encoding="utf-8") as handle:
+            print(summary_text(json.load(handle), folder))
     return 0
 
 
