@@ -132,10 +132,15 @@ def _by_station(read, plan, cell: Cell, result: CheckResult) -> list:
                 ):
                     result.fail(None, f"{s['file']}: the part frame or gantry position is not station {order + 1}'s")
             out.append((order, [m for s in mine for m in moves[s["first"] : s["first"] + s["count"]]]))
-        if [s["station"] for s in read.scripts] != [
-            s for st in plan.stations for s in [st.index] * sum(x["station"] == st.index for x in read.scripts)
-        ]:
-            result.fail(None, "the scripts are not in the plan's station order")
+        seen = [s["station"] for s in read.scripts]
+        visits = [k for i, k in enumerate(seen) if i == 0 or seen[i - 1] != k]
+        if visits != [st.index for st in plan.stations]:
+            result.fail(None, f"the scripts visit the stations {visits}, the plan {[st.index for st in plan.stations]}")
+        for order, station_moves in out:
+            if not station_moves or not (_is_home(station_moves[0], None) and _is_home(station_moves[-1], None)):
+                result.fail(
+                    station_moves[0] if station_moves else None, f"station {order + 1} must begin and end at home"
+                )
         return out
     if np.abs(read.frame - np.eye(4)).max() > 1e-6:
         result.fail(None, "the work object / base is not the part frame (identity in the plan's world)")
@@ -162,9 +167,12 @@ def _by_station(read, plan, cell: Cell, result: CheckResult) -> list:
 
 
 def _is_home(move, external_mm) -> bool:
+    """A joint move to the home joints (with the gantry at ``external_mm`` where the format carries it)."""
     if move.kind != JOINT or np.abs(move.joints - HOME_JOINTS).max() > JOINT_RAD:
         return False
-    return move.external_mm is None or np.abs(move.external_mm - external_mm).max() <= EXTERNAL_MM
+    return (
+        move.external_mm is None or external_mm is None or np.abs(move.external_mm - external_mm).max() <= EXTERNAL_MM
+    )
 
 
 class _Station:
