@@ -718,3 +718,14 @@ def test_a_program_that_reads_back_wrong_is_a_bug_and_writes_nothing(reach_folde
     code, _, err = run(capsys, "export", copy, "--format", "rapid")
     assert code == 1 and "internal error: ProgramCheckError" in err and "blend" in err
     assert snapshot(tmp_path) == before
+
+
+def test_kuka_angles_at_gimbal_lock_read_back_as_the_same_rotation():
+    from scipy.spatial.transform import Rotation
+
+    from sprayplan.programs.model import angle_between_deg, kuka_abc, matrix_from_abc
+
+    r = (Rotation.from_euler("z", 40, degrees=True) * Rotation.from_euler("y", 90, degrees=True)).as_matrix()
+    abc = kuka_abc(r)
+    assert abs(abc[1] - 90) < 1e-6 and abc[2] == 0
+    assert angle_between_deg(matrix_from_abc(abc), r) < 1e-6

@@ -230,8 +230,13 @@ def matrix_from_wxyz(q) -> np.ndarray:
 
 
 def kuka_abc(matrix: np.ndarray) -> np.ndarray:
-    """(..., 3) KUKA's A, B, C in degrees: R = Rz(A) Ry(B) Rx(C) (intrinsic Z, Y', X'')."""
-    return Rotation.from_matrix(matrix).as_euler("ZYX", degrees=True)
+    """(..., 3) KUKA's A, B, C in degrees: R = Rz(A) Ry(B) Rx(C) (intrinsic Z, Y', X''). At B = +-90 degrees
+    (gimbal lock) only A -+ C is defined: C is 0 there (scipy's choice; the same rotation)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Gimbal lock detected")
+        return Rotation.from_matrix(matrix).as_euler("ZYX", degrees=True)
 
 
 def matrix_from_abc(abc_deg) -> np.ndarray:
