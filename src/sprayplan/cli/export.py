@@ -26,7 +26,8 @@ def add_export_parser(sub, common) -> None:
         parents=[common],
         help="robot programs of a planned OUTDIR: URScript, ABB RAPID or KUKA KRL",
         description="Write a plan's robot programs (docs/programs.md) into OUTDIR/programs/FORMAT/ (or -o DIR/"
-        "FORMAT/), all or nothing, with summary.json; every program is read back by its own strict reader first. "
+        "FORMAT/), all or nothing, with summary.json; every program is read back by its own strict reader and "
+        "checked against the plan first. "
         "Settings: the plan's [export] table, or -c FILE.toml's.",
     )
     export.add_argument("outdir", help="a folder written by 'sprayplan plan'")
