@@ -480,6 +480,27 @@ def _simulate(edit, *extra, names=("plan.json",)):
     return build
 
 
+def _export(edit=None, *extra, names=("plan.json",), fmt="rapid", toml=None, also=()):
+    """``sprayplan export`` of a copy of the good plan folder (its plan.json edited), with ``-c`` a TOML file."""
+
+    def build(root, good):
+        prev = plan_copy(good, root)
+        if edit:
+            edit_json(prev / "plan.json", edit)
+        argv = ["export", prev, "--format", fmt, *(str(a).replace("{root}", str(root)) for a in extra)]
+        if toml is not None:
+            argv += ["-c", put(root, "export.toml", toml)]
+        return argv, list(names), list(also)
+
+    return build
+
+
+def _unreachable_spray_waypoint(data):
+    stroke = next(s for st in data["stations"] for s in st["strokes"] if s["spray_on"] and len(s["points"]) > 2)
+    stroke["reachable"][1], stroke["method"][1] = False, ""
+    stroke["position_error_mm"][1] = stroke["axis_error_deg"][1] = None
+
+
 def _paints_nothing(data):
     for station in data["stations"]:
         for stroke in station["strokes"]:
@@ -564,6 +585,35 @@ CASES = {
         None, names=["sprayplan-fuzz-no-such-dir", "--table"], table=lambda r: f"{UNWRITABLE}/t.csv"
     ),
     "simulate-paints-nothing": _simulate(_paints_nothing, names=["plan.json", "prev"]),
+    # --- robot programs (sprayplan export, plan --program)
+    "export-not-a-plan-folder": _argv("export", "{root}", "--format", "rapid", names=["not a plan folder"]),
+    "export-no-such-folder": _argv("export", "{root}/none", "--format", "krl", names=["none"]),
+    "export-plan-version-3": _export(lambda d: d.__setitem__("version", 3), also=["version 3"]),
+    "export-plan-of-another-format": _export(lambda d: d.__setitem__("format", "x.plan")),
+    "export-format-fanuc": _export(None, fmt="fanuc", names=["--format"], also=["fanuc"]),
+    "export-lead-negative": _export(
+        None, toml="[export]\nlead_on_s = -0.1\n", names=["export.toml"], also=["lead_on_s"]
+    ),
+    "export-approach-zero": _export(
+        None, toml="[export]\napproach_mm = 0.0\n", names=["export.toml"], also=["approach_mm"]
+    ),
+    "export-ur-output-8": _export(
+        None, fmt="urscript", toml="[export]\nur_gun_output = 8\n", names=["export.toml"], also=["ur_gun_output"]
+    ),
+    "export-krl-output-0": _export(
+        None, fmt="krl", toml="[export]\nkrl_gun_output = 0\n", names=["export.toml"], also=["krl_gun_output"]
+    ),
+    "export-rapid-signal-not-a-name": _export(
+        None, toml='[export]\nrapid_gun_signal = "do Gun"\n', names=["export.toml"], also=["rapid_gun_signal"]
+    ),
+    "export-plan-settings-lead-negative": _export(
+        lambda d: d["settings"].__setitem__("export", {"lead_off_s": -1.0}), also=["lead_off_s"]
+    ),
+    "export-output-is-a-file": _export(None, "-o", "{root}/prev/plan.json", names=["plan.json"]),
+    "export-strict-unreachable": _export(
+        _unreachable_spray_waypoint, "--strict", fmt="urscript", names=["--strict"], also=["unreachable"]
+    ),
+    "plan-program-fanuc": _plan_opt("--program", "fanuc", names=["--program"]),
     "targets-output-is-input": _argv("targets", "{root}/plate.stl", "-o", "{root}/plate.stl", names=["plate.stl"]),
     "paths-output-is-input": _argv("paths", "{root}/plate.stl", "-o", "{root}/plate.stl", names=["plate.stl"]),
     "fk-output-is-input": _fk(fc.JOINTS_CSV, names=["joints.csv"]),  # -o set to the input below

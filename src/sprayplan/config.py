@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from dataclasses import dataclass
 
 from sprayplan.checks import (  # noqa: F401 - MIN_DWELL and the bounds are part of this API
@@ -709,6 +710,179 @@ class OutputConfig(Section):
         _at_most(OutputConfig, "samples", self.samples, MAX_REPORT_SAMPLES)
 
 
+#: The robot program formats ``[export] programs`` and ``sprayplan export --format`` take.
+PROGRAM_FORMATS = ("urscript", "rapid", "krl")
+
+_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
+#: RAPID's reserved words that a data name must not be (the ones a name could plausibly collide with).
+_RAPID_RESERVED = {
+    "AND", "BACKWARD", "CASE", "CONNECT", "CONST", "DEFAULT", "DIV", "DO", "ELSE", "ELSEIF", "ENDFOR", "ENDFUNC",
+    "ENDIF", "ENDMODULE", "ENDPROC", "ENDRECORD", "ENDTEST", "ENDTRAP", "ENDWHILE", "ERROR", "EXIT", "FALSE",
+    "FOR", "FROM", "FUNC", "GOTO", "IF", "INOUT", "LOCAL", "MOD", "MODULE", "NOSTEPIN", "NOT", "NOVIEW", "OR",
+    "PERS", "PROC", "RAISE", "READONLY", "RECORD", "RETRY", "RETURN", "STEP", "SYSMODULE", "TEST", "THEN", "TO",
+    "TRAP", "TRUE", "TRYNEXT", "UNDO", "VAR", "VIEWONLY", "WHILE", "WITH", "XOR",
+}  # fmt: skip
+
+
+@dataclass(frozen=True)
+class ExportConfig(Section):
+    """Robot programs (``[export]``, ``sprayplan export``, ``sprayplan plan --program``; docs/programs.md).
+
+    Attributes
+    ----------
+    programs : tuple of str
+        Formats the main job writes into OUT/programs/<format>/ as its last stage (``urscript``, ``rapid``,
+        ``krl``); empty: none.
+    strict : bool
+        A spray waypoint the plan marks unreachable is an error (nothing written) instead of a waypoint left
+        out with the gun off.
+    name : str
+        Base name of the programs (module, procedure and file names): a letter, then letters, digits or
+        underscores, at most 16 characters.
+    approach_mm : float
+        Retract after and approach before every spray run, along the gun axis (> 0).
+    approach_speed_mm_s : float
+        TCP speed of the approach and retract moves; slower where the gun's opening lead must fit on the
+        approach (``lead_on_s`` times the speed at most ``approach_mm``).
+    joint_speed_deg_s, joint_acceleration_deg_s2 : float
+        Joint moves between runs: the joints' speed and acceleration (URScript ``movej`` v, a; RAPID
+        ``MoveAbsJ`` reorientation speed).
+    linear_acceleration_mm_s2 : float
+        URScript ``movel``/``movep`` acceleration.
+    transfer_speed_mm_s : float
+        RAPID ``MoveAbsJ`` TCP speed.
+    gantry_speed_mm_s : float
+        Speed of the gantry's axes in RAPID's joint moves (``v_leax`` of ``MoveAbsJ``); KRL's ``PTP`` moves
+        every axis, the gantry's too, at ``ptp_velocity_pct``.
+    ptp_velocity_pct : float
+        KRL ``PTP`` speed, percent of each axis's maximum (0 < pct <= 100).
+    lead_on_s, lead_off_s : float
+        The gun's opening and closing delay: the gun signal is switched this long before the gun must be open
+        (at a run's first waypoint) or closed (at its last), at the program's speeds (0 to 2 s).
+    blend_mm : float
+        Largest blend radius (URScript ``r``, RAPID zone, KRL ``C_DIS``) between the moves of a run (>= 0).
+    blend_share : float
+        A blend radius is at most this share of the shorter neighbouring segment (0 < share <= 0.5; 0.4 keeps
+        neighbouring blends apart: "Blend radius too small" otherwise).
+    tool_mass_kg : float
+        The gun's mass in the RAPID tool data (> 0; the controller refuses a tool without a load).
+    ur_gun_output, ur_ready_input, ur_done_output : int
+        URScript standard digital I/O (0 to 7): the gun; the cell PLC's "gantry in position" (each station
+        script waits for it before it moves); the "station done" output the script sets at its end.
+    ur_max_moves : int
+        Most moves in one URScript file (a station's script is split into parts beyond it; >= 20).
+    ur_gantry_offset_mm : float
+        URScript holds the gantry at its station: a spray waypoint where the plan (its SQP fallback) moves the
+        gantry farther than this from the station is left out, nearer ones are sprayed with the arm's joints
+        from the station (the TCP then that much off the plan's pose; 0 to 200 mm).
+    rapid_gun_signal, rapid_tool, rapid_wobj : str
+        RAPID names of the gun's digital output, the tool data and the work object (identifiers, at most 32
+        characters, not a reserved word).
+    rapid_max_lines : int
+        Most lines in one RAPID module (>= 50); the main module calls the modules in order.
+    rapid_paint : bool
+        Write RobotWare Paint's ``PaintL`` with ``SetBrush`` brush events instead of ``TriggL``/``TriggIO``
+        (the paint system then applies the gun's delays from its own tables).
+    rapid_brush_on, rapid_brush_off : int
+        With ``rapid_paint``: the brush numbers (0 to 255, different) that open and close the gun.
+    krl_gun_output : int
+        KRL ``$OUT`` number of the gun (1 to 4096).
+    krl_tool, krl_base : int
+        KRL ``TOOL_DATA`` (1 to 16) and ``BASE_DATA`` (1 to 32) numbers the program sets and uses.
+    krl_max_moves : int
+        Most moves in one KRL subprogram (>= 20).
+    """
+
+    SECTION = "export"
+    programs: tuple = ()
+    strict: bool = False
+    name: str = "sprayplan"
+    approach_mm: float = 50.0
+    approach_speed_mm_s: float = 250.0
+    joint_speed_deg_s: float = 60.0
+    joint_acceleration_deg_s2: float = 80.0
+    linear_acceleration_mm_s2: float = 1200.0
+    transfer_speed_mm_s: float = 500.0
+    gantry_speed_mm_s: float = 250.0
+    ptp_velocity_pct: float = 30.0
+    lead_on_s: float = 0.05
+    lead_off_s: float = 0.03
+    blend_mm: float = 10.0
+    blend_share: float = 0.4
+    tool_mass_kg: float = 1.0
+    ur_gun_output: int = 0
+    ur_ready_input: int = 0
+    ur_done_output: int = 1
+    ur_max_moves: int = 2000
+    ur_gantry_offset_mm: float = 2.0
+    rapid_gun_signal: str = "doGun"
+    rapid_tool: str = "tSprayGun"
+    rapid_wobj: str = "wPart"
+    rapid_max_lines: int = 5000
+    rapid_paint: bool = False
+    rapid_brush_on: int = 1
+    rapid_brush_off: int = 0
+    krl_gun_output: int = 1
+    krl_tool: int = 1
+    krl_base: int = 1
+    krl_max_moves: int = 1000
+
+    def _check(self):
+        formats = self.programs
+        if isinstance(formats, str):
+            formats = (formats,)
+        if not isinstance(formats, (tuple, list)) or not all(isinstance(f, str) for f in formats):
+            raise _fail(ExportConfig, "programs", "a list of formats (" + ", ".join(PROGRAM_FORMATS) + ")", formats)
+        for value in formats:
+            _choice(ExportConfig, "programs", value, PROGRAM_FORMATS)
+        if len(set(formats)) != len(formats):
+            raise _fail(ExportConfig, "programs", "a list of different formats", list(formats))
+        object.__setattr__(self, "programs", tuple(formats))
+        if not (_NAME.match(self.name) and len(self.name) <= 16):
+            raise _fail(ExportConfig, "name", "a letter, then letters, digits or _, at most 16 characters", self.name)
+        _within(ExportConfig, "approach_mm", self.approach_mm, MIN_STEP_MM, 1000.0)
+        for key in (
+            "approach_speed_mm_s",
+            "joint_speed_deg_s",
+            "joint_acceleration_deg_s2",
+            "linear_acceleration_mm_s2",
+            "transfer_speed_mm_s",
+            "gantry_speed_mm_s",
+            "tool_mass_kg",
+        ):
+            _at_least(ExportConfig, key, getattr(self, key), 0, strict=True)
+        if not 0 < self.ptp_velocity_pct <= 100:
+            raise _fail(ExportConfig, "ptp_velocity_pct", "a number > 0 and at most 100", self.ptp_velocity_pct)
+        for key in ("lead_on_s", "lead_off_s"):
+            _within(ExportConfig, key, getattr(self, key), 0.0, 2.0)
+        _at_least(ExportConfig, "blend_mm", self.blend_mm, 0)
+        if not 0 < self.blend_share <= 0.5:
+            raise _fail(ExportConfig, "blend_share", "a number > 0 and at most 0.5", self.blend_share)
+        for key in ("ur_gun_output", "ur_ready_input", "ur_done_output"):
+            _within(ExportConfig, key, getattr(self, key), 0, 7)
+        if self.ur_gun_output == self.ur_done_output:
+            raise _fail(ExportConfig, "ur_done_output", "another output than ur_gun_output", self.ur_done_output)
+        for key in ("ur_max_moves", "krl_max_moves"):
+            _within(ExportConfig, key, getattr(self, key), 20, 1_000_000)
+        _within(ExportConfig, "rapid_max_lines", self.rapid_max_lines, 50, 1_000_000)
+        _within(ExportConfig, "ur_gantry_offset_mm", self.ur_gantry_offset_mm, 0.0, 200.0)
+        names = {}
+        for key in ("rapid_gun_signal", "rapid_tool", "rapid_wobj"):
+            value = getattr(self, key)
+            if not (_NAME.match(value) and len(value) <= 32) or value.upper() in _RAPID_RESERVED:
+                raise _fail(ExportConfig, key, "a RAPID name (a letter, then letters, digits or _, at most 32)", value)
+            if value.lower() in names:
+                raise _fail(ExportConfig, key, f"another name than {names[value.lower()]}", value)
+            names[value.lower()] = key
+        for key in ("rapid_brush_on", "rapid_brush_off"):
+            _within(ExportConfig, key, getattr(self, key), 0, 255)
+        if self.rapid_brush_on == self.rapid_brush_off:
+            raise _fail(ExportConfig, "rapid_brush_off", "another brush than rapid_brush_on", self.rapid_brush_off)
+        _within(ExportConfig, "krl_gun_output", self.krl_gun_output, 1, 4096)
+        _within(ExportConfig, "krl_tool", self.krl_tool, 1, 16)
+        _within(ExportConfig, "krl_base", self.krl_base, 1, 32)
+
+
 @dataclass(frozen=True)
 class JobConfig:
     """Every setting of the main job, one section per stage (the TOML file's tables).
@@ -717,7 +891,7 @@ class JobConfig:
     ----------
     mode : {"paths", "points"}
         ``paths``: slicing strokes (the default); ``points``: the seed's target points visited in a tour.
-    load, targets, paths, stations, ordering, kinematics, motion, coating, tuning, output
+    load, targets, paths, stations, ordering, kinematics, motion, coating, tuning, output, export
         One section each (``[load]``, ``[targets]``, ...).
     """
 
@@ -732,6 +906,7 @@ class JobConfig:
     coating: FilmConfig = FilmConfig()
     tuning: RefineConfig = RefineConfig()
     output: OutputConfig = OutputConfig()
+    export: ExportConfig = ExportConfig()
 
     def __post_init__(self):
         if self.mode not in MODES:
@@ -774,6 +949,7 @@ SECTIONS = {
     "coating": FilmConfig,
     "tuning": RefineConfig,
     "output": OutputConfig,
+    "export": ExportConfig,
 }
 
 #: Where each key of the old ``[plan]`` table (before 0.2) lives now, for the error that points a user there.
@@ -845,7 +1021,7 @@ def job_from_dict(data: dict) -> JobConfig:
         if not isinstance(table, dict):
             raise ConfigError(f"[{key}] must be a table")
         table = dict(table)
-        for name in ("direction", "streamline_deg", "home_mm"):
+        for name in ("direction", "streamline_deg", "home_mm", "programs"):
             if isinstance(table.get(name), list):
                 table[name] = tuple(table[name])
         try:

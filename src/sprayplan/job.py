@@ -16,10 +16,12 @@ kinematics     the nine axes at every waypoint                         ``robots.
 refine         speeds tuned to the film, touch-ups, added stations     ``refine.stage``
 film           the film the final plan leaves                          ``coating.stage``
 totals         lengths, counts, cycle time                             ``export.summary``
+programs       ``[export] programs``: robot programs, in memory        ``programs.stage``
 =============  ======================================================  ===========================
 
 Writing the files (plan.json, waypoints.csv, the film files) is ``export.write_job``; ``run_job`` does it
-last when given an output folder.
+last when given an output folder, and then the robot programs into OUT/programs/<format>/ (built, and with
+``[export] strict`` refused, before anything is written).
 
 Errors: bad input raised inside a stage comes out as a :class:`~sprayplan.errors.StageError` (an
 ``InputError``) whose message names the stage and the part; any other exception keeps its type and gains a
@@ -70,6 +72,8 @@ class JobState:
     film : coating.CoatingResult or None
         The final plan's film (None when not simulated).
     totals : dict
+    programs : tuple of programs.stage.Built
+        The robot programs of ``[export] programs``, in memory (written by the outputs stage).
     timings_s : dict
         Wall seconds of each stage run.
     """
@@ -85,6 +89,7 @@ class JobState:
     tuning: dict = field(default_factory=dict)
     film: object = None
     totals: dict = field(default_factory=dict)
+    programs: tuple = ()
     timings_s: dict = field(default_factory=dict)
 
     @property
@@ -201,6 +206,29 @@ def _totals(state: JobState, progress: Progress) -> JobState:
     return dataclasses.replace(state, totals=totals)
 
 
+def _programs(state: JobState, progress: Progress) -> JobState:
+    if not state.job.export.programs:
+        return state
+    from sprayplan.programs.stage import build
+
+    return dataclasses.replace(
+        state, programs=tuple(build(state.plan, state.job, f) for f in state.job.export.programs)
+    )
+
+
+def _write(outdir, state: JobState, progress=None) -> None:
+    """The outputs: the job's files and pictures (``progress(done, total)`` while the report is drawn), then
+    its robot programs (OUT/programs/<format>/)."""
+    from sprayplan.export.job_files import write_job
+
+    write_job(outdir, state, progress=progress)
+    if state.programs:
+        from sprayplan.programs.stage import default_folder, write_built
+
+        plan_file = os.path.abspath(os.path.join(outdir, "plan.json"))
+        write_built(default_folder(outdir), list(state.programs), state.plan, state.job, plan_file)
+
+
 @dataclass(frozen=True)
 class Stage:
     """One stage of the main job: its name and the function from the state before it to the state after."""
@@ -221,6 +249,7 @@ STAGES = (
     Stage("refine", _refine),
     Stage("film", _film),
     Stage("totals", _totals),
+    Stage("programs", _programs),
 )
 
 
@@ -238,7 +267,8 @@ def run_job(
         Every setting; default ``JobConfig()``.
     outdir : str or os.PathLike, optional
         When given, plan.json and waypoints.csv (and the film files when there is a film) are written there
-        (``export.write_job``), each atomically.
+        (``export.write_job``), each atomically, and the robot programs of ``[export] programs`` into
+        ``outdir/programs/<format>/``.
     progress : callable, optional
         ``progress(stage, done, total)``.
     until : str, optional
@@ -273,10 +303,9 @@ def run_job(
     totals = {**state.totals, "planning_time_s": round(time.perf_counter() - start, 3)}
     state = dataclasses.replace(state, totals=totals)
     if outdir is not None:
-        from sprayplan.export.job_files import write_job
 
         def outputs(s: JobState, p: Progress) -> JobState:
-            write_job(outdir, s, progress=lambda done, total: p("outputs", done, total))
+            _write(outdir, s, lambda done, total: p("outputs", done, total))
             return s
 
         state = _run_stage(Stage("outputs", outputs), state, progress)

@@ -279,6 +279,7 @@ def cmd_paths(args) -> int:
     return 0
 
 
+from sprayplan.cli.export import add_export_parser, program_format  # noqa: E402 - robot programs
 from sprayplan.cli.plan import cmd_plan, cmd_simulate  # noqa: E402 - the main job's commands
 from sprayplan.cli.robots import cmd_fk, cmd_ik  # noqa: E402 - the robot commands live in their own module
 from sprayplan.cli.view import cmd_view  # noqa: E402
@@ -474,6 +475,12 @@ def build_parser() -> argparse.ArgumentParser:
     group.add_argument("--process", help="spray process preset (seed000_circle, seed000_flat, bell003) or .toml")
     group.add_argument("--samples", type=int, help="also report the film at this many random points (seed 003: 420)")
     _add_view_options(plan_cmd.add_argument_group("pictures"))
+    group = plan_cmd.add_argument_group("robot programs")
+    group.add_argument(
+        "--program", action="append", type=program_format, metavar="FORMAT",
+        help="also write OUTDIR/programs/FORMAT/: urscript, rapid or krl (repeat for several; docs/programs.md)",
+    )  # fmt: skip
+    group.add_argument("--strict", action="store_true", help="with --program: a left-out spray waypoint is an error")
     plan_cmd.set_defaults(func=cmd_plan)
 
     sim = sub.add_parser("simulate", parents=[common], help="predict the film of a planned OUTDIR (coating.json)")
@@ -491,6 +498,7 @@ def build_parser() -> argparse.ArgumentParser:
     view.add_argument("outdir", help="a folder written by 'sprayplan plan'")
     _add_view_options(view)
     view.set_defaults(func=cmd_view)
+    add_export_parser(sub, common)
     return parser
 
 

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 import logging
+import os
 from pathlib import Path
 
 from sprayplan.cli.common import (
@@ -49,6 +51,9 @@ def _job_config(args):
         changes["ordering"] = changes["ordering"] | {"seed": args.seed}
     if args.mode is not None:
         changes["mode"] = args.mode
+    if getattr(args, "program", None) or getattr(args, "strict", False):
+        changes["export"] = {"programs": tuple(dict.fromkeys(args.program or job.export.programs))}
+        changes["export"] |= {"strict": True} if args.strict else {}
     return job.replace(**{k: v for k, v in changes.items() if v or k == "mode"})
 
 
@@ -172,5 +177,30 @@ def cmd_plan(args) -> int:
     job = _job_config(args)
     inputs = [(args.part, "part"), (args.config, "-c"), (file_input(job.coating.process), "--process")]
     check_folder_outputs(args.output, JOB_FILES, "-o", inputs)
-    print(run_plan(args.part, Path(args.output), job, quiet=getattr(args, "quiet", False)))
+    if job.export.programs:
+        programs = os.path.join(args.output, "programs")
+        check_outputs(
+            [(programs, "-o"), *((os.path.join(programs, f), "-o") for f in job.export.programs)], inputs, True
+        )
+    result = run_shown(args.part, job, getattr(args, "quiet", False), Path(args.output))
+    _program_warnings(result)
+    print(summary_line(result, Path(args.output)))
+    for built in result.programs:
+        from sprayplan.cli.export import summary_text
+        from sprayplan.programs.stage import SUMMARY
+
+        folder = os.path.join(args.output, "programs", built.fmt)
+        with open(os.path.join(folder, SUMMARY), encoding="utf-8") as handle:
+            print(summary_text(json.load(handle), folder))
     return 0
+
+
+def _program_warnings(result) -> None:
+    """What the robot programs left out, one line each on stderr."""
+    import sys
+
+    from sprayplan.programs.stage import warnings_of
+
+    for built in result.programs:
+        for line in warnings_of(built):
+            print(f"sprayplan: warning: {line}", file=sys.stderr)

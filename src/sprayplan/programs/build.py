@@ -1,0 +1,384 @@
+"""A plan as moves (:class:`~sprayplan.programs.model.CellProgram`): what every format's program does.
+
+For each station in visiting order: a joint move home (the arm's home joints, where the plan solved each
+station from), then each spray run, then home again. A *run* is a stretch of one spray stroke whose waypoints
+the program reaches (docs/programs.md, "What the programs do"):
+
+- a joint move (``transfer``) to the run's approach pose: its first waypoint moved back along the gun axis by
+  ``[export] approach_mm``, the joints found on the plan's own branch there (closed-form IK, turns nearest the
+  plan's joints), so the controller never picks a configuration;
+- a linear ``approach`` to the first waypoint, the gun switched on ``lead_on_s`` before reaching it;
+- one linear move per further waypoint at the plan's speed, blended (radius at most ``blend_mm`` and
+  ``blend_share`` of the shorter neighbouring segment; 0 at the run's ends), the gun switched off
+  ``lead_off_s`` before the last;
+- a linear ``retract`` back along the gun axis.
+
+Targets are the poses the plan's joints give the TCP (forward kinematics of ``q9``): equal to the plan's gun
+poses where the analytic IK solved them, and what the arm really does where SQP did (within the plan's
+``position_tol_mm``). A spray waypoint the plan marks unreachable splits its stroke: it is left out, with the gun
+off over it. URScript cannot move the gantry during a station, so for it a waypoint where SQP moved the gantry
+farther than ``[export] ur_gantry_offset_mm`` from the station's position is left out too (nearer ones are
+sprayed with the plan's arm joints, the TCP off the plan's pose by the gantry's offset).
+
+Speeds keep the plan's timing: the move into waypoint i takes the time the plan gives its segment (the gun
+tip's ``tcp_speed_mm_s``), so its TCP speed is the TCP's path length over that time (the contact point's
+speed, ``gun_speed_mm_s`` over the tuned time factor, when the standoff is the gun's spray distance).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from sprayplan.errors import InputError
+from sprayplan.programs.model import (
+    JOINT,
+    LINEAR,
+    Cell,
+    CellProgram,
+    Move,
+    StationProgram,
+    angle_between_deg,
+    offset_along_z,
+)
+from sprayplan.robots.stage import HOME_JOINTS, gantry_for
+
+#: The approach tried at the set distance, then at half, a quarter and an eighth of it.
+APPROACH_TRIES = (1.0, 0.5, 0.25, 0.125)
+#: Largest joint step (rad) between points 5 mm apart on an approach line: more means a singularity on the way.
+LINE_STEP_RAD = 0.2
+LINE_SAMPLE_MM = 5.0
+#: Two consecutive waypoints whose targets are this close (mm and degrees: the read-back check's tolerances)
+#: are one target: the program moves to it once, in the time the plan gives both segments (a controller could
+#: not time a move of a few micrometres).
+SAME_MM = 0.01
+SAME_DEG = 0.01
+#: The slowest TCP speed written (a move that is almost a pure reorientation about the TCP), mm/s.
+MIN_SPEED_MM_S = 0.001
+#: Blend radii are computed this much (mm) below their cap, so that the cap holds on the positions as written
+#: (to 1e-4 mm) too.
+BLEND_MARGIN_MM = 2e-4
+
+
+@dataclass(frozen=True)
+class Run:
+    """Waypoints of one spray stroke that a program sprays in one go.
+
+    Attributes
+    ----------
+    order : int
+        The station's place in the visiting order.
+    stroke : int
+        The stroke's index in its station.
+    index : (n,) int
+        Waypoint indices in the station (``StationPlan.q9`` rows), in order.
+    """
+
+    order: int
+    stroke: int
+    index: np.ndarray
+
+
+def run_limit(job, fmt: str) -> int:
+    """Most waypoints of one run in ``fmt`` (a file holds at least one whole run: the runs are split beyond)."""
+    cfg = job.export
+    return {"urscript": cfg.ur_max_moves, "rapid": cfg.rapid_max_lines - 20, "krl": cfg.krl_max_moves}[fmt] - 10
+
+
+def station_arrays(st, job) -> dict:
+    """Per waypoint of a station: its stroke, whether it sprays, the plan's gun tip and normal, the gun tip's
+    speed into it (``tcp_speed_mm_s``) and the time of the plan's segment into it (s; 0 for a stroke's first
+    waypoint)."""
+    from sprayplan.export.plan_json import tip_speeds
+
+    stroke, spray, seconds, first, speed = [], [], [], [], []
+    for i, s in enumerate(st.strokes):
+        n = len(s)
+        stroke.append(np.full(n, i))
+        spray.append(np.full(n, s.spray_on))
+        length = np.concatenate([[0.0], np.linalg.norm(np.diff(s.tcp, axis=0), axis=1)])
+        speed.append(tip_speeds(s, job))
+        seconds.append(length / speed[-1])
+        first.append(np.arange(n) == 0)
+    tcp = np.concatenate([s.tcp for s in st.strokes]) if st.strokes else np.zeros((0, 3))
+    normals = np.concatenate([s.normals for s in st.strokes]) if st.strokes else np.zeros((0, 3))
+    join = lambda parts, dtype: np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype)
+    return {
+        "stroke": join(stroke, int),
+        "spray": join(spray, bool),
+        "seconds": join(seconds, float),
+        "speed": join(speed, float),
+        "first": join(first, bool),
+        "tcp": tcp,
+        "normals": normals,
+    }
+
+
+def wanted_targets(tcp: np.ndarray, normals: np.ndarray, spray_distance_mm: float) -> np.ndarray:
+    """(n, 3) where the plan wants the TCP (the spray target): the gun tip plus the spray distance along the
+    gun axis (``-normal``)."""
+    return tcp - spray_distance_mm * normals
+
+
+def _where(order: int, data: dict, k: int) -> dict:
+    start = int(np.flatnonzero(data["stroke"] == data["stroke"][k])[0])
+    return {"station": order, "stroke": int(data["stroke"][k]), "waypoint": int(k - start),
+            "tcp_mm": [round(float(v), 3) for v in data["tcp"][k]]}  # fmt: skip
+
+
+def spray_runs(plan, job, fmt: str, cell: Cell | None = None) -> tuple[list[list[Run]], dict]:
+    """The runs of every station (in visiting order) and what was left out: ``unreachable_waypoints`` (spray
+    waypoints the plan does not reach), ``gantry_offset_waypoints`` (URScript: the plan moves the gantry there
+    farther than ``ur_gantry_offset_mm`` from the station),
+    ``split_runs`` (runs longer than a file allows, split with one waypoint in both parts), ``duplicate_waypoints``
+    (a target equal to the one before)."""
+    cell = cell or Cell(gantry_for(job.kinematics))
+    limit = run_limit(job, fmt)
+    tol = job.export.ur_gantry_offset_mm + 1e-9
+    report: dict = {"unreachable_waypoints": [], "gantry_offset_waypoints": [], "split_runs": 0,
+                    "duplicate_waypoints": 0}  # fmt: skip
+    out = []
+    for order, st in enumerate(plan.stations):
+        data = station_arrays(st, job)
+        ok = st.reachable & data["spray"]
+        for k in np.flatnonzero(data["spray"] & ~st.reachable):
+            report["unreachable_waypoints"].append(_where(order, data, k))
+        q9 = target_q9(st, fmt)
+        poses = cell.poses(q9[:, :6], q9[:, 6:]) if len(q9) else np.zeros((0, 4, 4))
+        if fmt == "urscript" and len(q9):
+            off = ok & (np.linalg.norm(st.q9[:, 6:] - st.platform_mm, axis=1) > tol)
+            for k in np.flatnonzero(off):
+                report["gantry_offset_waypoints"].append(_where(order, data, k))
+            ok &= ~off
+        runs = []
+        for stroke in np.unique(data["stroke"][data["spray"]]):
+            index = np.flatnonzero(data["stroke"] == stroke)
+            for piece in _pieces(index, ok[index]):
+                piece = _without_duplicates(piece, poses, report)
+                runs += [Run(order, int(stroke), part) for part in _split(piece, limit, report)]
+        out.append(runs)
+    return out, report
+
+
+def target_q9(st, fmt: str) -> np.ndarray:
+    """The nine axes a program drives at each waypoint: the plan's, with the gantry held at the station for
+    URScript (which cannot move it)."""
+    q9 = np.array(st.q9, dtype=float)
+    if fmt == "urscript":
+        q9[:, 6:] = st.platform_mm
+    return q9
+
+
+def _pieces(index: np.ndarray, ok: np.ndarray) -> list[np.ndarray]:
+    """The stretches of consecutive reachable waypoints."""
+    out, start = [], None
+    for j, good in enumerate(ok):
+        if good and start is None:
+            start = j
+        if not good and start is not None:
+            out.append(index[start:j])
+            start = None
+    if start is not None:
+        out.append(index[start:])
+    return out
+
+
+def _without_duplicates(index: np.ndarray, poses: np.ndarray, report: dict) -> np.ndarray:
+    keep = [index[0]]
+    for k in index[1:]:
+        last = poses[keep[-1]]
+        same = (
+            np.linalg.norm(poses[k, :3, 3] - last[:3, 3]) <= SAME_MM
+            and angle_between_deg(poses[k, :3, :3], last[:3, :3]) <= SAME_DEG
+        )
+        if same:
+            report["duplicate_waypoints"] += 1
+        else:
+            keep.append(k)
+    return np.array(keep, dtype=int)
+
+
+def _split(index: np.ndarray, limit: int, report: dict) -> list[np.ndarray]:
+    if len(index) <= limit:
+        return [index]
+    report["split_runs"] += 1
+    parts, start = [], 0
+    while start < len(index) - 1:
+        parts.append(index[start : start + limit])
+        start += limit - 1
+    return parts
+
+
+def build_program(plan, job, fmt: str, strict: bool | None = None) -> CellProgram:
+    """The moves of every station for ``fmt`` (``urscript``, ``rapid``, ``krl``), and the report of what was
+    left out (the ``summary.json`` of the export).
+
+    Raises
+    ------
+    InputError
+        With ``strict`` (default ``[export] strict``): a spray waypoint that is left out (unreachable, or for
+        URScript a gantry move), or a run with no approach the arm can make; the message says how many and
+        where the first is.
+    """
+    cfg = job.export
+    strict = cfg.strict if strict is None else strict
+    cell = Cell(gantry_for(job.kinematics))
+    runs, report = spray_runs(plan, job, fmt, cell)
+    report.update({"unapproachable_waypoints": [], "shortened_approaches": 0, "single_waypoint_runs": 0,
+                   "clipped_leads": 0, "unswitched_runs": 0})  # fmt: skip
+    lead_on, lead_off = (0.0, 0.0) if fmt == "rapid" and cfg.rapid_paint else (cfg.lead_on_s, cfg.lead_off_s)
+    stations = []
+    for order, (st, st_runs) in enumerate(zip(plan.stations, runs)):
+        data = station_arrays(st, job)
+        q9 = target_q9(st, fmt)
+        poses = cell.poses(q9[:, :6], q9[:, 6:]) if len(q9) else np.zeros((0, 4, 4))
+        moves = [_home(cell, st.platform_mm)]
+        for run in st_runs:
+            moves += _run_moves(cell, cfg, run, data, poses, q9, lead_on, lead_off, report)
+        moves.append(_home(cell, st.platform_mm))
+        stations.append(StationProgram(order, st.index, np.array(st.platform_mm), tuple(moves)))
+    if strict:
+        _refuse(report)
+    home = _home(cell, plan.home_mm)
+    return CellProgram(
+        tuple(stations), np.array(plan.home_mm), HOME_JOINTS.copy(), cell.tool2flange, plan.name, report, home
+    )
+
+
+def _refuse(report: dict) -> None:
+    for key, what in (
+        ("unreachable_waypoints", "spray waypoints the plan marks unreachable"),
+        ("gantry_offset_waypoints", "spray waypoints where the plan moves the gantry (URScript cannot)"),
+        ("unapproachable_waypoints", "spray waypoints at a run's end the arm cannot back off from along the gun axis"),
+    ):
+        found = report[key]
+        if found:
+            first = found[0]
+            raise InputError(
+                f"--strict: {len(found)} {what} (the first: station {first['station'] + 1}, stroke "
+                f"{first['stroke']}, waypoint {first['waypoint']}, at {tuple(first['tcp_mm'])} mm): no program "
+                "written"
+            )
+
+
+def _home(cell: Cell, external_mm) -> Move:
+    pose = cell.poses(HOME_JOINTS, external_mm)[0]
+    return Move(JOINT, "home", pose, HOME_JOINTS.copy(), np.array(external_mm, float))
+
+
+def line_joints(cell: Cell, start: np.ndarray, end: np.ndarray, external_mm, q_start: np.ndarray):
+    """Joints at ``end`` (4, 4) reached from ``start`` with joints ``q_start`` by a straight line of constant
+    orientation, on ``q_start``'s branch: None when a point of the line (every 5 mm) is out of reach, beyond a
+    limit, or the joints jump (a singularity)."""
+    branch = int(cell.branches(q_start)[0])
+    length = float(np.linalg.norm(end[:3, 3] - start[:3, 3]))
+    steps = max(1, math.ceil(length / LINE_SAMPLE_MM))
+    fractions = np.arange(1, steps + 1) / steps
+    poses = np.repeat(end[None], steps, axis=0)
+    poses[:, :3, 3] = start[:3, 3] + fractions[:, None] * (end[:3, 3] - start[:3, 3])
+    solutions = cell.solutions(poses, external_mm)
+    previous = np.asarray(q_start, float)
+    from sprayplan.robots.ur_ik import nearest_equivalent
+
+    for k in range(steps):
+        q = nearest_equivalent(solutions.q[k, branch], previous, cell.lower, cell.upper)
+        if not (solutions.valid[k, branch] and cell.gantry.robot.within_limits(q[None])[0]):
+            return None
+        if np.abs(q - previous).max() > LINE_STEP_RAD:
+            return None
+        previous = q
+    return previous
+
+
+def _back_off(cell: Cell, cfg, poses, q9, k: int):
+    """(distance, pose, joints) of the point ``approach_mm`` (or half, a quarter, an eighth of it) back along the
+    gun axis from waypoint k that a straight line from k reaches on its branch; None when none does."""
+    for share in APPROACH_TRIES:
+        distance = cfg.approach_mm * share
+        pose = offset_along_z(poses[k], distance)
+        q = line_joints(cell, poses[k], pose, q9[k, 6:], q9[k, :6])
+        if q is not None:
+            return distance, pose, q
+    return None
+
+
+def _run_moves(cell, cfg, run: Run, data, poses, q9, lead_on, lead_off, report) -> list[Move]:
+    """The moves of a run: transfer, approach, spray moves, retract. Waypoints at the run's ends from which the
+    arm cannot back off along the gun axis are left out (``unapproachable_waypoints``); [] when none can."""
+    index = run.index
+    start = end = None
+    for j in range(len(index)):
+        start = _back_off(cell, cfg, poses, q9, int(index[j]))
+        if start is not None:
+            break
+    if start is None:
+        j = len(index)
+    jend = len(index) - 1
+    while start is not None and jend >= j:
+        end = _back_off(cell, cfg, poses, q9, int(index[jend]))
+        if end is not None:
+            break
+        jend -= 1
+    for k in list(index[:j]) + list(index[jend + 1 :] if start is not None else []):
+        report["unapproachable_waypoints"].append(_where(run.order, data, int(k)))
+    if start is None or end is None:
+        return []
+    index = index[j : jend + 1]
+    first, last = int(index[0]), int(index[-1])
+    distance, a_pose, q_a = start
+    report["shortened_approaches"] += int(distance < cfg.approach_mm) + int(end[0] < cfg.approach_mm)
+    v_app = cfg.approach_speed_mm_s if lead_on <= 0 else min(cfg.approach_speed_mm_s, distance / lead_on)
+    moves = [
+        Move(JOINT, "transfer", a_pose, q_a, q9[first, 6:].copy()),
+        Move(LINEAR, "approach", poses[first], q9[first, :6].copy(), q9[first, 6:].copy(), v_app, 0.0,
+             source=(run.order, first)),
+    ]  # fmt: skip
+    lengths = np.linalg.norm(np.diff(poses[index, :3, 3], axis=0), axis=1)
+    for j in range(1, len(index)):
+        k, prev = int(index[j]), int(index[j - 1])
+        seconds = float(data["seconds"][prev + 1 : k + 1].sum())
+        # the plan's time for the segment; where its gun tip stands still (it turns about itself) the plan's speed
+        speed = lengths[j - 1] / seconds if seconds > 0 else float(data["speed"][k])
+        blend = 0.0
+        if j < len(index) - 1:
+            cap = min(cfg.blend_mm, cfg.blend_share * lengths[j - 1], cfg.blend_share * lengths[j])
+            blend = max(0.0, cap - BLEND_MARGIN_MM)
+        moves.append(Move(LINEAR, "spray", poses[k], q9[k, :6].copy(), q9[k, 6:].copy(),
+                          max(speed, MIN_SPEED_MM_S), blend, source=(run.order, k)))  # fmt: skip
+    moves.append(Move(LINEAR, "retract", end[1], end[2], q9[last, 6:].copy(), cfg.approach_speed_mm_s, 0.0))
+    if len(index) < 2:
+        report["single_waypoint_runs"] += 1
+        return moves
+    return _with_gun_events(moves, distance, lead_on, lead_off, report)
+
+
+def _with_gun_events(moves: list[Move], approach_mm: float, lead_on: float, lead_off: float, report) -> list[Move]:
+    """The run's moves with the gun's on signal on the approach and its off signal where, ``lead_off`` before
+    the last spray waypoint, the program's timing puts it (moves: transfer, approach, spray..., retract)."""
+    import dataclasses
+
+    chain = moves[1:-1]  # approach and spray moves: the gun switches on these
+    lengths = [approach_mm] + [
+        float(np.linalg.norm(b.pose[:3, 3] - a.pose[:3, 3])) for a, b in itertools.pairwise(chain)
+    ]
+    ends = np.cumsum([length / m.speed_mm_s for length, m in zip(lengths, chain)])
+    t_on = ends[0] - lead_on
+    t_off = ends[-1] - lead_off
+    if t_off < 0:
+        report["clipped_leads"] += 1
+        t_off = 0.0
+    if t_off <= t_on + 1e-12:
+        report["unswitched_runs"] += 1
+        return moves
+    events: dict[int, list] = {}
+    for t, on in ((t_on, True), (t_off, False)):
+        m = int(np.searchsorted(ends, t - 1e-12))  # the move during which (or at whose end) the signal is due
+        m = min(m, len(chain) - 1)
+        distance = max(0.0, (ends[m] - t) * chain[m].speed_mm_s)
+        events.setdefault(m, []).append((min(distance, lengths[m]), on))
+    for m, found in events.items():
+        chain[m] = dataclasses.replace(chain[m], events=tuple(sorted(found, key=lambda e: -e[0])))
+    return [moves[0], *chain, moves[-1]]
