@@ -221,3 +221,16 @@ def test_edge_and_speed_options_reach_the_plan(testdata, tmp_path, capsys):
     for station in plan["stations"]:
         for stroke in station["strokes"]:
             assert set(stroke["tcp_speed_mm_s"]) == {stroke["speed_mm_s"]}  # one tip speed per stroke
+
+
+def test_a_new_plan_takes_the_old_plans_programs_with_it(testdata, tmp_path, capsys):
+    part = str(testdata / "meshes" / "reach_curved_part.ply")
+    out = tmp_path / "out"
+    base = ["-q", "plan", part, "--units", "m", "--no-viewer", "--no-report", "-o", str(out)]
+    code, _, _ = run(capsys, *base[:-2], "--region", "x > -150", "--program", "rapid", *base[-2:])
+    assert code == 0 and (out / "programs" / "rapid" / "summary.json").exists()
+    (out / "notes.txt").write_text("the user's own file")  # so the folder is not replaced whole
+    code, _, _ = run(capsys, *base[:-2], "--region", "x > -160", *base[-2:])
+    assert code == 0
+    # the programs were of the old plan: they are gone, the user's file is kept
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt", "plan.json", "waypoints.csv"]

@@ -66,7 +66,7 @@ def check_outputs(outputs, inputs, folder: bool = False) -> None:
 def check_folder_outputs(outdir, names, option: str, inputs) -> None:
     """:func:`check_outputs` for the outputs ``names`` inside the folder ``outdir``: ``report`` is a folder
     (``export.job_files.OUTPUT_FOLDERS``), the others files."""
-    from sprayplan.view.files import OUTPUT_FOLDERS
+    from sprayplan.export.job_files import OUTPUT_FOLDERS
 
     paths = [(os.path.join(outdir, name), option) for name in names]
     check_outputs([p for p, name in zip(paths, names) if name not in OUTPUT_FOLDERS], inputs)

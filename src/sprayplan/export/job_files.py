@@ -11,7 +11,12 @@ from sprayplan.view.files import VIEW_FILES
 #: The files a job writes into its output folder (plan.json and waypoints.csv always, the rest with a film).
 PLAN_FILES = ("plan.json", "waypoints.csv")
 FILM_FILES = ("thickness.ply", "thickness.csv", "coating.json")
-JOB_FILES = PLAN_FILES + FILM_FILES + VIEW_FILES
+#: The robot programs' folder (``programs.stage``): an earlier run's goes with it, so that no program of an
+#: older plan is left beside a new plan.json.
+PROGRAMS_FOLDER = "programs"
+JOB_FILES = PLAN_FILES + FILM_FILES + VIEW_FILES + (PROGRAMS_FOLDER,)
+#: Of those, the folders.
+OUTPUT_FOLDERS = ("report", PROGRAMS_FOLDER)
 
 
 def write_job(

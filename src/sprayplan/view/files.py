@@ -9,9 +9,8 @@ from sprayplan.view.scene import Scene
 
 log = logging.getLogger(__name__)
 
-#: What the pictures add to a plan folder, and which of those are folders.
+#: What the pictures add to a plan folder.
 VIEW_FILES = ("plan.html", "report")
-OUTPUT_FOLDERS = ("report",)
 
 
 def write_view_files(folder, scene: Scene, viewer: bool = True, report: bool = True, progress=None) -> list[str]:
