@@ -351,9 +351,9 @@ def tour_picture(path: str, scene: Scene, settings: ReportSettings, backdrop: _B
     ax.autoscale_view()
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
-    from sprayplan.view.html import _number
+    from sprayplan.view.summary import number
 
-    travel = _number(scene.totals.get("platform_travel_mm"))
+    travel = number(scene.totals.get("platform_travel_mm"))
     ax.set_title(
         f"{scene.name}: gantry tour, {len(plan.stations)} stops numbered in visiting order"
         + (f", {travel / 1000:.2f} m of travel" if travel is not None else "")
@@ -445,7 +445,7 @@ def write_report_files(folder: str, scene: Scene, settings: ReportSettings | Non
 
 def report_markdown(scene: Scene, images: list[tuple[str, str]]) -> str:
     """report.md: the summary tables (as the viewer's), the stations' table and the images."""
-    from sprayplan.view.html import summary_rows
+    from sprayplan.view.summary import summary_rows
 
     lines = [f"# sprayplan report: {scene.name}", ""]
     for note in scene.notes:

@@ -1,0 +1,84 @@
+"""The summary of a plan as a person reads it (the viewer's panel and report.md's tables): counts from the
+plan itself, lengths and times from plan.json's totals, the film's figures from coating.json; a figure
+missing from the files, or not a number, shows as "-"."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sprayplan.view.scene import Scene
+
+
+def number(value) -> float | None:
+    """A figure from plan.json or coating.json as a finite float, or None (absent, or not a number)."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value):
+        return None
+    return float(value)
+
+
+def _fmt(value, fmt: str = "{:,.0f}", scale: float = 1.0) -> str:
+    x = number(value)
+    return "-" if x is None else fmt.format(x * scale)
+
+
+def summary_rows(scene: Scene) -> list[tuple[str, list[tuple[str, str]]]]:
+    """The summary panel's tables: (title, [(label, value)]); a figure missing from the files shows as '-'."""
+    t = scene.totals
+    plan = scene.plan
+    kinds = [s.kind for st in plan.stations for s in st.strokes]
+    rows = [
+        (
+            "plan",
+            [
+                ("stations", f"{len(plan.stations):,}"),
+                ("spray strokes", f"{kinds.count('spray'):,}"),
+                ("touch-up strokes", f"{kinds.count('touch-up'):,}"),
+                ("transfers", f"{kinds.count('transfer'):,}"),
+                ("waypoints", f"{sum(len(st.reachable) for st in plan.stations):,}"),
+                ("unreachable waypoints", f"{sum(int((~st.reachable).sum()) for st in plan.stations):,}"),
+                ("SQP waypoints", f"{sum(int((st.method == 'sqp').sum()) for st in plan.stations):,}"),
+                ("points no station reaches", f"{len(plan.unassigned):,}"),
+                ("spray length", _fmt(t.get("spray_length_mm"), "{:,.1f} m", 1e-3)),
+                ("transfer length", _fmt(t.get("transfer_length_mm"), "{:,.1f} m", 1e-3)),
+                ("gantry travel", _fmt(t.get("platform_travel_mm"), "{:,.1f} m", 1e-3)),
+                ("cycle time", _fmt(t.get("cycle_time_s"), "{:,.0f} s")),
+                ("planning time", _fmt(t.get("planning_time_s"), "{:,.1f} s")),
+            ],
+        )
+    ]
+    film = scene.film
+    p = film.get("painted") if film is not None else None
+    if isinstance(p, dict) and number(p.get("count")):
+        g = lambda table, key, fmt, scale=1.0: _fmt(table.get(key), fmt, scale)
+        film_rows = [
+            ("spec", f"{scene.target_um:g} +- {scene.tolerance_um:g} um"),
+            ("mean", g(p, "mean_um", "{:.1f} um")),
+            ("std / mean", f"{g(p, 'std_um', '{:.2f} um')} / {g(p, 'cv', '{:.3f}')}"),
+            ("min .. max", f"{g(p, 'min_um', '{:.1f}')} .. {g(p, 'max_um', '{:.1f} um')}"),
+            ("in spec", g(p, "share_in_spec", "{:.1f} % of the painted area", 100.0)),
+            ("below / above", f"{g(p, 'share_below', '{:.1f} %', 100.0)} / {g(p, 'share_above', '{:.1f} %', 100.0)}"),
+            (
+                "painted area",
+                f"{g(p, 'area_mm2', '{:.3f} m^2', 1e-6)} ({g(p, 'share_of_area', '{:.1f} %', 100.0)} of the surface)",
+            ),
+        ]
+        m = film.get("measuring_points")
+        if isinstance(m, dict) and number(m.get("count")):
+            film_rows.append(
+                (
+                    f"{int(m['count'])} measuring points",
+                    f"mean {g(m, 'mean_um', '{:.1f} um')}, {g(m, 'min_um', '{:.1f}')} .. {g(m, 'max_um', '{:.1f}')}, "
+                    f"{g(m, 'share_in_spec', '{:.1f} %', 100.0)} in spec",
+                )
+            )
+        paint = film.get("paint")
+        if isinstance(paint, dict) and paint:
+            film_rows.append(
+                (
+                    "paint",
+                    f"{g(paint, 'wet_paint_ml', '{:,.0f} mL')} wet, "
+                    f"{g(paint, 'share_of_solids_on_part', '{:.0f} %', 100.0)} of the solids on the part",
+                )
+            )
+        rows.append(("film (painted area)", film_rows))
+    return rows
