@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sprayplan.collision.bodies import CapsuleBody, GantryBodies, gun_capsule, link_bodies, reach_radii_mm
-from sprayplan.collision.motion import motion_checks
+from sprayplan.collision.motion import motion_bound_mm, motion_checks
 from sprayplan.collision.settings import CollisionConfig
 from sprayplan.errors import ConfigError, DataError
 from sprayplan.robots.gantry import Gantry
@@ -155,7 +155,7 @@ class MotionCollisions:
     start, end : (m,) int
         The waypoints the motion joins.
     checks : (m,) int
-        Joint vectors checked along it, both ends included.
+        Joint vectors checked along it (its start always; its end unless a check before it was in collision).
     in_collision : (m,) bool
         Some check has a pair closer than ``max(gap, step_mm / 2)``.
     distance_mm : (m,) float
@@ -400,48 +400,54 @@ class CellCollision:
         """(k + 1, 9): the joint vectors the motion from ``q_a`` to ``q_b`` is checked at, ends included."""
         return motion_checks(q_a, q_b, self.reach_radii_mm, self.config.motion_step_mm)
 
+    def check_motion(self, q_a, q_b, clearance_mm: float | None = None):
+        """The motion from ``q_a`` to ``q_b`` checked by conservative advancement (module
+        :mod:`sprayplan.collision.motion`): returns ``(s, slack_mm, distance_mm, pair)``, the fractions of the
+        motion checked (k,), the least slack at each (k,) against ``max(gap, step / 2)``, and the distance and
+        body pair of the motion's least slack. Stops at the first check in collision."""
+        clearance = self.config.clearance_mm if clearance_mm is None else float(clearance_mm)
+        step = self.config.motion_step_mm
+        required = np.maximum(self._required(clearance), step / 2.0)
+        q_a, q_b = np.asarray(q_a, dtype=float), np.asarray(q_b, dtype=float)
+        total = float(motion_bound_mm(q_a, q_b, self.reach_radii_mm)[0])
+        fractions, slacks = [], []
+        best = (np.inf, np.nan, ("", ""))
+        s = 0.0
+        while True:
+            found = self.distances(q_a + s * (q_b - q_a)).distance_mm[0]
+            slack = found - required
+            column = int(np.argmin(slack))
+            fractions.append(s)
+            slacks.append(float(slack[column]))
+            if slack[column] < best[0]:
+                best = (float(slack[column]), float(found[column]), self.pairs[column])
+            if slack[column] < 0 or s >= 1.0 or total == 0:
+                break
+            advance = max(step, float(slack[column]) + step / 2.0)
+            s = min(1.0, s + advance / total)
+        return np.array(fractions), np.array(slacks), best[1], best[2]
+
     def check_motions(self, plan: Plan, clearance_mm: float | None = None) -> MotionCollisions:
         """Every motion between consecutive reachable waypoints of ``plan`` (and each station move) checked
-        at :meth:`motion_checks`, each pair asked to keep ``max(gap, step / 2)`` (see
-        :mod:`sprayplan.collision.motion`)."""
+        by :meth:`check_motion`."""
         clearance = self.config.clearance_mm if clearance_mm is None else float(clearance_mm)
         if not np.isfinite(clearance) or clearance < 0:
             raise ConfigError(f"collision.clearance_mm must be a number >= 0, got {clearance_mm!r}")
-        step = self.config.motion_step_mm
         q9 = np.concatenate([s.q9 for s in plan.stations] or [np.zeros((0, 9))])
         checked = np.concatenate([s.reachable for s in plan.stations] or [np.zeros(0, bool)])
         checked = checked & np.isfinite(q9).all(axis=1)
         index = np.flatnonzero(checked)  # consecutive checked waypoints, across stations too (the station move)
         start, end = index[:-1], index[1:]
-        configs, owner = [], []
-        for m, (a, b) in enumerate(zip(start, end)):
-            path = self.motion_checks(q9[a], q9[b])
-            configs.append(path)
-            owner.append(np.full(len(path), m))
         m = len(start)
         distance = np.full(m, np.nan)
         body_a = np.full(m, "", dtype=object)
         body_b = np.full(m, "", dtype=object)
         in_collision = np.zeros(m, dtype=bool)
-        counts = np.array([len(c) for c in configs], dtype=int)
-        if m:
-            found = self.distances(np.concatenate(configs))
-            owner = np.concatenate(owner)
-            required = np.maximum(self._required(clearance), step / 2.0)
-            slack = found.distance_mm - required
-            column = np.argmin(slack, axis=1)
-            rows = np.arange(len(column))
-            least = slack[rows, column]
-            worst = np.full(m, np.inf)
-            np.minimum.at(worst, owner, least)
-            pick = np.zeros(m, dtype=int)
-            hit = least == worst[owner]
-            pick[owner[hit][::-1]] = rows[hit][::-1]  # the first check of each motion with its least slack
-            names = np.array(self.pairs, dtype=object)
-            distance = found.distance_mm[pick, column[pick]]
-            body_a = names[column[pick], 0]
-            body_b = names[column[pick], 1]
-            in_collision = worst < 0
+        counts = np.zeros(m, dtype=int)
+        for i, (a, b) in enumerate(zip(start, end)):
+            fractions, slacks, distance[i], (body_a[i], body_b[i]) = self.check_motion(q9[a], q9[b], clearance)
+            counts[i] = len(fractions)
+            in_collision[i] = slacks.min() < 0
         return MotionCollisions(
             start=start.astype(int),
             end=end.astype(int),
@@ -450,5 +456,5 @@ class CellCollision:
             distance_mm=distance,
             body_a=body_a,
             body_b=body_b,
-            step_mm=step,
+            step_mm=self.config.motion_step_mm,
         )

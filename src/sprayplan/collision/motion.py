@@ -7,14 +7,20 @@ body moves more than
 
     bound(dq) = sum_i R_i |dq_i| + |dt|          (R_i from ``bodies.reach_radii_mm``, whatever the joints)
 
-between two joint vectors ``dq`` apart. The checks of a motion are ``k = ceil(bound / step)`` equal joint
-steps apart, so consecutive checks are at most ``step`` apart for every body point, and every configuration in
-between is within ``step / 2`` of one of them. Distances are 1-Lipschitz in the bodies' displacement: between
-two checks a distance is at most ``step / 2`` below the smaller of its two checked values. A motion whose
-checks (its two ends included) all keep ``max(gap, step / 2)`` for every pair, with ``gap`` the pair's
-required gap, therefore never touches anything in between, and never comes closer to the part than
-``clearance - step / 2``. The same holds for the TCP against the floor (the TCP is a body point, its reach
-is in ``R_i``).
+between two joint vectors ``dq`` apart. Distances are 1-Lipschitz in the bodies' displacement.
+
+Fixed grid (:func:`motion_checks`): ``k = ceil(bound / step)`` equal joint steps, so consecutive checks are at
+most ``step`` apart for every body point and every configuration in between is within ``step / 2`` of one of
+them: a distance there is at most ``step / 2`` below the smaller of its two checked values.
+
+Conservative advancement (``CellCollision.check_motion``, what the checks use): from a check whose least slack
+over all pairs is ``S >= 0`` (slack: distance minus ``max(gap, step / 2)``, ``gap`` the pair's required gap),
+the next check is ``max(step, S + step / 2)`` of bound further on. Where that is ``step`` the grid's argument
+holds (both ends are checked); where it is longer, every distance in between is at least its value at the
+check minus the displacement, ``>= max(gap, step / 2) + S - (S + step / 2)``. Either way a motion whose checks
+all have ``S >= 0`` never touches anything in between and never comes closer to the part than
+``clearance - step / 2``. The TCP against the floor is the same (the TCP is a body point; its reach is in
+``R_i``). Far from everything the checks are far apart; near the part, ``step`` apart.
 
 This is the linear joint motion a controller's ``movej`` makes. The spray strokes' ``movel`` follows a
 straight TCP line instead; between waypoints a few millimetres apart the two differ by far less than the
