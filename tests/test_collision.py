@@ -203,3 +203,11 @@ def test_bad_inputs(gantry):
     cell = CellCollision(gantry, plate())
     with pytest.raises(DataError, match="q9"):
         cell.distances([0.0] * 8)
+
+
+def test_a_clearance_override_is_checked_like_the_setting(gantry):
+    cell = CellCollision(gantry, plate())
+    with pytest.raises(ConfigError, match="collision.clearance_mm"):
+        cell.check_motion(q9(), q9(), clearance_mm=-3.0)
+    with pytest.raises(ConfigError, match="collision.motion_step_mm"):
+        cell.check_motion(q9(), q9(), clearance_mm=1.0)

@@ -355,9 +355,7 @@ class CellCollision:
 
         ``clearance_mm`` overrides the config's clearance for the part pairs.
         """
-        clearance = self.config.clearance_mm if clearance_mm is None else float(clearance_mm)
-        if not np.isfinite(clearance) or clearance < 0:
-            raise ConfigError(f"collision.clearance_mm must be a number >= 0, got {clearance_mm!r}")
+        clearance = self._clearance(clearance_mm, motion=False)
         station = np.concatenate([np.full(len(s.q9), i) for i, s in enumerate(plan.stations)] or [np.zeros(0, int)])
         q9 = np.concatenate([s.q9 for s in plan.stations] or [np.zeros((0, 9))])
         checked = np.concatenate([s.reachable for s in plan.stations] or [np.zeros(0, bool)])
@@ -392,6 +390,14 @@ class CellCollision:
             clearance_mm=clearance,
         )
 
+    def _clearance(self, clearance_mm, motion: bool = True) -> float:
+        """The config's clearance, or an override checked as :class:`CollisionConfig` checks it (with the
+        motion step's rule only for motions)."""
+        if clearance_mm is None:
+            return self.config.clearance_mm
+        step = self.config.motion_step_mm if motion else 1e-9
+        return CollisionConfig(clearance_mm=clearance_mm, motion_step_mm=step).clearance_mm
+
     def _required(self, clearance_mm: float) -> np.ndarray:
         """(p,): the gap of each pair with the part pairs at ``clearance_mm``."""
         return np.array([clearance_mm if b == "part" else r for (_, b), r in zip(self.pairs, self.required_mm)])
@@ -405,7 +411,7 @@ class CellCollision:
         :mod:`sprayplan.collision.motion`): returns ``(s, slack_mm, distance_mm, pair)``, the fractions of the
         motion checked (k,), the least slack at each (k,) against ``max(gap, step / 2)``, and the distance and
         body pair of the motion's least slack. Stops at the first check in collision."""
-        clearance = self.config.clearance_mm if clearance_mm is None else float(clearance_mm)
+        clearance = self._clearance(clearance_mm)
         step = self.config.motion_step_mm
         required = np.maximum(self._required(clearance), step / 2.0)
         q_a, q_b = np.asarray(q_a, dtype=float), np.asarray(q_b, dtype=float)
@@ -430,9 +436,7 @@ class CellCollision:
     def check_motions(self, plan: Plan, clearance_mm: float | None = None) -> MotionCollisions:
         """Every motion between consecutive reachable waypoints of ``plan`` (and each station move) checked
         by :meth:`check_motion`."""
-        clearance = self.config.clearance_mm if clearance_mm is None else float(clearance_mm)
-        if not np.isfinite(clearance) or clearance < 0:
-            raise ConfigError(f"collision.clearance_mm must be a number >= 0, got {clearance_mm!r}")
+        clearance = self._clearance(clearance_mm)
         q9 = np.concatenate([s.q9 for s in plan.stations] or [np.zeros((0, 9))])
         checked = np.concatenate([s.reachable for s in plan.stations] or [np.zeros(0, bool)])
         checked = checked & np.isfinite(q9).all(axis=1)
