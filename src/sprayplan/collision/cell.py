@@ -162,7 +162,8 @@ class MotionCollisions:
         The distance of the pair with the least slack over the motion's checks.
     body_a, body_b : (m,) str
     step_mm : float
-        No body point moves more than this between two checks.
+        ``collision.motion_step_mm``: near a body no point moves more than this between two checks; where the
+        distances leave room, checks are further apart (conservative advancement, ``collision.motion``).
     """
 
     start: np.ndarray
