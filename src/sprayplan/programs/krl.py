@@ -30,7 +30,7 @@ from sprayplan.programs.model import (
     parse_number,
 )
 from sprayplan.programs.rapid import _stations
-from sprayplan.programs.text import chunks
+from sprayplan.programs.text import chunks, program_lines
 
 IND = "  "
 HEADER = ("&ACCESS RVP", "&REL 1")
@@ -148,18 +148,7 @@ def read_krl(folder, job) -> ReadProgram:
 
 
 def _lines(path: Path) -> list[tuple[int, str]]:
-    from sprayplan.checks import check_input_file
-
-    check_input_file(path)
-    try:
-        text = path.read_text(encoding="ascii")
-    except FileNotFoundError:
-        raise ProgramError(path, 0, "no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ProgramError(path, 0, f"not a readable text file ({exc})") from None
-    if "\t" in text or "\r" in text or not text.endswith("\n"):
-        raise ProgramError(path, 0, "holds tabs or carriage returns, or does not end with a line break")
-    lines = [(k + 1, line) for k, line in enumerate(text.split("\n")[:-1])]
+    lines = program_lines(path)
     if [line for _, line in lines[:2]] != list(HEADER):
         raise ProgramError(path, 1, f"expected the header lines {' / '.join(HEADER)}")
     body = []

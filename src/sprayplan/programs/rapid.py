@@ -29,7 +29,7 @@ from sprayplan.programs.model import (
     parse_number,
     quaternion_wxyz,
 )
-from sprayplan.programs.text import aggregate, chunks, numbers, split_arguments
+from sprayplan.programs.text import aggregate, chunks, numbers, program_lines, split_arguments
 
 UNUSED = "9E+09"
 SUFFIX = ".mod"
@@ -199,27 +199,10 @@ def read_rapid(folder, job) -> ReadProgram:
     return ReadProgram("rapid", tool, frame, tuple(moves), (), tuple(files))
 
 
-def _lines(path: Path):
-    from sprayplan.checks import check_input_file
-
-    check_input_file(path)
-    try:
-        text = path.read_text(encoding="ascii")
-    except FileNotFoundError:
-        raise ProgramError(path, 0, "no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ProgramError(path, 0, f"not a readable text file ({exc})") from None
-    if "\t" in text or "\r" in text:
-        raise ProgramError(path, 0, "holds tabs or carriage returns (not written by sprayplan)")
-    if not text.endswith("\n"):
-        raise ProgramError(path, 0, "does not end with a line break")
-    return [(k + 1, line) for k, line in enumerate(text.split("\n")[:-1])]
-
-
 def _body(path: Path, module: str, proc: str):
     """The lines of ``MODULE module`` ... ``ENDMODULE`` (checked), split into the data lines before the PROC
     and the statements of ``PROC proc()``; comments dropped, indentation checked."""
-    lines = [(n, line) for n, line in _lines(path) if not line.strip().startswith("!")]
+    lines = [(n, line) for n, line in program_lines(path) if not line.strip().startswith("!")]
     if not lines or lines[0][1] != f"MODULE {module}":
         raise ProgramError(path, lines[0][0] if lines else 0, f"expected 'MODULE {module}' as the first line")
     if lines[-1][1] != "ENDMODULE":

@@ -12,6 +12,23 @@ from sprayplan.programs.model import JOINT, ProgramError, parse_number
 _CUT_AFTER = ("retract", "home")
 
 
+def program_lines(path) -> list[tuple[int, str]]:
+    """A written program's lines, numbered from 1: ASCII, no tabs or carriage returns, ending with a line break
+    (as sprayplan writes them); anything else a :class:`ProgramError` naming the file."""
+    from sprayplan.checks import check_input_file
+
+    check_input_file(path)
+    try:
+        text = path.read_text(encoding="ascii")
+    except FileNotFoundError:
+        raise ProgramError(path, 0, "no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ProgramError(path, 0, f"not a readable text file ({exc})") from None
+    if "\t" in text or "\r" in text or not text.endswith("\n"):
+        raise ProgramError(path, 0, "holds tabs or carriage returns, or does not end with a line break")
+    return [(k + 1, line) for k, line in enumerate(text.split("\n")[:-1])]
+
+
 def chunks(moves: list, cost, limit: int) -> list[list]:
     """``moves`` cut into consecutive chunks of total ``cost(move)`` at most ``limit``, cut only after a retract
     or a home move (a run is never cut: ``build.run_limit`` keeps each run within a file)."""

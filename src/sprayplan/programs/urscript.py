@@ -34,7 +34,7 @@ from sprayplan.programs.model import (
     parse_number,
     rotvec,
 )
-from sprayplan.programs.text import chunks
+from sprayplan.programs.text import chunks, program_lines
 
 IND = "  "
 SEQUENCE_HEADER = "step,station,script,x_mm,y_mm,z_mm"
@@ -222,23 +222,8 @@ def read_urscript(folder, job) -> ReadProgram:
     return ReadProgram("urscript", tool, scripts[0]["part_frame"], tuple(moves), tuple(scripts), files)
 
 
-def _text_lines(path: Path) -> list[tuple[int, str]]:
-    from sprayplan.checks import check_input_file
-
-    check_input_file(path)
-    try:
-        text = path.read_text(encoding="ascii")
-    except FileNotFoundError:
-        raise ProgramError(path, 0, "no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ProgramError(path, 0, f"not a readable text file ({exc})") from None
-    if "\t" in text or "\r" in text or not text.endswith("\n"):
-        raise ProgramError(path, 0, "holds tabs or carriage returns, or does not end with a line break")
-    return [(k + 1, line) for k, line in enumerate(text.split("\n")[:-1])]
-
-
 def _read_sequence(path: Path) -> list[dict]:
-    lines = _text_lines(path)
+    lines = program_lines(path)
     if not lines or lines[0][1] != SEQUENCE_HEADER:
         raise ProgramError(path, 1, f"expected the header {SEQUENCE_HEADER!r}")
     rows = []
@@ -259,7 +244,7 @@ def _read_sequence(path: Path) -> list[dict]:
 
 
 def _read_script(path: Path, cfg):
-    lines = _text_lines(path)
+    lines = program_lines(path)
     name = path.stem
     body = [(n, line) for n, line in lines if not line.strip().startswith("#")]
     if not body or body[0][1] != f"def {name}():":
