@@ -24,6 +24,10 @@ Implementations (use :func:`robot_from_name`):
     ``axis_tol_rad`` (default 1e-6 rad; the roll about the axis is then exact too). The solver does not reach
     back over the base axis (see :mod:`sprayplan.robots.r5150`): poses that only such a configuration reaches
     are ``"out of reach"``. Its TCP is the D-H frame 5 (the seed's tool tip, d5 = 115 mm): no gun is added.
+``OPWArm`` (``abb-irb2400-10``, ``abb-irb4600-60-205``, ``kuka-kr6-r700-sixx``)
+    Six-axis industrial arms with a spherical wrist, :func:`sprayplan.robots.opw.opw_ik`: 8 branches per pose
+    (labels :data:`~sprayplan.robots.opw.BRANCH_LABELS`), joints in the maker's values, moved by whole turns into
+    the limits; ``max_speed`` gives the maker's axis speeds. Not yet usable in ``sprayplan plan``.
 ``GantryRobot`` (``gantry-ur5``, ``gantry-ur5e``)
     Seed 000's nine axes, ``q = (q1..q6 rad, tx, ty, tz mm)`` as in :mod:`sprayplan.robots.gantry`; its base is
     the world (``base2world`` identity). The three gantry axes make it redundant, so ``ik`` takes the platform
@@ -51,6 +55,8 @@ from sprayplan.checks import check_points, check_poses
 from sprayplan.errors import ConfigError, InputError
 from sprayplan.robots.gantry import GANTRY_ARMS, Gantry, build_gantry, load_gun
 from sprayplan.robots.model import TAU, RobotModel, fk, load_robot
+from sprayplan.robots.opw import PRESETS as OPW_PRESETS
+from sprayplan.robots.opw import OPWParameters, load_opw, opw_fk, opw_ik
 from sprayplan.robots.r5150 import r5150_ik, r5150_pitch_roll
 from sprayplan.robots.ur_ik import BRANCH_LABELS, check_ur_model, nearest_equivalent, ur_ik
 
@@ -488,14 +494,86 @@ class GantryRobot:
         return _within(q, self.joint_limits)
 
 
+@dataclass(frozen=True)
+class OPWArm:
+    """A six-axis industrial arm in the OPW form (:mod:`sprayplan.robots.opw`) at ``base2world``: 8 branches.
+
+    Attributes
+    ----------
+    params : OPWParameters
+        Lengths, joint offsets and signs, limits (the maker's joint values) and speeds.
+    tcp2flange : (4, 4) float, mm
+        The TCP on the flange (z out of the flange, see :mod:`sprayplan.robots.opw`); default the bare flange.
+    base2world : (4, 4) float, mm
+        Default identity.
+    name : str
+        Default the parameters' name.
+    reject_singular : bool
+        False (default): singular solutions are valid and flagged, as for the UR arms; True: they are not valid
+        (reason ``"wrist singular"`` and so on), see :func:`~sprayplan.robots.opw.opw_ik`.
+    """
+
+    params: OPWParameters
+    tcp2flange: np.ndarray = field(default=None)  # type: ignore[assignment]
+    base2world: np.ndarray = field(default=None)  # type: ignore[assignment]
+    name: str = ""
+    reject_singular: bool = False
+
+    def __post_init__(self):
+        if not isinstance(self.params, OPWParameters):
+            raise ConfigError(f"OPWArm needs OPWParameters, got {type(self.params).__name__}")
+        object.__setattr__(self, "tcp2flange", _transform(self.tcp2flange, "tcp2flange"))
+        object.__setattr__(self, "base2world", _transform(self.base2world, "base2world"))
+        object.__setattr__(self, "name", self.name or self.params.name)
+
+    @property
+    def dof(self) -> int:
+        return 6
+
+    @property
+    def joint_limits(self) -> np.ndarray:
+        return np.stack([self.params.lower, self.params.upper], axis=1)
+
+    @property
+    def linear_axes(self) -> np.ndarray:
+        return np.zeros(6, dtype=bool)
+
+    @property
+    def max_speed(self) -> np.ndarray:
+        """(6,) rad/s: the maker's maximum axis speeds (NaN where not published)."""
+        return self.params.max_speed
+
+    def fk(self, q) -> np.ndarray:
+        return self.base2world @ opw_fk(self.params, _joints(q, 6)) @ self.tcp2flange
+
+    def ik(self, tcp2world) -> IKSolutions:
+        poses = _poses(tcp2world)
+        flange = np.linalg.inv(self.base2world) @ np.where(_finite(poses)[:, None, None], poses, np.nan)
+        sols = opw_ik(self.params, flange @ np.linalg.inv(self.tcp2flange), reject_singular=self.reject_singular)
+        return IKSolutions(
+            q=sols.q,
+            valid=sols.valid,
+            reason=sols.reason,
+            singular=sols.singular & sols.valid,
+            axis_error_rad=np.zeros(sols.valid.shape),
+            branch_labels=sols.branch_labels,
+        )
+
+    def within_limits(self, q) -> np.ndarray:
+        return _within(q, self.joint_limits)
+
+
 # ------------------------------------------------------------------------------------------------- factory
 
-ROBOT_NAMES = ("ur5", "ur5e", "ur5-seed", "r5150", "gantry-ur5", "gantry-ur5e")
+ROBOT_NAMES = ("ur5", "ur5e", "ur5-seed", "r5150", "gantry-ur5", "gantry-ur5e", *OPW_PRESETS)
 """The names :func:`robot_from_name` knows."""
 
 
 def robot_from_name(name: str, tool: str | None = None) -> Robot:
     """The robot called ``name`` (one of :data:`ROBOT_NAMES`) with the gun preset ``tool`` as its TCP.
+
+    The industrial arms (``abb-irb2400-10``, ``abb-irb4600-60-205``, ``kuka-kr6-r700-sixx``) are
+    :class:`OPWArm` of the presets in :data:`sprayplan.robots.opw.PRESETS`.
 
     ``tool`` is a gun of :data:`sprayplan.robots.gantry.GUNS`: for an arm, ``None`` is the bare flange; for a
     gantry, ``None`` is seed 000's ``wa101``; the R5150's TCP is its tool tip, so it takes only ``None`` or
@@ -517,4 +595,6 @@ def robot_from_name(name: str, tool: str | None = None) -> Robot:
         assert arm in GANTRY_ARMS
         return GantryRobot(build_gantry(arm, tool or "wa101"), name=name)
     tcp = None if tool is None else load_gun(tool).gun2flange
+    if name in OPW_PRESETS:
+        return OPWArm(load_opw(name), tcp2flange=tcp)
     return URArm(load_robot(name), tcp2flange=tcp)
