@@ -274,7 +274,9 @@ def _wrap(x: np.ndarray) -> np.ndarray:
     return x - TAU * np.ceil((x - math.pi) * (1.0 / TAU))
 
 
-def opw_ik(params: OPWParameters, flange2base, *, singular_tol: float = 1e-9, reject_singular: bool = False) -> OPWSolutions:
+def opw_ik(
+    params: OPWParameters, flange2base, *, singular_tol: float = 1e-9, reject_singular: bool = False
+) -> OPWSolutions:
     """All eight inverse kinematics solutions of an OPW arm for many flange poses at once.
 
     Parameters
@@ -319,7 +321,9 @@ def opw_ik(params: OPWParameters, flange2base, *, singular_tol: float = 1e-9, re
     singular = np.zeros((n, 8), dtype=bool)
     for start in range(0, n, _CHUNK):
         part = slice(start, min(start + _CHUNK, n))
-        _solve_chunk(params, poses[part], singular_tol, reject_singular, q[part], valid[part], reason[part], singular[part])
+        _solve_chunk(
+            params, poses[part], singular_tol, reject_singular, q[part], valid[part], reason[part], singular[part]
+        )
     if n:
         log.debug("opw_ik %s: %d poses, %d of %d branches valid", params.name, n, int(valid.sum()), 8 * n)
     return OPWSolutions(q=q, valid=valid, reason=reason, singular=singular)
@@ -416,7 +420,11 @@ def _solve_chunk(params, poses, tol, reject_singular, q_out, valid_out, reason_o
     limit_names = np.array([f"joint {j + 1} limit" for j in range(6)])
     reason = np.where(reached & ~in_limits, limit_names[first_out], reason)
     if reject_singular:
-        for mask, text in ((elbow_sing, "elbow singular"), (shoulder_sing, "shoulder singular"), (wrist_sing, "wrist singular")):
+        for mask, text in (
+            (elbow_sing, "elbow singular"),
+            (shoulder_sing, "shoulder singular"),
+            (wrist_sing, "wrist singular"),
+        ):
             reason = np.where(reached & in_limits & mask, text, reason)
     reason = np.where(reached, reason, "out of reach")
     reason[~finite] = "non-finite pose"
@@ -434,13 +442,21 @@ def _deg(values) -> list[float]:
     return [math.radians(v) for v in values]
 
 
-_ABB_SIGNS = [1, 1, 1, 1, 1, 1]  # ABB: axis 1 about +z; 2, 3, 5 about +y (forward / down); 4, 6 about the outward forearm axis
+# ABB: axis 1 about +z; axes 2, 3, 5 about +y (forward / down); axes 4, 6 about the outward forearm axis
+_ABB_SIGNS = [1, 1, 1, 1, 1, 1]
 _ABB_OFFSETS = [0.0, 0.0, math.pi / 2, 0.0, 0.0, 0.0]  # ABB's zero: upper arm vertical, forearm horizontal
 
 PRESETS: dict[str, dict] = {
     "abb-irb2400-10": dict(
-        a1=100.0, a2=-135.0, b=0.0, c1=615.0, c2=705.0, c3=755.0, c4=85.0,
-        offsets=_ABB_OFFSETS, signs=_ABB_SIGNS,
+        a1=100.0,
+        a2=-135.0,
+        b=0.0,
+        c1=615.0,
+        c2=705.0,
+        c3=755.0,
+        c4=85.0,
+        offsets=_ABB_OFFSETS,
+        signs=_ABB_SIGNS,
         lower=_deg([-180, -100, -60, -200, -120, -400]),
         upper=_deg([180, 110, 65, 200, 120, 400]),
         max_speed=_deg([150, 150, 150, 360, 360, 450]),
@@ -453,8 +469,15 @@ PRESETS: dict[str, dict] = {
         ),
     ),
     "abb-irb4600-60-205": dict(
-        a1=175.0, a2=-175.0, b=0.0, c1=495.0, c2=900.0, c3=960.0, c4=135.0,
-        offsets=_ABB_OFFSETS, signs=_ABB_SIGNS,
+        a1=175.0,
+        a2=-175.0,
+        b=0.0,
+        c1=495.0,
+        c2=900.0,
+        c3=960.0,
+        c4=135.0,
+        offsets=_ABB_OFFSETS,
+        signs=_ABB_SIGNS,
         lower=_deg([-180, -90, -180, -400, -125, -400]),
         upper=_deg([180, 150, 75, 400, 120, 400]),
         max_speed=_deg([175, 175, 175, 250, 250, 360]),
@@ -468,10 +491,17 @@ PRESETS: dict[str, dict] = {
         ),
     ),
     "kuka-kr6-r700-sixx": dict(
-        a1=25.0, a2=-35.0, b=0.0, c1=400.0, c2=315.0, c3=365.0, c4=80.0,
+        a1=25.0,
+        a2=-35.0,
+        b=0.0,
+        c1=400.0,
+        c2=315.0,
+        c3=365.0,
+        c4=80.0,
         # KUKA: A1 turns about -z, A4 and A6 about the inward forearm axis; A2's zero is the upper arm
         # horizontal (A2 = -90 deg stands it up), A3's zero the forearm in line with it
-        offsets=[0.0, math.pi / 2, 0.0, 0.0, 0.0, 0.0], signs=[-1, 1, 1, -1, 1, -1],
+        offsets=[0.0, math.pi / 2, 0.0, 0.0, 0.0, 0.0],
+        signs=[-1, 1, 1, -1, 1, -1],
         lower=_deg([-170, -190, -120, -185, -120, -350]),
         upper=_deg([170, 45, 156, 185, 120, 350]),
         max_speed=_deg([360, 300, 360, 381, 388, 615]),
