@@ -59,8 +59,9 @@ Given the flange pose ``R, p`` in the base frame:
    ``Ry(pi) Rz(theta6 - theta4)`` when ``theta5 = pi``) fixes only the sum (difference); ``theta4`` is taken as
    the value with ``q4 = 0`` and ``theta6`` from the sum, and the solution is flagged singular.
 5. *Joint values*: ``q = sign * (theta - offset)``, each in ``(-pi, pi]`` and then moved by the fewest whole
-   turns into the joint limits (:func:`~sprayplan.robots.ur_ik.nearest_equivalent`; axes 4 and 6 of most arms
-   turn more than once). A solution is valid when it reaches the pose and every joint fits its limits.
+   turns into the joint limits (axes 4 and 6 of most arms turn more than once; the rule of
+   :func:`~sprayplan.robots.ur_ik.nearest_equivalent` with the joint as its own seed). A solution is valid when
+   it reaches the pose and every joint fits its limits.
 
 Branch index ``4 * shoulder + 2 * wrist + elbow`` (the order of the UR solver's), labels in
 :data:`BRANCH_LABELS`, e.g. 0 ``"shoulder_front/wrist_noflip/elbow_up"``.
@@ -92,7 +93,6 @@ import numpy as np
 
 from sprayplan.checks import check_poses
 from sprayplan.errors import ConfigError, InputError
-from sprayplan.robots.ur_ik import nearest_equivalent
 
 log = logging.getLogger(__name__)
 
@@ -389,50 +389,53 @@ def _solve_chunk(params, poses, tol, reject_singular, q_out, valid_out, reason_o
             t6 = np.where(wrist_free, t6s, t6)
             t5 = np.where(wrist_free, np.where(m33 > 0, 0.0, math.pi), t5)
 
-    # (m, shoulder, elbow, wrist, 6) in the model's angles; wrist_flip: -theta5, theta4 + pi, theta6 + pi
-    theta = np.empty((m, 2, 2, 2, 6))
-    theta[..., 0] = t1[:, :, None, None]
-    theta[..., 1] = t2[..., None]
-    theta[..., 2] = t3[..., None]
-    theta[..., 3] = t4[..., None] + np.array([0.0, math.pi])
-    theta[..., 4] = t5[..., None] * sign
-    theta[..., 5] = t6[..., None] + np.array([0.0, math.pi])
-    theta = theta.transpose(0, 1, 3, 2, 4).reshape(m, 8, 6)  # index 4 * shoulder + 2 * wrist + elbow
-    joints = _wrap(params.signs * (theta - params.offsets))
-    joints = nearest_equivalent(joints, joints, params.lower, params.upper)
+    # each joint as the maker's value, wrapped and turned into its limits at its own smallest shape, then
+    # assembled as (m, shoulder, elbow, wrist); wrist_flip: -theta5, theta4 + pi, theta6 + pi
+    half = np.array([0.0, math.pi])
+    angles = (
+        t1[:, :, None, None],
+        t2[..., None],
+        t3[..., None],
+        t4[..., None] + half,
+        t5[..., None] * sign,
+        t6[..., None] + half,
+    )
+    out = q_out.reshape(m, 2, 2, 2, 6).transpose(0, 1, 3, 2, 4)  # a view: index 4 * shoulder + 2 * wrist + elbow
+    fits = np.ones((m, 2, 2, 2), dtype=bool)
+    code = np.zeros((m, 2, 2, 2), dtype=np.uint8)
+    for j, theta in enumerate(angles):
+        joint = _wrap(params.signs[j] * (theta - params.offsets[j]))
+        k_lo = np.ceil((params.lower[j] - _LIMIT_TOL - joint) * (1.0 / TAU))
+        k_hi = np.floor((params.upper[j] + _LIMIT_TOL - joint) * (1.0 / TAU))
+        fit = k_lo <= k_hi
+        out[..., j] = joint + TAU * np.where(fit, np.clip(0.0, k_lo, k_hi), 0.0)  # the fewest turns
+        code = np.where(fits & ~fit, np.uint8(1 + j), code)  # the first joint that fits no turn
+        fits = fits & fit
 
-    def per_branch(mask_se):  # (m, 2, 2) over shoulder, elbow -> (m, 8)
-        return np.broadcast_to(mask_se[:, :, None, :], (m, 2, 2, 2)).reshape(m, 8)
-
-    reached = per_branch(np.broadcast_to(shoulder_ok[:, None, None] & elbow_ok, (m, 2, 2))) & finite[:, None]
-    wrist_sing = per_branch(wrist_free)
-    shoulder_sing = np.broadcast_to(shoulder_free[:, None], (m, 8))
-    elbow_sing = per_branch(elbow_free)
-    inside = (joints >= params.lower - _LIMIT_TOL) & (joints <= params.upper + _LIMIT_TOL)  # (m, 8, 6)
-    in_limits = inside.all(axis=-1)
-    any_singular = wrist_sing | shoulder_sing | elbow_sing
-    ok = reached & in_limits
+    reached = (shoulder_ok & finite)[:, None, None, None] & elbow_ok[:, :, :, None]
+    singular = shoulder_free[:, None, None, None] | elbow_free[..., None] | wrist_free[..., None]
     if reject_singular:
-        ok = ok & ~any_singular
-
-    reason = np.full((m, 8), "", dtype="<U17")
-    first_out = np.argmin(inside, axis=-1)
-    limit_names = np.array([f"joint {j + 1} limit" for j in range(6)])
-    reason = np.where(reached & ~in_limits, limit_names[first_out], reason)
-    if reject_singular:
-        for mask, text in (
-            (elbow_sing, "elbow singular"),
-            (shoulder_sing, "shoulder singular"),
-            (wrist_sing, "wrist singular"),
+        for mask, value in (
+            (wrist_free[..., None], 9),
+            (shoulder_free[:, None, None, None], 8),
+            (elbow_free[..., None], 7),
         ):
-            reason = np.where(reached & in_limits & mask, text, reason)
-    reason = np.where(reached, reason, "out of reach")
-    reason[~finite] = "non-finite pose"
-
-    q_out[:] = np.where(ok[..., None], joints, 0.0)
+            code = np.where(fits & mask, np.uint8(value), code)
+    code = np.where(reached, code, np.uint8(10))
+    code[~finite] = 11
+    code = code.transpose(0, 1, 3, 2).reshape(m, 8)
+    ok = code == 0
+    q_out[~ok] = 0.0
     valid_out[:] = ok
-    reason_out[:] = reason
-    singular_out[:] = any_singular & reached
+    reason_out[:] = _REASONS[code]
+    singular_out[:] = (np.broadcast_to(singular, (m, 2, 2, 2)) & reached).transpose(0, 1, 3, 2).reshape(m, 8)
+
+
+_REASONS = np.array(
+    ["", *(f"joint {j + 1} limit" for j in range(6)), "elbow singular", "shoulder singular", "wrist singular"]
+    + ["out of reach", "non-finite pose"]
+)
+"""The reasons of :func:`opw_ik` by code (0: valid)."""
 
 
 # ------------------------------------------------------------------------------------------------ presets
