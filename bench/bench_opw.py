@@ -112,7 +112,9 @@ def main(argv=None) -> int:
         f"numpy {np.__version__}; load average {os.getloadavg()[0]:.1f} at the end"
     )
     print(f"Poses: {n:,} per solver, fk of random joints (seed 1); runs interleaved, median of {args.repeat}.\n")
-    print("| solver | median time (s) | poses/s | vs `ur_ik` | valid branches per pose | generating q found | fk error (mm, rad) |")
+    print(
+        "| solver | median time (s) | poses/s | vs `ur_ik` | valid branches per pose | generating q found | fk error (mm, rad) |"
+    )
     print("| --- | ---: | ---: | ---: | ---: | ---: | --- |")
     base = statistics.median(times["`ur_ik` ur5"])
     base_arm = statistics.median(times["`URArm.ik` ur5"])
