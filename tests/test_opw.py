@@ -412,3 +412,92 @@ def test_presets_carry_their_sources_and_speeds():
         params = load_opw(name)
         assert params.source and np.isfinite(params.max_speed).all()
         assert (params.lower < params.upper).all()
+
+
+# ------------------------------------------------------------------------------- TOML files and the CLI
+
+ARM_TOML = """kind = "opw"
+name = "my-2400"
+a1_mm = 100.0
+a2_mm = -135.0
+b_mm = 0.0
+c1_mm = 615.0
+c2_mm = 705.0
+c3_mm = 755.0
+c4_mm = 85.0
+offsets_deg = [0, 0, 90, 0, 0, 0]
+lower_deg = [-180, -100, -60, -200, -120, -400]
+upper_deg = [180, 110, 65, 200, 120, 400]
+"""
+
+
+def test_toml_arm_equals_its_preset(tmp_path):
+    path = tmp_path / "arm.toml"
+    path.write_text(ARM_TOML)
+    from_file, preset = load_opw(path), load_opw("abb-irb2400-10")
+    q = np.random.default_rng(0).uniform(preset.lower, preset.upper, (50, 6))
+    assert np.allclose(opw_fk(from_file, q), opw_fk(preset, q), atol=1e-9)
+    assert np.allclose(from_file.lower, preset.lower) and np.isnan(from_file.max_speed).all()
+    arm = robot_from_name(str(path), "wa101")
+    assert isinstance(arm, OPWArm) and arm.name == "my-2400"
+
+
+@pytest.mark.parametrize(
+    "edit,words",
+    [
+        (lambda t: t.replace('kind = "opw"', 'kind = "dh"'), 'kind = "opw"'),
+        (lambda t: t.replace("c2_mm = 705.0", "c2_mm = -705.0"), "c2"),
+        (lambda t: t.replace("c3_mm = 755.0", 'c3_mm = "755"'), "c3_mm"),
+        (lambda t: t.replace("c4_mm = 85.0\n", ""), "missing key(s) c4_mm"),
+        (lambda t: t + "d7_mm = 3.0\n", "unknown key(s) d7_mm"),
+        (lambda t: t.replace("[0, 0, 90, 0, 0, 0]", "[0, 0, 90]"), "offsets_deg"),
+        (lambda t: t + "signs = [1, 1, 1, 1, 1, 0]\n", "signs"),
+        (lambda t: t.replace("lower_deg = [-180", "lower_deg = [190"), "lower <= upper"),
+        (lambda t: t + "max_speed_deg_s = [1, 1, 1, 1, 1, -1]\n", "max_speed"),
+        (lambda t: t + "a1_mm = \n", "not a readable TOML"),
+    ],
+)
+def test_bad_toml_is_one_line_exit_2_and_no_output(tmp_path, capsys, edit, words):
+    from sprayplan.cli.main import main
+
+    path = tmp_path / "arm.toml"
+    path.write_text(edit(ARM_TOML))
+    joints = tmp_path / "q.csv"
+    joints.write_text("q1,q2,q3,q4,q5,q6\n0,0,0,0,0,0\n")
+    out = tmp_path / "poses.csv"
+    for argv in (["robots", str(path)], ["fk", str(joints), "-o", str(out), "--robot", str(path)]):
+        capsys.readouterr()
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and str(path) in err and words in err, err
+        assert not out.exists()
+
+
+def test_cli_lists_describes_and_solves_opw_arms(tmp_path, capsys):
+    from sprayplan.cli.main import main
+    from sprayplan.io.tables import read_table
+
+    assert main(["robots"]) == 0
+    listing = capsys.readouterr().out
+    assert all(name in listing for name in ROBOT_NAMES)
+    assert main(["robots", "abb-irb4600-60-205"]) == 0
+    text = capsys.readouterr().out
+    assert "c2 900 mm" in text and "175, 175, 175, 250, 250, 360" in text and "source" in text
+    assert main(["robots", "ur5"]) == 0 and "-425" in capsys.readouterr().out
+    assert main(["robots", "irb9999"]) == 2 and "abb-irb2400-10" in capsys.readouterr().err
+
+    params = load_opw("kuka-kr6-r700-sixx")
+    rng = np.random.default_rng(6)
+    q = np.cumsum(rng.normal(0, 0.02, (30, 6)), axis=0) + np.radians([10, -80, 100, 20, 40, -30])
+    joints = tmp_path / "q.csv"
+    joints.write_text("q1,q2,q3,q4,q5,q6\n" + "\n".join(",".join(f"{v:.17g}" for v in row) for row in q) + "\n")
+    poses, solved = tmp_path / "poses.csv", tmp_path / "solved.csv"
+    argv = ["--robot", "kuka-kr6-r700-sixx", "--pose-format", "matrix"]
+    assert main(["fk", str(joints), "-o", str(poses), *argv]) == 0
+    assert main(["ik", str(poses), "-o", str(solved), *argv, "--seed-joints", ",".join(map(str, q[0]))]) == 0
+    back = read_table(solved, [f"q{i + 1}" for i in range(6)])
+    # a smooth trajectory from its own start keeps its branch: the joints come back
+    assert np.abs(back - q).max() < 1e-6
+    assert main(["ik", str(poses), "-o", str(tmp_path / "all.csv"), *argv, "--all"]) == 0
+    table = read_table(tmp_path / "all.csv", ["pose", "branch", *(f"q{i + 1}" for i in range(6))])
+    assert np.allclose(opw_fk(params, table[:, 2:]), opw_fk(params, q[table[:, 0].astype(int) - 1]), atol=1e-5)

@@ -281,7 +281,7 @@ def cmd_paths(args) -> int:
 
 from sprayplan.cli.export import add_export_parser, program_format  # noqa: E402 - robot programs
 from sprayplan.cli.plan import cmd_plan, cmd_simulate  # noqa: E402 - the main job's commands
-from sprayplan.cli.robots import cmd_fk, cmd_ik  # noqa: E402 - the robot commands live in their own module
+from sprayplan.cli.robots import cmd_fk, cmd_ik, cmd_robots  # noqa: E402 - the robot commands, own module
 from sprayplan.cli.view import cmd_view  # noqa: E402
 
 
@@ -399,7 +399,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     paths.set_defaults(func=cmd_paths)
 
-    robots = "ur5, ur5e, ur5-seed, r5150 or a robot .toml"
+    robots = "ur5, ur5e, ur5-seed, r5150, an industrial arm (`sprayplan robots` lists them) or a robot .toml"
+    robots_cmd = sub.add_parser(
+        "robots", parents=[common], help="list the robot presets, or describe one (a name or an OPW arm's .toml)"
+    )
+    robots_cmd.add_argument("robot", nargs="?", help="an industrial arm's name or an OPW arm's .toml file")
+    robots_cmd.set_defaults(func=cmd_robots)
     fk_cmd = sub.add_parser("fk", parents=[common], help="forward kinematics: joints CSV -> poses CSV")
     fk_cmd.add_argument("joints", help="CSV with columns q1..q6 (rad; q1..q5 for r5150)")
     fk_cmd.add_argument("-o", "--output", required=True)

@@ -1,4 +1,4 @@
-"""The robot commands of the command line: ``sprayplan fk`` and ``sprayplan ik`` (see ``cli.main``)."""
+"""The robot commands of the command line: ``sprayplan robots``, ``fk`` and ``ik`` (see ``cli.main``)."""
 
 from __future__ import annotations
 
@@ -34,12 +34,123 @@ def _tool_offset(args, robot):
     return load_gun(args.tool).gun2flange if args.tool else robot.tool2flange
 
 
+def _opw_arm(args):
+    """The OPW arm ``--robot`` names (a preset or a ``kind = "opw"`` TOML file) with ``--tool``, else None."""
+    from sprayplan.robots.interface import robot_from_name
+    from sprayplan.robots.opw import PRESETS, is_opw_file
+
+    if args.robot in PRESETS or is_opw_file(args.robot):
+        return robot_from_name(args.robot, args.tool)
+    return None
+
+
+def cmd_robots(args) -> int:
+    """List the robot presets, or describe one robot (a preset name or an OPW arm's TOML file)."""
+    import math
+
+    from sprayplan.robots.interface import ROBOT_NAMES
+    from sprayplan.robots.opw import LENGTHS, PRESETS, is_opw_file, load_opw
+
+    if args.robot is None:
+        kinds = {"r5150": "5 axes, D-H (seed 001)", "gantry-ur5": "9 axes, gantry + UR5 (seed 000)"}
+        kinds["gantry-ur5e"] = "9 axes, gantry + UR5e"
+        for name in ROBOT_NAMES:
+            if name in PRESETS:
+                params = load_opw(name)
+                kind = f"6 axes, OPW industrial arm, wrist centre up to {params.reach_mm:.0f} mm from axis 2"
+            else:
+                kind = kinds.get(name, "6 axes, UR-type D-H")
+            print(f"{name:20s} {kind}")
+        print('(a robot .toml: a D-H table, or an OPW arm with kind = "opw"; `sprayplan robots NAME` for details)')
+        return 0
+    if args.robot not in ROBOT_NAMES and not args.robot.lower().endswith(".toml"):
+        raise ConfigError(f"robot {args.robot!r} is not known: use one of {', '.join(ROBOT_NAMES)} or a robot .toml")
+    if args.robot not in PRESETS and not is_opw_file(args.robot):
+        return _describe_dh(args.robot)
+    params = load_opw(args.robot, "robot")
+    print(f"{params.name}: OPW arm (6 axes, spherical wrist)")
+    print("  " + ", ".join(f"{key} {getattr(params, key):g} mm" for key in LENGTHS))
+    rows = [
+        ("offsets (deg)", [math.degrees(v) for v in params.offsets]),
+        ("signs", list(params.signs)),
+        ("lower (deg)", [math.degrees(v) for v in params.lower]),
+        ("upper (deg)", [math.degrees(v) for v in params.upper]),
+        ("max speed (deg/s)", [math.degrees(v) for v in params.max_speed]),
+    ]
+    for label, values in rows:
+        shown = ", ".join("not published" if math.isnan(v) else f"{v:g}" for v in values)
+        print(f"  {label:18s} {shown}")
+    print(f"  source: {params.source}")
+    return 0
+
+
+def _describe_dh(name: str) -> int:
+    """Print a D-H robot's table (a preset or a D-H .toml; a gantry's arm)."""
+    import numpy as np
+
+    from sprayplan.robots.model import load_robot
+
+    model = load_robot(name.removeprefix("gantry-"), "robot")
+    print(
+        f"{name}: standard D-H table, {model.dof} axes" + (" (the gantry's arm)" if name.startswith("gantry-") else "")
+    )
+    for label, values in (
+        ("d (mm)", model.d),
+        ("a (mm)", model.a),
+        ("alpha (deg)", np.degrees(model.alpha)),
+        ("lower (deg)", np.degrees(model.lower)),
+        ("upper (deg)", np.degrees(model.upper)),
+    ):
+        print(f"  {label:12s} " + ", ".join(f"{v:g}" for v in values))
+    return 0
+
+
+def _fk_opw(args, arm) -> int:
+    from sprayplan.export.tables import pose_rows
+    from sprayplan.io.tables import POSE_COLUMNS, read_joints
+
+    q = read_joints(args.joints, 6)
+    poses = arm.fk(q)
+    _write_table(args.output, POSE_COLUMNS[args.pose_format], pose_rows(poses, args.pose_format).tolist())
+    print(f"{len(q)} poses of the {'tool ' + args.tool if args.tool else 'flange'} ({arm.name}) -> {args.output}")
+    return 0
+
+
+def _ik_opw(args, arm, poses, seed) -> int:
+    from sprayplan.robots.interface import follow_solutions
+
+    sols = arm.ik(poses)
+    names = [f"q{i + 1}" for i in range(6)]
+    if args.all:
+        rows = [
+            [i + 1, b, *sols.q[i, b], int(sols.singular[i, b])]
+            for i in range(len(poses))
+            for b in range(8)
+            if sols.valid[i, b]
+        ]
+        _write_table(args.output, ["pose", "branch", *names, "singular"], rows)
+        print(f"{len(rows)} solutions for {len(poses)} poses ({arm.name}) -> {args.output}")
+        return 0
+    q, branch = follow_solutions(arm, sols, seed)
+    reasons = sols.pose_reason()
+    rows = [
+        [*(q[i] if branch[i] >= 0 else [None] * 6), int(branch[i] >= 0), int(branch[i]), reasons[i]]
+        for i in range(len(poses))
+    ]
+    _write_table(args.output, [*names, "reachable", "branch", "reason"], rows)
+    print(f"{int((branch >= 0).sum())} of {len(poses)} poses reachable ({arm.name}) -> {args.output}")
+    return 0
+
+
 def cmd_fk(args) -> int:
     from sprayplan.export.tables import pose_rows
     from sprayplan.io.tables import POSE_COLUMNS, read_joints
     from sprayplan.robots.model import fk
 
     _check_files(args, args.joints, "joints")
+    arm = _opw_arm(args)
+    if arm is not None:
+        return _fk_opw(args, arm)
     robot = _robot(args.robot)
     q = read_joints(args.joints, robot.dof)
     poses = robot.base2world @ fk(robot, q) @ _tool_offset(args, robot)
@@ -86,11 +197,14 @@ def cmd_ik(args) -> int:
         platform = np.array(parse_numbers("--platform", args.platform, 3, "'x,y,z' (mm) or auto"))
     if args.robot == "gantry-ur5":
         return _ik_gantry(args, platform)
-    robot = _robot(args.robot)
+    arm = _opw_arm(args)
+    robot = arm if arm is not None else _robot(args.robot)
     seed = None
     if args.seed_joints:
         what = "'" + ",".join(f"q{i + 1}" for i in range(robot.dof)) + "' (rad)"
         seed = np.array(parse_numbers("--seed-joints", args.seed_joints, robot.dof, what))
+    if arm is not None:
+        return _ik_opw(args, arm, read_poses(args.poses, args.pose_format), seed)
     poses = np.linalg.inv(robot.base2world) @ read_poses(args.poses, args.pose_format)
     poses = poses @ np.linalg.inv(_tool_offset(args, robot))
     names = [f"q{i + 1}" for i in range(robot.dof)]

@@ -56,7 +56,7 @@ from sprayplan.errors import ConfigError, InputError
 from sprayplan.robots.gantry import GANTRY_ARMS, Gantry, build_gantry, load_gun
 from sprayplan.robots.model import TAU, RobotModel, fk, load_robot
 from sprayplan.robots.opw import PRESETS as OPW_PRESETS
-from sprayplan.robots.opw import OPWParameters, load_opw, opw_fk, opw_ik
+from sprayplan.robots.opw import OPWParameters, is_opw_file, load_opw, opw_fk, opw_ik
 from sprayplan.robots.r5150 import r5150_ik, r5150_pitch_roll
 from sprayplan.robots.ur_ik import BRANCH_LABELS, check_ur_model, nearest_equivalent, ur_ik
 
@@ -218,6 +218,32 @@ def nearest_turns(robot: Robot, q, seed) -> np.ndarray:
     limits = robot.joint_limits
     turned = nearest_equivalent(q, seed, limits[:, 0], limits[:, 1])
     return np.where(robot.linear_axes, np.broadcast_to(q, turned.shape), turned)
+
+
+def follow_solutions(robot: Robot, sols: IKSolutions, seed=None) -> tuple[np.ndarray, np.ndarray]:
+    """One solution per pose along a trajectory: the valid one nearest the previous chosen joints.
+
+    Each solution's revolute joints are first moved by whole turns within the limits towards the previous
+    joints (:func:`nearest_turns`); the first pose is compared with ``seed`` (default zeros). Unreachable poses
+    are skipped (the next pose is compared with the last reachable one).
+
+    Returns
+    -------
+    q : (n, dof) float
+        The chosen joints, 0 where no solution is valid.
+    branch : (n,) int
+        The chosen solution's index, -1 where none is valid.
+    """
+    n, _k, dof = sols.q.shape
+    prev = np.zeros(dof) if seed is None else _joints(seed, dof)[0]
+    q = np.zeros((n, dof))
+    branch = np.full(n, -1)
+    for i in np.flatnonzero(sols.reachable):
+        turned = nearest_turns(robot, sols.q[i], prev)
+        dist = np.where(sols.valid[i], ((turned - prev) ** 2).sum(axis=1), np.inf)
+        branch[i] = int(np.argmin(dist))
+        prev = q[i] = turned[branch[i]]
+    return q, branch
 
 
 def _ur_solutions(model: RobotModel, flange2base: np.ndarray) -> IKSolutions:
@@ -573,7 +599,9 @@ def robot_from_name(name: str, tool: str | None = None) -> Robot:
     """The robot called ``name`` (one of :data:`ROBOT_NAMES`) with the gun preset ``tool`` as its TCP.
 
     The industrial arms (``abb-irb2400-10``, ``abb-irb4600-60-205``, ``kuka-kr6-r700-sixx``) are
-    :class:`OPWArm` of the presets in :data:`sprayplan.robots.opw.PRESETS`.
+    :class:`OPWArm` of the presets in :data:`sprayplan.robots.opw.PRESETS`. A ``.toml`` path is an OPW arm
+    when the file says ``kind = "opw"`` (:func:`sprayplan.robots.opw.load_opw`), else a UR-type D-H table
+    (:func:`sprayplan.robots.model.load_robot`).
 
     ``tool`` is a gun of :data:`sprayplan.robots.gantry.GUNS`: for an arm, ``None`` is the bare flange; for a
     gantry, ``None`` is seed 000's ``wa101``; the R5150's TCP is its tool tip, so it takes only ``None`` or
@@ -583,9 +611,12 @@ def robot_from_name(name: str, tool: str | None = None) -> Robot:
     ------
     ConfigError
         An unknown name (the message lists the known ones) or tool, or a gun on the R5150.
+    PartFileError
+        A robot file that is missing or broken.
     """
-    if name not in ROBOT_NAMES:
-        raise ConfigError(f"unknown robot {name!r}: use one of {', '.join(ROBOT_NAMES)}")
+    is_file = str(name).lower().endswith(".toml")
+    if name not in ROBOT_NAMES and not is_file:
+        raise ConfigError(f"unknown robot {name!r}: use one of {', '.join(ROBOT_NAMES)} or a robot .toml file")
     if name == "r5150":
         if tool not in (None, "none"):
             raise ConfigError(f"robot r5150 takes no --tool (its TCP is the seed's tool tip), got {tool!r}")
@@ -595,6 +626,6 @@ def robot_from_name(name: str, tool: str | None = None) -> Robot:
         assert arm in GANTRY_ARMS
         return GantryRobot(build_gantry(arm, tool or "wa101"), name=name)
     tcp = None if tool is None else load_gun(tool).gun2flange
-    if name in OPW_PRESETS:
+    if name in OPW_PRESETS or (is_file and is_opw_file(name)):
         return OPWArm(load_opw(name), tcp2flange=tcp)
     return URArm(load_robot(name), tcp2flange=tcp)

@@ -208,6 +208,17 @@ PRESETS = {
 }
 
 
+def read_robot_toml(path: str | os.PathLike) -> dict:
+    """A robot TOML file's table; a missing, unreadable or broken file is a one-line ``PartFileError``."""
+    check_input_file(path)
+    try:
+        return tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise PartFileError(path, "no such file") from None
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise PartFileError(path, f"not a readable TOML file ({exc})") from None
+
+
 def load_robot(name_or_path: str | os.PathLike, setting: str = "robot") -> RobotModel:
     """A robot model from a preset name (``ur5``, ``ur5-seed``, ``ur5e``, ``r5150``) or a TOML file.
 
@@ -232,13 +243,7 @@ def load_robot(name_or_path: str | os.PathLike, setting: str = "robot") -> Robot
     path = Path(key)
     if path.suffix.lower() != ".toml":
         raise ConfigError(f"{setting} {key!r} is not a known robot: use one of {', '.join(PRESETS)} or a .toml file")
-    check_input_file(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise PartFileError(key, "no such file") from None
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise PartFileError(key, f"not a readable TOML file ({exc})") from None
+    data = read_robot_toml(path)
     known = {"name", "d_mm", "a_mm", "alpha_deg", "theta_offset_deg", "lower_deg", "upper_deg"}
     known |= {"base_xyz_mm", "base_rpy_deg", "tool_xyz_mm", "tool_rpy_deg"}
     unknown = sorted(set(data) - known)

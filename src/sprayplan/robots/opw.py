@@ -87,12 +87,15 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from sprayplan.checks import check_poses
-from sprayplan.errors import ConfigError, InputError
+from sprayplan.errors import ConfigError, InputError, PartFileError
+from sprayplan.robots.model import read_robot_toml
 
 log = logging.getLogger(__name__)
 
@@ -512,7 +515,7 @@ PRESETS: dict[str, dict] = {
             "KUKA Specification KR AGILUS sixx (KR 6 R700 sixx): dimension drawing (A2 400 mm above the base and "
             "25 mm forward of A1, link arm 315 mm, A4 35 mm above A3, A3 to the wrist centre 365 mm, wrist "
             "centre to the flange 80 mm), axis data (A1 +-170, A2 +45/-190, A3 +156/-120, A4 +-185, A5 +-120, "
-            "A6 +-350 deg; speeds 360, 300, 360, 381, 388, 615 deg/s, rated payload); as restated in "
+            "A6 +-350 deg; speeds 360, 300, 360, 381, 388, 615 deg/s); as restated in "
             "ROS-Industrial kuka_kr6_support (kr6r700sixx_macro.xacro)"
         ),
     ),
@@ -520,8 +523,100 @@ PRESETS: dict[str, dict] = {
 """The OPW arms known by name: the lengths (mm), offsets, signs, limits (rad) and speeds (rad/s) with sources."""
 
 
-def load_opw(name: str) -> OPWParameters:
-    """The preset ``name`` of :data:`PRESETS` (a ``ConfigError`` listing them for an unknown name)."""
-    if name not in PRESETS:
-        raise ConfigError(f"unknown OPW arm {name!r}: use one of {', '.join(PRESETS)}")
-    return OPWParameters(name=name, **PRESETS[name])
+TOML_KEYS = {
+    "kind": 'must be "opw"',
+    "name": "the arm's name (default: the file's stem)",
+    **{f"{key}_mm": "mm" for key in LENGTHS},
+    "offsets_deg": "6 numbers: theta = sign * q + offset (default 0)",
+    "signs": "6 numbers, each 1 or -1 (default 1)",
+    "lower_deg": "6 numbers, joint limits (default -360)",
+    "upper_deg": "6 numbers, joint limits (default 360)",
+    "max_speed_deg_s": "6 numbers, axis speeds (default unknown)",
+    "source": "where the numbers come from",
+}
+"""The keys of an OPW arm's TOML file (:func:`load_opw`) and what each takes."""
+
+
+def load_opw(name_or_path: str | os.PathLike, setting: str = "robot") -> OPWParameters:
+    """An OPW arm: a preset of :data:`PRESETS` by name, or a TOML file with ``kind = "opw"`` (keys :data:`TOML_KEYS`).
+
+    Example file::
+
+        kind = "opw"
+        name = "my-arm"
+        a1_mm = 100.0
+        a2_mm = -135.0
+        b_mm = 0.0
+        c1_mm = 615.0
+        c2_mm = 705.0
+        c3_mm = 755.0
+        c4_mm = 85.0
+        offsets_deg = [0, 0, 90, 0, 0, 0]
+        lower_deg = [-180, -100, -60, -200, -120, -400]
+        upper_deg = [180, 110, 65, 200, 120, 400]
+
+    Raises
+    ------
+    ConfigError
+        An unknown name (the message lists the presets), first naming ``setting``.
+    PartFileError
+        A file that is missing, not TOML, has an unknown or missing key, or a bad value (one line naming the
+        file and the key).
+    """
+    key = os.fspath(name_or_path)
+    if key in PRESETS:
+        return OPWParameters(name=key, **PRESETS[key])
+    path = Path(key)
+    if path.suffix.lower() != ".toml":
+        raise ConfigError(f"{setting} {key!r} is not a known OPW arm: use one of {', '.join(PRESETS)} or a .toml file")
+    data = read_robot_toml(path)
+    if data.get("kind") != "opw":
+        raise PartFileError(key, f'not an OPW arm: kind = "opw" is required, got {data.get("kind")!r}')
+    unknown = sorted(set(data) - set(TOML_KEYS))
+    if unknown:
+        raise PartFileError(key, f"unknown key(s) {', '.join(unknown)}; known: {', '.join(TOML_KEYS)}")
+    missing = [f"{k}_mm" for k in LENGTHS if f"{k}_mm" not in data]
+    if missing:
+        raise PartFileError(key, f"missing key(s) {', '.join(missing)}")
+
+    def angles(name: str, scale: float = 1.0):
+        if name not in data:
+            return None
+        values = data[name]
+        if not isinstance(values, list) or len(values) != 6 or not all(_is_number(v) for v in values):
+            raise PartFileError(key, f"{name} must be a list of 6 numbers, got {values!r}")
+        return [math.radians(v) * scale for v in values]
+
+    for length in LENGTHS:
+        if not _is_number(data[f"{length}_mm"]):
+            raise PartFileError(key, f"{length}_mm must be a number (mm), got {data[f'{length}_mm']!r}")
+    signs = data.get("signs")
+    if signs is not None and (not isinstance(signs, list) or not all(_is_number(v) for v in signs)):
+        raise PartFileError(key, f"signs must be a list of 6 numbers, each 1 or -1, got {signs!r}")
+    try:
+        return OPWParameters(
+            name=str(data.get("name", path.stem)),
+            **{length: float(data[f"{length}_mm"]) for length in LENGTHS},
+            offsets=angles("offsets_deg"),
+            signs=signs,
+            lower=angles("lower_deg"),
+            upper=angles("upper_deg"),
+            max_speed=angles("max_speed_deg_s"),
+            source=str(data.get("source", key)),
+        )
+    except ConfigError as exc:
+        raise PartFileError(key, str(exc)) from None
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def is_opw_file(name_or_path: str | os.PathLike) -> bool:
+    """True when ``name_or_path`` is a ``.toml`` file meant as an OPW arm: it has a ``kind`` key (a D-H table has
+    none) or an OPW length (``c2_mm``, ...); :func:`load_opw` then checks it. A broken file raises."""
+    key = os.fspath(name_or_path)
+    if not key.lower().endswith(".toml"):
+        return False
+    data = read_robot_toml(Path(key))
+    return "kind" in data or any(f"{length}_mm" in data for length in LENGTHS)
