@@ -116,21 +116,22 @@ def _fk_opw(args, arm) -> int:
     return 0
 
 
+def _write_all(args, robot_name: str, q, valid, singular, singular_column: str) -> int:
+    """``ik --all``: one row per valid solution, columns pose, branch, q1..q6 and the singular flag."""
+    n, k, dof = q.shape
+    rows = [[i + 1, b, *q[i, b], int(singular[i, b])] for i in range(n) for b in range(k) if valid[i, b]]
+    _write_table(args.output, ["pose", "branch", *(f"q{j + 1}" for j in range(dof)), singular_column], rows)
+    print(f"{len(rows)} solutions for {n} poses ({robot_name}) -> {args.output}")
+    return 0
+
+
 def _ik_opw(args, arm, poses, seed) -> int:
     from sprayplan.robots.interface import follow_solutions
 
     sols = arm.ik(poses)
     names = [f"q{i + 1}" for i in range(6)]
     if args.all:
-        rows = [
-            [i + 1, b, *sols.q[i, b], int(sols.singular[i, b])]
-            for i in range(len(poses))
-            for b in range(8)
-            if sols.valid[i, b]
-        ]
-        _write_table(args.output, ["pose", "branch", *names, "singular"], rows)
-        print(f"{len(rows)} solutions for {len(poses)} poses ({arm.name}) -> {args.output}")
-        return 0
+        return _write_all(args, arm.name, sols.q, sols.valid, sols.singular, "singular")
     q, branch = follow_solutions(arm, sols, seed)
     reasons = sols.pose_reason()
     rows = [
@@ -218,15 +219,7 @@ def cmd_ik(args) -> int:
 
     if args.all:
         solutions = ur_ik(robot, poses)
-        rows = [
-            [i + 1, b, *solutions.q[i, b], int(solutions.wrist_singular[i, b])]
-            for i in range(len(poses))
-            for b in range(8)
-            if solutions.valid[i, b]
-        ]
-        _write_table(args.output, ["pose", "branch", *names, "wrist_singular"], rows)
-        print(f"{len(rows)} solutions for {len(poses)} poses ({robot.name}) -> {args.output}")
-        return 0
+        return _write_all(args, robot.name, solutions.q, solutions.valid, solutions.wrist_singular, "wrist_singular")
     path = ik_path(robot, poses, seed_q=seed)
     rows = [
         [

@@ -93,9 +93,9 @@ from pathlib import Path
 
 import numpy as np
 
-from sprayplan.checks import check_poses
 from sprayplan.errors import ConfigError, InputError, PartFileError
 from sprayplan.robots.model import read_robot_toml
+from sprayplan.robots.ur_ik import check_flange_poses
 
 log = logging.getLogger(__name__)
 
@@ -309,12 +309,7 @@ def opw_ik(
     -----
     O(n), solved in chunks of 8192 poses; about 30 transcendental evaluations per pose.
     """
-    poses = np.asarray(flange2base, dtype=float)
-    if poses.shape == (4, 4):
-        poses = poses[None]
-    if poses.ndim != 3 or poses.shape[1:] != (4, 4):
-        raise InputError(f"flange2base must be (4, 4) or (n, 4, 4), got shape {poses.shape}")
-    check_poses(poses, "flange2base", allow_nan=True)
+    poses = check_flange_poses(flange2base)
     if not (singular_tol >= 0 and math.isfinite(singular_tol)):
         raise ConfigError(f"singular_tol must be a non-negative number, got {singular_tol}")
     n = len(poses)

@@ -150,7 +150,9 @@ def check_ur_model(model: RobotModel) -> None:
         raise ConfigError(f"robot {model.name} is not a UR-type arm: {'; '.join(problems)}")
 
 
-def _check_poses(flange2base) -> np.ndarray:
+def check_flange_poses(flange2base) -> np.ndarray:
+    """Flange poses as float ``(n, 4, 4)``: a wrong shape or a finite row that is not a rigid motion raises
+    (``InputError`` naming the row); rows holding NaN or inf are kept (the solvers' unreachable rows)."""
     poses = np.asarray(flange2base, dtype=float)
     if poses.shape == (4, 4):
         poses = poses[None]
@@ -237,7 +239,7 @@ def ur_ik(model: RobotModel, flange2base, *, q6_desired=0.0, singular_tol: float
     temporaries stay small and in cache (the result itself takes 400 bytes per pose).
     """
     check_ur_model(model)
-    poses = _check_poses(flange2base)
+    poses = check_flange_poses(flange2base)
     n = len(poses)
     q6d = np.asarray(q6_desired, dtype=float)
     if q6d.ndim > 1 or (q6d.ndim == 1 and len(q6d) != n):
@@ -453,7 +455,7 @@ def ik_path(
     15 us per waypoint (some 1.5 s for 100,000 waypoints), after one vectorised :func:`ur_ik` call. A singular
     waypoint with the default ``q6_desired`` is solved again on its own with the previous ``q6``.
     """
-    poses = _check_poses(flange2base)
+    poses = check_flange_poses(flange2base)
     n = len(poses)
     seed = _check_vector(seed_q, "seed_q", 0.0)
     w = _check_vector(weights, "weights", 1.0)
