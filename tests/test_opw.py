@@ -183,6 +183,21 @@ def test_wrist_singular_pose_is_flagged_and_exact_or_rejected(name):
     assert (strict.q[~strict.valid] == 0).all()
 
 
+@pytest.mark.parametrize("name", [*NAMES, "random2"])
+def test_nearly_straight_wrists_stay_exact(name):
+    """Close to a singular wrist theta4 and theta6 are each ill conditioned; the pose must still come back."""
+    params = wide(geometry(name))
+    rng = np.random.default_rng(12)
+    q = rng.uniform(-math.pi, math.pi, (400, 6))
+    theta5 = np.array([1e-3, 1e-5, 1e-7, 3e-9, 1e-12, 0.0, math.pi - 1e-7, math.pi - 1e-12])
+    q[:, 4] = (np.resize(theta5, 400) * rng.choice([-1, 1], 400) - params.offsets[4]) * params.signs[4]
+    poses = opw_fk(params, q)
+    sols = opw_ik(params, poses)
+    assert sols.valid.any(axis=1).all()
+    rows, cols = np.nonzero(sols.valid)
+    assert_same_poses(opw_fk(params, sols.q[rows, cols]), poses[rows])
+
+
 def test_shoulder_singular_pose_is_flagged_or_rejected():
     params = wide(load_opw("abb-irb2400-10"))  # b = 0: the wrist centre on axis 1 leaves q1 free
     pose = np.eye(4)

@@ -54,10 +54,14 @@ Given the flange pose ``R, p`` in the base frame:
    ``(cos theta4 sin theta5, sin theta4 sin theta5, cos theta5)`` and third row ``(-sin theta5 cos theta6,
    sin theta5 sin theta6, cos theta5)``. So ``theta5 = atan2(+-hypot(m13, m23), m33)``; *wrist_noflip* takes
    ``theta5 >= 0`` with ``theta4 = atan2(m23, m13)``, ``theta6 = atan2(m32, -m31)``; *wrist_flip* is the same
-   rotation with ``theta5`` negated and ``theta4``, ``theta6`` each turned by pi. Where ``hypot(m13, m23)``
-   is at most ``singular_tol`` the wrist is singular (axes 4 and 6 in line): ``M = Rz(theta4 + theta6)`` (or
-   ``Ry(pi) Rz(theta6 - theta4)`` when ``theta5 = pi``) fixes only the sum (difference); ``theta4`` is taken as
-   the value with ``q4 = 0`` and ``theta6`` from the sum, and the solution is flagged singular.
+   rotation with ``theta5`` negated and ``theta4``, ``theta6`` each turned by pi. Near a straight wrist
+   (``|sin theta5|`` small) ``theta4`` and ``theta6`` are each ill conditioned but their sum is not: from the
+   upper-left block, ``m21 - m12 = (1 + cos theta5) sin(theta4 + theta6)`` and ``m11 + m22 = (1 + cos theta5)
+   cos(theta4 + theta6)`` (and ``m21 + m12``, ``m22 - m11`` give the difference, ``(cos theta5 - 1)`` times its
+   sine and minus its cosine, near ``theta5 = pi``), so there ``theta6`` is the sum less ``theta4``, which keeps
+   the pose exact to rounding however close the wrist is to straight. Where ``hypot(m13, m23)`` is at most
+   ``singular_tol`` the wrist is singular (axes 4 and 6 in line, only the sum fixed): ``theta4`` is taken as
+   the value with ``q4 = 0``, ``theta5`` as 0 (or pi) and the solution is flagged singular.
 5. *Joint values*: ``q = sign * (theta - offset)``, each in ``(-pi, pi]`` and then moved by the fewest whole
    turns into the joint limits (axes 4 and 6 of most arms turn more than once; the rule of
    :func:`~sprayplan.robots.ur_ik.nearest_equivalent` with the joint as its own seed). A solution is valid when
@@ -114,6 +118,7 @@ BRANCH_LABELS: tuple[str, ...] = tuple(
 _CHUNK = 8192  # poses solved at once, so the temporaries stay small
 _ACOS_TOL = 1e-10  # how far beyond +-1 a cosine may be (rounding) before a branch is out of reach
 _LIMIT_TOL = 1e-9  # rad of slack on the joint limits
+_NEAR_STRAIGHT = 1e-3  # below this |sin theta5|, theta6 comes from the sum (difference) of theta4 and theta6
 
 
 def _vector(values, name: str, fill: float | None = None) -> np.ndarray:
@@ -379,13 +384,14 @@ def _solve_chunk(params, poses, tol, reject_singular, q_out, valid_out, reason_o
         t5 = np.arctan2(h, m33)
         t4 = np.arctan2(m23, m13)
         t6 = np.arctan2(m32, -m31)
-        if wrist_free.any():  # axes 4 and 6 in line: theta4 at q4 = 0, theta6 from their sum (difference)
-            m11, m21 = dot(x_c, 0), dot(y_c, 0)
-            t4s = np.full(t4.shape, params.offsets[3])
-            t6s = np.where(m33 > 0, np.arctan2(m21, m11) - t4s, t4s - np.arctan2(-m21, -m11))
-            t4 = np.where(wrist_free, t4s, t4)
-            t6 = np.where(wrist_free, t6s, t6)
-            t5 = np.where(wrist_free, np.where(m33 > 0, 0.0, math.pi), t5)
+        near = h < _NEAR_STRAIGHT
+        if near.any():  # theta6 from the sum (difference) with theta4; at a singular wrist theta4 at q4 = 0
+            m11, m12, m21, m22 = dot(x_c, 0), dot(x_c, 1), dot(y_c, 0), dot(y_c, 1)
+            t4 = np.where(wrist_free, params.offsets[3], t4)
+            total = np.arctan2(m21 - m12, m11 + m22)  # theta4 + theta6, well conditioned for cos theta5 > -1
+            difference = np.arctan2(-(m21 + m12), m22 - m11)  # theta4 - theta6, for cos theta5 < 1
+            t6 = np.where(near, np.where(m33 >= 0, total - t4, t4 - difference), t6)
+            t5 = np.where(wrist_free, np.where(m33 >= 0, 0.0, math.pi), t5)
 
     # each joint as the maker's value, wrapped and turned into its limits at its own smallest shape, then
     # assembled as (m, shoulder, elbow, wrist); wrist_flip: -theta5, theta4 + pi, theta6 + pi
