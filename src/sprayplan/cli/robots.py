@@ -22,8 +22,12 @@ def _write_table(path, header, rows) -> None:
 
 
 def _robot(name: str):
-    from sprayplan.robots.model import load_robot
+    from sprayplan.robots.model import PRESETS, load_robot
+    from sprayplan.robots.opw import PRESETS as OPW_PRESETS
 
+    if name not in PRESETS and name != "gantry-ur5" and not name.lower().endswith(".toml"):
+        known = ", ".join([*PRESETS, "gantry-ur5", *OPW_PRESETS])
+        raise ConfigError(f"--robot {name!r} is not a known robot: use one of {known} or a robot .toml file")
     return load_robot("ur5" if name == "gantry-ur5" else name, "--robot")
 
 
