@@ -516,3 +516,19 @@ def test_cli_lists_describes_and_solves_opw_arms(tmp_path, capsys):
     assert main(["ik", str(poses), "-o", str(tmp_path / "all.csv"), *argv, "--all"]) == 0
     table = read_table(tmp_path / "all.csv", ["pose", "branch", *(f"q{i + 1}" for i in range(6))])
     assert np.allclose(opw_fk(params, table[:, 2:]), opw_fk(params, q[table[:, 0].astype(int) - 1]), atol=1e-5)
+
+
+@pytest.mark.parametrize("name", ["ur5", "abb-irb4600-60-205"])
+def test_follow_solutions_keeps_a_smooth_trajectory(name):
+    from sprayplan.robots.interface import follow_solutions
+
+    robot = robot_from_name(name)
+    rng = np.random.default_rng(3)
+    start = np.radians([20, 30, -20, 40, 50, 10]) if name != "ur5" else np.array([0.4, -1.3, 1.7, -1.9, -1.4, 0.6])
+    q = np.cumsum(rng.normal(0, 0.01, (200, 6)), axis=0) + start
+    poses = robot.fk(q)
+    poses[50] = np.nan  # an unreachable waypoint is skipped, the next one follows the last reachable
+    chosen, branch = follow_solutions(robot, robot.ik(poses), q[0])
+    keep = np.arange(200) != 50
+    assert branch[50] == -1 and (chosen[50] == 0).all() and (branch[keep] >= 0).all()
+    assert np.abs(chosen[keep] - q[keep]).max() < 1e-7
