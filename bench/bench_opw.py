@@ -95,13 +95,15 @@ def main(argv=None) -> int:
         cases[f"`{kind}.ik` {name}"] = (robot.ik, robot.fk, q, poses)
 
     times = {label: [] for label in cases}
+    cpu = {label: [] for label in cases}
     results = {}
     for _ in range(args.repeat):
         for label, (solve, _fk, _q, poses) in cases.items():
             results[label] = None  # free the previous result first
-            start = time.perf_counter()
+            start, start_cpu = time.perf_counter(), time.process_time()
             results[label] = solve(poses)
             times[label].append(time.perf_counter() - start)
+            cpu[label].append(time.process_time() - start_cpu)
     checks = {label: check(c[1], c[2], c[3], results[label].q, results[label].valid) for label, c in cases.items()}
 
     print("# OPW inverse kinematics\n")
@@ -113,23 +115,30 @@ def main(argv=None) -> int:
     )
     print(f"Poses: {n:,} per solver, fk of random joints (seed 1); runs interleaved, median of {args.repeat}.\n")
     print(
-        "| solver | median time (s) | poses/s | vs `ur_ik` | valid branches per pose | generating q found | fk error (mm, rad) |"
+        "| solver | median time (s) | poses/s | vs UR | median CPU time (s) | CPU vs UR | valid branches per pose "
+        "| generating q found | fk error (mm, rad) |"
     )
-    print("| --- | ---: | ---: | ---: | ---: | ---: | --- |")
-    base = statistics.median(times["`ur_ik` ur5"])
-    base_arm = statistics.median(times["`URArm.ik` ur5"])
+    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |")
     for label in cases:
-        median = statistics.median(times[label])
-        ref = base_arm if ".ik`" in label else base
+        ref = "`URArm.ik` ur5" if ".ik`" in label else "`ur_ik` ur5"
+        median, median_cpu = statistics.median(times[label]), statistics.median(cpu[label])
+        ratio = statistics.median(times[ref]) / median
+        ratio_cpu = statistics.median(cpu[ref]) / median_cpu
         c = checks[label]
         print(
-            f"| {label} | {median:.3f} | {n / median:,.0f} | {ref / median:.2f} | {c['valid']:.2f} | "
-            f"{100 * c['found']:.3f} % | {c['pos']:.1e}, {c['rot']:.1e} |"
+            f"| {label} | {median:.3f} | {n / median:,.0f} | {ratio:.2f} | {median_cpu:.3f} | {ratio_cpu:.2f} | "
+            f"{c['valid']:.2f} | {100 * c['found']:.3f} % | {c['pos']:.1e}, {c['rot']:.1e} |"
         )
     print()
-    print("Ratios: poses/s over the UR solver's at the same level (`URArm.ik` for the interface rows).")
+    print(
+        "vs UR: poses/s over the UR solver's at the same level (`ur_ik` for the bare solvers, `URArm.ik` for the "
+        "interface rows); CPU: process time, less disturbed by other work on the machine than the wall clock."
+    )
     for label in cases:
-        print(f"- {label} runs (s): {', '.join(f'{t:.3f}' for t in times[label])}")
+        print(
+            f"- {label} runs (s): {', '.join(f'{t:.3f}' for t in times[label])}; "
+            f"CPU {', '.join(f'{t:.3f}' for t in cpu[label])}"
+        )
     return 0
 
 

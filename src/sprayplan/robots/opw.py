@@ -367,18 +367,23 @@ def _solve_chunk(params, poses, tol, reject_singular, q_out, valid_out, reason_o
         t2 = np.arctan2(u, v) - np.arctan2(k * np.sin(phi), c2 + k * np.cos(phi))
         t23 = t2 + t3
 
-        # step 4: the wrist, M = R0c^T R with R0c = Rz(t1) Ry(t23); (m, 2, 2)
+        # step 4: the wrist, M = R0c^T R = Ry(t23)^T A with A = Rz(t1)^T R: A per shoulder (m, 2, 1), M per
+        # shoulder and elbow (m, 2, 2); row i of A as (a[i][0], a[i][1], a[i][2]), one entry per column of R
         e1, f1 = np.cos(t1)[..., None], np.sin(t1)[..., None]
         e23, f23 = np.cos(t23), np.sin(t23)
-        x_c = (e1 * e23, f1 * e23, -f23)  # R0c's columns, each component (m, 2, 2)
-        y_c = (-f1, e1, 0.0)
-        z_c = (e1 * f23, f1 * f23, e23)
+        r = [[rot[:, i, j][:, None, None] for j in range(3)] for i in range(3)]
+        a0 = [e1 * r[0][j] + f1 * r[1][j] for j in range(3)]
+        a1 = [e1 * r[1][j] - f1 * r[0][j] for j in range(3)]
+        a2 = r[2]
 
-        def dot(axis, col):  # a column of R0c (three components) dotted with column ``col`` of R
-            return sum(axis[i] * rot[:, i, col][:, None, None] for i in range(3))
+        def entry(i, j):  # entry (i, j) of M, 1-based as in the docstring
+            if i == 1:
+                return e23 * a0[j - 1] - f23 * a2[j - 1]
+            if i == 2:
+                return np.broadcast_to(a1[j - 1], e23.shape)
+            return f23 * a0[j - 1] + e23 * a2[j - 1]
 
-        m13, m23, m33 = dot(x_c, 2), dot(y_c, 2), dot(z_c, 2)
-        m31, m32 = dot(z_c, 0), dot(z_c, 1)
+        m13, m23, m33, m31, m32 = entry(1, 3), entry(2, 3), entry(3, 3), entry(3, 1), entry(3, 2)
         h = np.hypot(m13, m23)
         wrist_free = h <= tol
         t5 = np.arctan2(h, m33)
@@ -386,7 +391,7 @@ def _solve_chunk(params, poses, tol, reject_singular, q_out, valid_out, reason_o
         t6 = np.arctan2(m32, -m31)
         near = h < _NEAR_STRAIGHT
         if near.any():  # theta6 from the sum (difference) with theta4; at a singular wrist theta4 at q4 = 0
-            m11, m12, m21, m22 = dot(x_c, 0), dot(x_c, 1), dot(y_c, 0), dot(y_c, 1)
+            m11, m12, m21, m22 = entry(1, 1), entry(1, 2), entry(2, 1), entry(2, 2)
             t4 = np.where(wrist_free, params.offsets[3], t4)
             total = np.arctan2(m21 - m12, m11 + m22)  # theta4 + theta6, well conditioned for cos theta5 > -1
             difference = np.arctan2(-(m21 + m12), m22 - m11)  # theta4 - theta6, for cos theta5 < 1
