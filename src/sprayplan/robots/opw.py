@@ -61,7 +61,8 @@ Given the flange pose ``R, p`` in the base frame:
    sine and minus its cosine, near ``theta5 = pi``), so there ``theta6`` is the sum less ``theta4``, which keeps
    the pose exact to rounding however close the wrist is to straight. Where ``hypot(m13, m23)`` is at most
    ``singular_tol`` the wrist is singular (axes 4 and 6 in line, only the sum fixed): ``theta4`` is taken as
-   the value with ``q4 = 0``, ``theta5`` as 0 (or pi) and the solution is flagged singular.
+   the value with ``q4 = 0`` (a half turn from it on the flipped branch), ``theta5`` as 0 (or pi) and the
+   solution is flagged singular.
 5. *Joint values*: ``q = sign * (theta - offset)``, each in ``(-pi, pi]`` and then moved by the fewest whole
    turns into the joint limits (axes 4 and 6 of most arms turn more than once; the rule of
    :func:`~sprayplan.robots.ur_ik.nearest_equivalent` with the joint as its own seed). A solution is valid when
@@ -83,8 +84,8 @@ specifications as transcribed in ROS-Industrial's robot support packages (``abb_
 ``abb_irb4600_support``, ``kuka_kr6_support``), whose joint origins, axis directions, limits and velocities
 restate them; the makers' PDFs themselves were not at hand to re-read.
 
-The paint robot ABB IRB 5500 is not a preset: its wrist is not spherical in the published drawings (an
-offset, hollow paint wrist), which this solver does not cover, and no dimension table of it was found.
+The paint robot ABB IRB 5500 is not a preset: no dimension table of it was at hand to read the seven lengths
+from, nor a statement that the axes of its hollow paint wrist meet in one point, which this solver needs.
 """
 
 from __future__ import annotations
@@ -473,7 +474,7 @@ PRESETS: dict[str, dict] = {
         upper=_deg([180, 110, 65, 200, 120, 400]),
         max_speed=_deg([150, 150, 150, 360, 360, 450]),
         source=(
-            "ABB Product specification IRB 2400 (3HAC 8857-1), IRB 2400/10: dimension drawing (axis 2 615 mm "
+            "ABB Product specification IRB 2400, IRB 2400/10: dimension drawing (axis 2 615 mm "
             "above the base and 100 mm forward of axis 1, lower arm 705 mm, axis 4 135 mm above axis 3, axis 3 "
             "to the wrist centre 755 mm, wrist centre to the flange 85 mm), working range (axis 1 +-180, axis 2 "
             "+110/-100, axis 3 +65/-60, axis 4 +-200, axis 5 +-120, axis 6 +-400 deg) and axis speeds (150, 150, "
@@ -494,7 +495,7 @@ PRESETS: dict[str, dict] = {
         upper=_deg([180, 150, 75, 400, 120, 400]),
         max_speed=_deg([175, 175, 175, 250, 250, 360]),
         source=(
-            "ABB Product specification IRB 4600 (3HAC032885-001), IRB 4600-60/2.05: dimension drawing (axis 2 "
+            "ABB Product specification IRB 4600, IRB 4600-60/2.05: dimension drawing (axis 2 "
             "495 mm above the base and 175 mm forward of axis 1, lower arm 900 mm, axis 4 175 mm above axis 3, "
             "axis 3 to the wrist centre 960 mm, wrist centre to the flange 135 mm), working range (axis 1 +-180, "
             "axis 2 +150/-90, axis 3 +75/-180, axis 4 +-400, axis 5 +120/-125, axis 6 +-400 deg) and axis speeds "
