@@ -222,6 +222,7 @@ def run_task(task: Task, folder, placed=None) -> dict:
 
     began = time.perf_counter()
     row = {"job_id": task.job_id, "name": task.name, "part": task.part, "settings": dict(task.overrides)}
+    path = task.part
     with PeakMemory() as memory:
         try:
             with _part_file(task) as path:
@@ -232,7 +233,7 @@ def run_task(task: Task, folder, placed=None) -> dict:
                 write_outputs(folder, result, part_file=task.part, placed=placed)
             row |= {"status": OK, "error": ""} | _figures(result, folder)
         except Exception as exc:  # a failed job is a row; the other jobs go on
-            row |= {"status": FAILED, "error": error_text(exc)}
+            row |= {"status": FAILED, "error": error_text(exc).replace(path, task.part)}  # a shipped part by its name
     row |= {"job_time_s": round(time.perf_counter() - began, 3), "peak_memory_mb": round(memory.peak_mb, 1)}
     if row["status"] == OK:
         from sprayplan.export.files import atomic_output
