@@ -264,7 +264,7 @@ def test_a_dask_worker_killed_mid_batch_loses_no_job(batch_file, tmp_path, dask_
     out = tmp_path / "out"
     with Client(address, timeout="30s") as client:
         client.wait_for_workers(2, timeout=60)
-        pids = {addr: info["pid"] for addr, info in client.scheduler_info()["workers"].items()}
+        pids = client.run(os.getpid)
         outcome = {}
         runner = threading.Thread(target=lambda: outcome.setdefault("result", run_batch(read_batch(batch_file), out, client)))
         runner.start()
