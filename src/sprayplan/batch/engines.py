@@ -32,7 +32,12 @@ from sprayplan.batch.task import Task, failed_row, run_task, run_task_remote
 log = logging.getLogger(__name__)
 
 #: Modules the local engine's fork server imports once, so that each job's process starts with them.
-PRELOAD = ["sprayplan.batch.task", "sprayplan.job", "numpy", "scipy.spatial", "scipy.optimize", "trimesh"]
+PRELOAD = [
+    "numpy", "scipy.spatial", "scipy.optimize", "trimesh", "sprayplan.batch.task", "sprayplan.job",
+    "sprayplan.io.load", "sprayplan.surface.region", "sprayplan.paths.planner", "sprayplan.stations.stage",
+    "sprayplan.ordering.stage", "sprayplan.robots.stage", "sprayplan.refine.stage", "sprayplan.coating.stage",
+    "sprayplan.export.summary", "sprayplan.export.job_files", "sprayplan.export.plan_json", "sprayplan.view.html",
+]  # fmt: skip
 #: A local job still running this long past its timeout (it did not reach a progress report) is killed.
 KILL_GRACE_S = 5.0
 #: Parts up to this size (MB) travel with their Dask task by default.
