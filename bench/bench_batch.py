@@ -78,9 +78,9 @@ def main() -> None:
     parser.add_argument("--jobs", type=int, default=20)
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
-    from sprayplan.batch.spec import jobs_from_dict
-
     import tomllib
+
+    from sprayplan.batch.spec import jobs_from_dict
 
     part = meshes_dir() / "tray_bottom_mm_ascii.stl"
     jobs, _ = jobs_from_dict(tomllib.loads(batch_text(part, args.jobs)), part.parent)

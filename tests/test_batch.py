@@ -93,7 +93,8 @@ def _process_toml(settings: dict) -> str:
         section, key = name.split(".")
         tables.setdefault(section, {})[key] = value
     return "".join(
-        f"[{section}]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in keys.items()) for section, keys in tables.items()
+        f"[{section}]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in keys.items())
+        for section, keys in tables.items()
     )
 
 
@@ -213,7 +214,7 @@ def _env() -> dict:
 @pytest.fixture
 def dask_processes(tmp_path):
     """A ``dask scheduler`` and two ``dask worker`` processes on 127.0.0.1 (no nanny: killing one kills the
-    worker), stopped at the end; yields (address, worker processes)."""
+    worker), stopped at the end; yields the scheduler's address."""
     info = tmp_path / "scheduler.json"
     started = []
 
@@ -235,8 +236,9 @@ def dask_processes(tmp_path):
             time.sleep(0.1)
         address = json.loads(info.read_text())["address"]
         common = ["--nthreads", "1", "--no-nanny", "--no-dashboard", "--host", "127.0.0.1"]
-        workers = [start("worker", address, *common) for _ in range(2)]
-        yield address, workers
+        for _ in range(2):
+            start("worker", address, *common)
+        yield address
     finally:
         for process in started[::-1]:
             if process.poll() is None:
@@ -249,8 +251,10 @@ def dask_processes(tmp_path):
                 process.wait()
 
 
-def test_a_scheduler_and_workers_as_separate_processes_give_the_same_summary(local_run, batch_file, tmp_path, dask_processes):
-    address, _ = dask_processes
+def test_a_scheduler_and_workers_as_separate_processes_give_the_same_summary(
+    local_run, batch_file, tmp_path, dask_processes
+):
+    address = dask_processes
     out = tmp_path / "out"
     code = main(["-q", "batch", str(batch_file), "-o", str(out), "--scheduler", address])
     assert code == 1
@@ -260,13 +264,15 @@ def test_a_scheduler_and_workers_as_separate_processes_give_the_same_summary(loc
 def test_a_dask_worker_killed_mid_batch_loses_no_job(batch_file, tmp_path, dask_processes):
     from distributed import Client
 
-    address, workers = dask_processes
+    address = dask_processes
     out = tmp_path / "out"
     with Client(address, timeout="30s") as client:
         client.wait_for_workers(2, timeout=60)
         pids = client.run(os.getpid)
         outcome = {}
-        runner = threading.Thread(target=lambda: outcome.setdefault("result", run_batch(read_batch(batch_file), out, client)))
+        runner = threading.Thread(
+            target=lambda: outcome.setdefault("result", run_batch(read_batch(batch_file), out, client))
+        )
         runner.start()
         victim = None
         for _ in range(600):
@@ -328,7 +334,8 @@ def test_a_stale_temporary_folder_is_not_a_complete_job_and_is_removed(testdata,
     stale = out / f".{job_id}.99999.tmp"
     stale.mkdir(parents=True)
     (stale / "plan.json").write_text("{")
-    (row,) = run_batch(batch, out).rows
+    assert main(["-q", "batch", str(batch.path), "-o", str(out)]) == 0  # every job succeeded
+    (row,) = json.loads((out / "summary.json").read_text())["rows"]
     assert row["status"] == "ok" and not row["reused"]
     assert not stale.exists() and json.loads((out / job_id / "plan.json").read_text())["format"] == "sprayplan.plan"
 
@@ -338,6 +345,28 @@ def test_a_job_past_its_timeout_is_reported(testdata, tmp_path):
     (row,) = run_batch(batch, tmp_path / "out", timeout_s=0.01).rows
     assert row["status"] == "failed" and row["error"].startswith("timed out after 0.01 s")
     assert not (tmp_path / "out" / row["job_id"]).exists()
+
+
+def test_a_local_job_past_its_memory_cap_is_killed_and_reported(testdata, tmp_path):
+    batch = read_batch(_folder(testdata, tmp_path / "in", ONE))
+    (row,) = run_batch(batch, tmp_path / "out", job_memory_mb=1).rows  # a Python process alone is more
+    assert row["status"] == "failed" and row["error"].startswith("out of memory: over job_memory_mb = 1 MB")
+    assert not (tmp_path / "out" / row["job_id"]).exists()
+
+
+def test_progress_off_a_terminal_is_one_line_per_job_with_the_count_and_time():
+    import io
+
+    from sprayplan.cli.batch import BatchProgress
+
+    stream = io.StringIO()
+    show = BatchProgress(tty=False, stream=stream)
+    show(1, 2, {"job_id": "a-1", "status": "ok", "reused": True})
+    show(2, 2, {"job_id": "b-2", "status": "failed"})
+    lines = stream.getvalue().splitlines()
+    assert [line.split(": ", 2)[2] for line in lines] == ["a-1 reused", "b-2 failed"]
+    assert [line.split(" in ")[0] for line in lines] == ["sprayplan: batch 1/2", "sprayplan: batch 2/2"]
+    assert show.failed == 1
 
 
 def test_a_part_deleted_after_the_batch_was_read_is_a_failed_job(testdata, tmp_path):
