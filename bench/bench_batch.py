@@ -38,15 +38,20 @@ def batch_text(part: Path, jobs: int) -> str:
     )
 
 
-def direct_seconds(batch) -> float:
-    """Seconds a job takes run directly (``run_job`` with its outputs, one after another in this process)."""
+def direct_walls(batch, repeat: int) -> list[float]:
+    """Wall seconds of the batch's jobs run directly (``run_job`` with its outputs, one after another in this
+    process, after one warm-up job), ``repeat`` times."""
     from sprayplan.job import run_job
 
-    began = time.perf_counter()
+    walls = []
     with tempfile.TemporaryDirectory() as folder:
-        for job in batch.jobs:
-            run_job(job.part, job.config, outdir=Path(folder) / job.job_id)
-    return (time.perf_counter() - began) / len(batch.jobs)
+        run_job(batch.jobs[0].part, batch.jobs[0].config)
+        for k in range(repeat):
+            began = time.perf_counter()
+            for job in batch.jobs:
+                run_job(job.part, job.config, outdir=Path(folder) / f"{k}" / job.job_id)
+            walls.append(time.perf_counter() - began)
+    return walls
 
 
 def timed(batch, engine: str, workers: int, repeat: int) -> tuple[list[float], float]:
@@ -87,12 +92,15 @@ def main() -> None:
     from sprayplan.batch import Batch
 
     batch = Batch("bench", tuple(jobs))
-    direct = direct_seconds(batch)
+    walls = direct_walls(batch, args.repeat)
+    direct = statistics.median(walls) / args.jobs
     print(f"### Batches: {args.jobs} tray jobs (spacing sweep, no film, no pictures)\n")
-    print(f"`python bench/bench_batch.py --jobs {args.jobs} --repeat {args.repeat}`; direct `run_job`: "
-          f"{direct:.2f} s a job, one after another in one process.\n")  # fmt: skip
+    print(f"`python bench/bench_batch.py --jobs {args.jobs} --repeat {args.repeat}`\n")
     print("| engine | workers | runs (s) | median s | jobs/min | vs local 1 | overhead s/job | peak MB/job |")
     print("|---|---|---|---|---|---|---|---|")
+    runs = ", ".join(f"{w:.1f}" for w in walls)
+    print(f"| direct `run_job` | 1 (this process) | {runs} | {statistics.median(walls):.1f} | "
+          f"{60 / direct:.1f} | | 0 | |", flush=True)  # fmt: skip
     base = None
     for engine in ("local", "dask"):
         for workers in (1, 2):

@@ -27,7 +27,7 @@ import time
 import uuid
 from collections.abc import Iterator
 
-from sprayplan.batch.task import Task, failed_row, run_task, run_task_remote
+from sprayplan.batch.task import Task, failed_row, rss_mb, run_task, run_task_remote
 
 log = logging.getLogger(__name__)
 
@@ -88,14 +88,6 @@ def _child(conn, task: Task, staging: str, placed: str) -> None:
     conn.close()
 
 
-def _child_rss_mb(pid: int) -> float | None:
-    try:
-        with open(f"/proc/{pid}/statm") as handle:
-            return int(handle.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 1e6
-    except (OSError, ValueError, IndexError):
-        return None
-
-
 def _death(exitcode: int | None) -> str:
     if exitcode is not None and exitcode < 0:
         import signal
@@ -143,7 +135,7 @@ def run_local(items, workers: int, job_memory_mb: float | None = None, poll_s: f
                         row = failed_row(task, _death(process.exitcode))
                 else:
                     late = task.timeout_s is not None and time.monotonic() - started > task.timeout_s + KILL_GRACE_S
-                    rss = _child_rss_mb(process.pid) if job_memory_mb else None
+                    rss = rss_mb(process.pid) if job_memory_mb else None
                     if late:
                         row = failed_row(task, f"timed out after {task.timeout_s:g} s (killed)")
                     elif rss is not None and rss > job_memory_mb:

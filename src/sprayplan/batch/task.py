@@ -63,10 +63,11 @@ class JobTimeout(Exception):
     """The job ran past its timeout (raised from its progress hook, between two units of work)."""
 
 
-def _rss_mb() -> float | None:
-    """This process's resident memory in MB (Linux ``/proc/self/statm``), None elsewhere."""
+def rss_mb(pid: int | str = "self") -> float | None:
+    """A process's resident memory in MB (Linux ``/proc/PID/statm``; this one by default), None where it
+    cannot be read (another system, or the process is gone)."""
     try:
-        with open("/proc/self/statm") as handle:
+        with open(f"/proc/{pid}/statm") as handle:
             pages = int(handle.read().split()[1])
     except (OSError, ValueError, IndexError):
         return None
@@ -89,14 +90,14 @@ class PeakMemory:
 
     def _sample(self) -> None:
         while True:
-            now = _rss_mb()
+            now = rss_mb()
             if now is not None:
                 self.peak_mb = max(self.peak_mb, now)
             if self._stop.wait(self.every_s):
                 return
 
     def __enter__(self):
-        if _rss_mb() is None:
+        if rss_mb() is None:
             return self
         self._thread = threading.Thread(target=self._sample, name="sprayplan-peak-memory", daemon=True)
         self._thread.start()
@@ -109,7 +110,7 @@ class PeakMemory:
             return False
         self._stop.set()
         self._thread.join()
-        now = _rss_mb()
+        now = rss_mb()
         self.peak_mb = max(self.peak_mb, now or 0.0)
         return False
 
