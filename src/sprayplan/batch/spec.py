@@ -306,4 +306,6 @@ def read_batch(path) -> Batch:
     for key, value in options.items():
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
             raise PartFileError(name, f"[batch].{key} must be a number > 0, got {value!r}")
+    if "workers" in options and options["workers"] != int(options["workers"]):
+        raise PartFileError(name, f"[batch].workers must be a whole number, got {options['workers']!r}")
     return Batch(os.fspath(path), tuple(jobs), options)
