@@ -4,9 +4,10 @@ The batch: the tray plate (``meshes/tray_bottom_mm_ascii.stl``) with a sweep of 
 (100, 105, ... mm), no pictures, no film: small jobs, so that the engines' overhead shows. Each engine and
 worker count runs the whole batch ``--repeat`` times into a fresh folder (``--force`` is not needed: a new
 folder each time); the table gives the median wall time, jobs per minute, the ratio to the local engine
-with one worker, the overhead per job against running the same jobs one after another in this process
-(``run_job``, no engine: wall time x workers / jobs - direct seconds a job), and the median peak memory of a
-job's process (``peak_memory_mb`` of the rows).
+with one worker, the seconds a job takes inside its worker (``job_time_s`` of the rows, mean), the engine's
+overhead a job (wall time x workers / jobs minus that: starting, shipping, collecting), the difference to
+running the same jobs one after another in this process (``run_job``, no engine), and the median peak
+memory of a job's process (``peak_memory_mb`` of the rows).
 
 Usage::
 
@@ -54,10 +55,12 @@ def direct_walls(batch, repeat: int) -> list[float]:
     return walls
 
 
-def timed(batch, engine: str, workers: int, repeat: int) -> tuple[list[float], float]:
+def timed(batch, engine: str, workers: int, repeat: int) -> tuple[list[float], float, list[float]]:
+    """Wall seconds of each run, the median peak memory of a job, and each run's seconds spent inside the
+    jobs (``job_time_s`` summed)."""
     from sprayplan.batch import run_batch
 
-    walls, memory = [], []
+    walls, memory, inside = [], [], []
     for _ in range(repeat):
         with tempfile.TemporaryDirectory() as folder:
             if engine == "local":
@@ -75,7 +78,8 @@ def timed(batch, engine: str, workers: int, repeat: int) -> tuple[list[float], f
                         walls.append(time.perf_counter() - began)
         assert result.exit_code == 0, [r["error"] for r in result.rows if r["status"] != "ok"]
         memory += [r["peak_memory_mb"] for r in result.rows]
-    return walls, statistics.median(memory)
+        inside.append(sum(r["job_time_s"] for r in result.rows))
+    return walls, statistics.median(memory), inside
 
 
 def main() -> None:
@@ -96,22 +100,25 @@ def main() -> None:
     direct = statistics.median(walls) / args.jobs
     print(f"### Batches: {args.jobs} tray jobs (spacing sweep, no film, no pictures)\n")
     print(f"`python bench/bench_batch.py --jobs {args.jobs} --repeat {args.repeat}`\n")
-    print("| engine | workers | runs (s) | median s | jobs/min | vs local 1 | overhead s/job | peak MB/job |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| engine | workers | runs (s) | median s | jobs/min | vs local 1 | s a job inside | overhead s/job "
+          "| vs direct s/job | peak MB/job |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|---|---|")
     runs = ", ".join(f"{w:.1f}" for w in walls)
     print(f"| direct `run_job` | 1 (this process) | {runs} | {statistics.median(walls):.1f} | "
-          f"{60 / direct:.1f} | | 0 | |", flush=True)  # fmt: skip
+          f"{60 / direct:.1f} | | {direct:.2f} | | | |", flush=True)  # fmt: skip
     base = None
     for engine in ("local", "dask"):
         for workers in (1, 2):
-            walls, memory = timed(batch, engine, workers, args.repeat)
+            walls, memory, inside = timed(batch, engine, workers, args.repeat)
             wall = statistics.median(walls)
             base = base or wall
             rate = 60 * args.jobs / wall
-            overhead = wall * workers / args.jobs - direct
+            k = walls.index(wall)
+            job = inside[k] / args.jobs
+            overhead = wall * workers / args.jobs - job  # the engine's time a job, outside the job itself
             runs = ", ".join(f"{w:.1f}" for w in walls)
-            print(f"| {engine} | {workers} | {runs} | {wall:.1f} | {rate:.1f} | {base / wall:.2f}x | "
-                  f"{overhead:+.2f} | {memory:.0f} |", flush=True)  # fmt: skip
+            print(f"| {engine} | {workers} | {runs} | {wall:.1f} | {rate:.1f} | {base / wall:.2f}x | {job:.2f} | "
+                  f"{overhead:+.2f} | {wall * workers / args.jobs - direct:+.2f} | {memory:.0f} |", flush=True)  # fmt: skip
 
 
 if __name__ == "__main__":
