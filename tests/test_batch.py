@@ -414,7 +414,8 @@ def test_a_bad_batch_file_is_one_line_exit_2_and_nothing_written(case, testdata,
     assert not out.exists()
 
 
-def test_an_unreachable_scheduler_is_one_line_exit_2(testdata, tmp_path, capsys):
+def test_an_unreachable_scheduler_is_one_line_exit_2(testdata, tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr("sprayplan.cli.batch.CONNECT_TIMEOUT_S", 1.0)
     batch = _folder(testdata, tmp_path / "in", ONE)
     out = tmp_path / "out"
     assert main(["batch", str(batch), "-o", str(out), "--scheduler", "tcp://127.0.0.1:9"]) == 2

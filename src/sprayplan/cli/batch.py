@@ -11,6 +11,8 @@ from sprayplan.cli.common import check_count, check_outputs
 from sprayplan.errors import ConfigError
 
 ENGINES = ("local", "dask")
+#: How long ``--scheduler ADDRESS`` may take to answer before it is an error.
+CONNECT_TIMEOUT_S = 10.0
 
 
 def add_batch_parser(sub, common) -> None:
@@ -53,7 +55,7 @@ def dask_client(address: str | None, workers: int | None):
         raise ConfigError("--engine dask: dask is not installed (pip install 'sprayplan[dask]')") from None
     if address is not None:
         try:
-            client = Client(address, timeout="10s")
+            client = Client(address, timeout=f"{CONNECT_TIMEOUT_S}s")
         except (OSError, TimeoutError, ValueError) as exc:
             raise ConfigError(f"--scheduler {address}: cannot connect ({' '.join(str(exc).split())})") from None
         with client:
