@@ -399,13 +399,15 @@ BAD = {
     "duplicate job ids": (ONE, "duplicate job id"),
     "unknown table": ("[nonsense]\nx = 1", "nonsense"),
     "bad engine setting": ("[batch]\nworkers = 1.5", "[batch].workers"),
+    "parts in the defaults": ('[defaults]\nparts = "x.stl"', "defaults.parts"),
 }
 
 
 @pytest.mark.parametrize("case", sorted(BAD))
 def test_a_bad_batch_file_is_one_line_exit_2_and_nothing_written(case, testdata, tmp_path, capsys):
     extra, named = BAD[case]
-    text = ONE + "\n" + extra + "\n" if not extra.startswith(("[nonsense]", "[batch]")) else extra + "\n" + ONE
+    top = extra.startswith("[") and not extra.startswith(("[[", "[job."))  # a top-level table goes first
+    text = f"{extra}\n{ONE}" if top else f"{ONE}\n{extra}\n"
     batch = _folder(testdata, tmp_path / "in", text)
     out = tmp_path / "out"
     assert main(["batch", str(batch), "-o", str(out)]) == 2

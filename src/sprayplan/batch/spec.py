@@ -196,6 +196,12 @@ def _parts(patterns, folder: Path, where: str) -> list[str]:
     return list(dict.fromkeys(found))
 
 
+def _stem(path: str) -> str:
+    """A part file's name without its suffix (and ``.gz``): ``hood.ply.gz`` -> ``hood``."""
+    name = os.path.basename(path)
+    return Path(name[:-3] if name.lower().endswith(".gz") else name).stem
+
+
 def _base_config(table: dict, folder: Path, where: str) -> JobConfig | None:
     path = table.get("config")
     if path is None:
@@ -233,6 +239,10 @@ def jobs_from_dict(data: dict, folder) -> tuple[list[BatchJob], dict]:
     defaults = data.get("defaults", {})
     if not isinstance(defaults, dict):
         raise ConfigError("[defaults] must be a table")
+    misplaced = sorted(set(defaults) & {"parts", "name", "sweep"})
+    if misplaced:
+        where = "[sweep] at the top" if misplaced[0] == "sweep" else "a [[job]]"
+        raise ConfigError(f"defaults.{misplaced[0]}: belongs in {where}, not in [defaults]")
     default_settings = _settings_of(defaults, "defaults")
     default_base = _base_config(defaults, folder, "defaults")
     top_sweep = _sweep_of(data.get("sweep"), "")
@@ -270,7 +280,7 @@ def jobs_from_dict(data: dict, folder) -> tuple[list[BatchJob], dict]:
                 except ConfigError as exc:
                     shown = ", ".join(f"{k} = {v!r}" for k, v in point.items())
                     raise ConfigError(f"{where} (sweep {shown}): {exc}") from None
-                label = readable_name(name or Path(part).name.split(".")[0], point)
+                label = readable_name(name or _stem(part), point)
                 job_id = f"{label}-{job_hash(digest, config)}"
                 if job_id in seen:
                     raise ConfigError(
