@@ -424,3 +424,12 @@ def test_an_unreachable_scheduler_is_one_line_exit_2(testdata, tmp_path, capsys,
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "--scheduler tcp://127.0.0.1:9: cannot connect" in err
     assert not out.exists()
+
+
+def test_the_example_batch_file_reads():
+    batch = read_batch(Path(__file__).resolve().parents[1] / "examples" / "batch.toml")
+    assert len(batch.jobs) == 7 and batch.options == {"timeout_s": 1800}
+    assert sorted({(j.config.paths.spacing_mm, j.config.motion.gun_speed_mm_s) for j in batch.jobs[:6]}) == [
+        (s, v) for s in (40.0, 50.0, 60.0) for v in (300.0, 400.0)
+    ]
+    assert batch.jobs[6].config.load.units == "m" and batch.jobs[6].config.coating.thickness_um == 50
