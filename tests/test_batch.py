@@ -305,7 +305,8 @@ output.report = false
 def test_a_killed_local_job_is_failed_and_leaves_no_folder_a_rerun_would_skip(testdata, tmp_path):
     import multiprocessing
 
-    batch = read_batch(_folder(testdata, tmp_path / "in", ONE))
+    # with its film the job takes seconds: killed one second in, it is in the middle of its work
+    batch = read_batch(_folder(testdata, tmp_path / "in", ONE + "output.simulate = true\n"))
     out = tmp_path / "out"
     outcome = {}
     runner = threading.Thread(target=lambda: outcome.setdefault("result", run_batch(batch, out)))
@@ -313,10 +314,11 @@ def test_a_killed_local_job_is_failed_and_leaves_no_folder_a_rerun_would_skip(te
     child = None
     for _ in range(600):
         child = next((p for p in multiprocessing.active_children() if p.name.startswith("sprayplan-")), None)
-        if child is not None and (out / f".{batch.jobs[0].job_id}.{os.getpid()}.tmp").exists():
+        if child is not None:
             break
         time.sleep(0.05)
     assert child is not None
+    time.sleep(1.0)
     os.kill(child.pid, signal.SIGKILL)
     runner.join(120)
     (row,) = outcome["result"].rows
