@@ -216,16 +216,20 @@ def _programs(state: JobState, progress: Progress) -> JobState:
     )
 
 
-def _write(outdir, state: JobState, progress=None) -> None:
+def write_outputs(outdir, state: JobState, progress=None, part_file=None, placed=None) -> None:
     """The outputs: the job's files and pictures (``progress(done, total)`` while the report is drawn), then
-    its robot programs (OUT/programs/<format>/)."""
+    its robot programs (OUT/programs/<format>/).
+
+    ``part_file``: the part's file as plan.json names it (default: the file the job read); ``placed``: where
+    ``outdir`` will be once moved in (a batch writes each job into a temporary folder first), named by the
+    programs' summary."""
     from sprayplan.export.job_files import write_job
 
-    write_job(outdir, state, progress=progress)
+    write_job(outdir, state, part_file=part_file, progress=progress)
     if state.programs:
         from sprayplan.programs.stage import default_folder, write_built
 
-        plan_file = os.path.abspath(os.path.join(outdir, "plan.json"))
+        plan_file = os.path.abspath(os.path.join(outdir if placed is None else placed, "plan.json"))
         write_built(default_folder(outdir), list(state.programs), state.plan, state.job, plan_file)
 
 
@@ -305,7 +309,7 @@ def run_job(
     if outdir is not None:
 
         def outputs(s: JobState, p: Progress) -> JobState:
-            _write(outdir, s, lambda done, total: p("outputs", done, total))
+            write_outputs(outdir, s, lambda done, total: p("outputs", done, total))
             return s
 
         state = _run_stage(Stage("outputs", outputs), state, progress)

@@ -279,6 +279,7 @@ def cmd_paths(args) -> int:
     return 0
 
 
+from sprayplan.cli.batch import add_batch_parser  # noqa: E402 - batches of jobs
 from sprayplan.cli.export import add_export_parser, program_format  # noqa: E402 - robot programs
 from sprayplan.cli.plan import cmd_plan, cmd_simulate  # noqa: E402 - the main job's commands
 from sprayplan.cli.robots import cmd_fk, cmd_ik, cmd_robots  # noqa: E402 - the robot commands, own module
@@ -504,6 +505,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_view_options(view)
     view.set_defaults(func=cmd_view)
     add_export_parser(sub, common)
+    add_batch_parser(sub, common)
     return parser
 
 
