@@ -17,6 +17,7 @@ from scipy.spatial import cKDTree
 from sprayplan.checks import MAX_REPORT_SAMPLES
 from sprayplan.coating.thickness import CoatingResult
 from sprayplan.errors import ConfigError
+from sprayplan.surface.pairs import unique_pairs
 
 log = logging.getLogger(__name__)
 
@@ -138,7 +139,7 @@ def boundary_distance(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     if not len(faces):
         return np.full(len(points), np.inf)
     edges = np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
-    unique, counts = np.unique(edges, axis=0, return_counts=True)
+    unique, counts = unique_pairs(edges, return_counts=True)
     border = unique[counts == 1]
     if not len(border):
         return np.full(len(points), np.inf)
