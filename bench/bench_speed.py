@@ -10,7 +10,7 @@ and ``bmw-N`` for the painted-area study: the BMW body cut to ``x < N`` mm (the 
 
 Each run is a fresh process (``--child``) that runs ``job.run_job`` with an output folder (plan.json,
 waypoints.csv, film, viewer and report files written) and prints one JSON line: wall seconds of every stage,
-the total, peak resident memory (``resource.getrusage`` maxrss), the load average, and the plan's figures.
+the total, the CPU seconds, peak resident memory (``resource.getrusage`` maxrss), the load average, and the plan's figures.
 With ``--base DIR`` the same runs are made with the sprayplan of another checkout (``DIR/src``), interleaved
 with this one's (this, base, this, base, ...), and the table gives both medians and their ratio.
 
@@ -90,6 +90,7 @@ def child(name: str, profile: str | None) -> None:
         "part": name,
         "wall_s": round(wall, 2),
         "stages_s": result.timings_s,
+        "cpu_s": round(sum(resource.getrusage(resource.RUSAGE_SELF)[:2]), 2),
         "maxrss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
         "load": round(os.getloadavg()[0], 2),
         "stations": totals["stations"],
@@ -139,6 +140,7 @@ def main() -> None:
     parser.add_argument("--parts", default="demo,hull,bmw")
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--base", help="another checkout to compare with (its src/ is used)")
+    parser.add_argument("--new", help="the checkout to measure (default: this one)")
     parser.add_argument("--child", help=argparse.SUPPRESS)
     parser.add_argument("--profile", help="with --child: write a cProfile file")
     parser.add_argument("--json", help="append every run's JSON line to this file")
@@ -146,7 +148,7 @@ def main() -> None:
     if args.child:
         child(args.child, args.profile)
         return
-    builds = {"new": SRC}
+    builds = {"new": Path(args.new).resolve() / "src" if args.new else SRC}
     if args.base:
         builds["base"] = Path(args.base).resolve() / "src"
     for name in args.parts.split(","):
@@ -177,7 +179,11 @@ def table(name: str, runs: dict[str, list[dict]]) -> None:
             base = med("base", stage)
             cells.append(f"{med('new', stage) / base:.2f}" if base > 0.05 else "-")
         print(f"| {stage} | {' | '.join(cells)} |")
-    for key, label in (("wall_s", "wall (process)"), ("maxrss_mb", "peak RSS MB")):
+    for key, label in (
+        ("wall_s", "wall s (whole run)"),
+        ("cpu_s", "CPU s (user + system)"),
+        ("maxrss_mb", "peak RSS MB"),
+    ):
         vals = {b: statistics.median(r[key] for r in runs[b]) for b in builds}
         cells = [f"{vals[b]:.1f}" for b in builds]
         if "base" in runs:
