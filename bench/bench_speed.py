@@ -12,7 +12,8 @@ Each run is a fresh process (``--child``) that runs ``job.run_job`` with an outp
 waypoints.csv, film, viewer and report files written) and prints one JSON line: wall seconds of every stage,
 the total, the CPU seconds, peak resident memory (``resource.getrusage`` maxrss), the load average, and the plan's figures.
 With ``--base DIR`` the same runs are made with the sprayplan of another checkout (``DIR/src``), interleaved
-with this one's (this, base, this, base, ...), and the table gives both medians and their ratio.
+with this one's (this, base, this, base, ...; with ``--together`` each pair at the same time, so that both
+see the same load on a busy machine), and the table gives both medians and their ratio.
 
 Usage::
 
@@ -127,12 +128,20 @@ def plan_digest(plan) -> dict:
     }
 
 
-def run_one(name: str, src: Path) -> dict:
+def start(name: str, src: Path) -> subprocess.Popen:
     env = {**os.environ, "PYTHONPATH": str(src)}
-    out = subprocess.run(
-        [sys.executable, __file__, "--child", name], env=env, check=True, capture_output=True, text=True
+    return subprocess.Popen(
+        [sys.executable, __file__, "--child", name], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     )
-    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def finish(process: subprocess.Popen) -> dict:
+    out, err = process.communicate()
+    if process.returncode:
+        raise SystemExit(
+            f"a benchmark run failed: {err.strip().splitlines()[-1] if err.strip() else process.returncode}"
+        )
+    return json.loads(out.strip().splitlines()[-1])
 
 
 def main() -> None:
@@ -141,6 +150,7 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--base", help="another checkout to compare with (its src/ is used)")
     parser.add_argument("--new", help="the checkout to measure (default: this one)")
+    parser.add_argument("--together", action="store_true", help="run the two builds at the same time")
     parser.add_argument("--child", help=argparse.SUPPRESS)
     parser.add_argument("--profile", help="with --child: write a cProfile file")
     parser.add_argument("--json", help="append every run's JSON line to this file")
@@ -154,8 +164,12 @@ def main() -> None:
     for name in args.parts.split(","):
         runs: dict[str, list[dict]] = {b: [] for b in builds}
         for _ in range(args.repeat):
-            for build, src in builds.items():
-                report = run_one(name, src)
+            if args.together:  # both builds at once: the same load on each
+                started = {build: start(name, src) for build, src in builds.items()}
+                reports = {build: finish(process) for build, process in started.items()}
+            else:  # one after the other, interleaved
+                reports = {build: finish(start(name, src)) for build, src in builds.items()}
+            for build, report in reports.items():
                 report["build"] = build
                 runs[build].append(report)
                 print(json.dumps(report), file=sys.stderr)

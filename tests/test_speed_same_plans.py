@@ -204,3 +204,23 @@ def test_plan_json_is_the_same_text_as_json_dump(tmp_path):
     data = plan_to_dict(result.plan, result.job, totals, None, None)
     expected = json.dumps(data, separators=(",", ":"), allow_nan=False) + "\n"
     assert (tmp_path / "plan.json").read_text(encoding="utf-8") == expected
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.integers(-3, 3), st.integers(-3, 3), st.integers(-3, 3)), min_size=0, max_size=60))
+def test_unique_rows_equals_numpys_unique_rows(rows):
+    from sprayplan.surface.pairs import unique_rows
+
+    array = np.array(rows, dtype=np.int64).reshape(-1, 3)
+    unique, first, inverse = unique_rows(array)
+    ref_unique, ref_first, ref_inverse = np.unique(array, axis=0, return_index=True, return_inverse=True)
+    np.testing.assert_array_equal(unique, ref_unique.reshape(-1, 3))
+    np.testing.assert_array_equal(first, ref_first)
+    np.testing.assert_array_equal(inverse, ref_inverse.reshape(-1))
+
+
+def test_unique_rows_refuses_floats():
+    from sprayplan.surface.pairs import unique_rows
+
+    with pytest.raises(ValueError, match="integer"):
+        unique_rows(np.zeros((3, 3)))
