@@ -146,7 +146,7 @@ def boundary_distance(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     a, b = points[border[:, 0]], points[border[:, 1]]
     t = np.linspace(0.0, 1.0, 9)
     samples = (a[:, None, :] + (b - a)[:, None, :] * t[None, :, None]).reshape(-1, 3)
-    return cKDTree(samples).query(points)[0]
+    return cKDTree(samples).query(points, workers=-1)[0]  # both cores: the same distances
 
 
 def _measuring_points(samples, painted: np.ndarray, area: np.ndarray, seed: int) -> np.ndarray:
