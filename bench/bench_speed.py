@@ -69,17 +69,28 @@ def child(name: str, profile: str | None) -> None:
     from sprayplan.job import run_job
 
     source, job = part_and_job(name)
+    cpu: dict[str, float] = {}  # CPU seconds of each stage (all threads), from the progress calls that start it
+    last = [None, time.process_time()]
+
+    def progress(stage, done, total):
+        if done == 0 and total == 0 and stage != last[0]:
+            now = time.process_time()
+            if last[0] is not None:
+                cpu[last[0]] = cpu.get(last[0], 0.0) + now - last[1]
+            last[:] = [stage, now]
+
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
         if profile:
             import cProfile
 
             prof = cProfile.Profile()
-            result = prof.runcall(run_job, source, job, outdir=tmp)
+            result = prof.runcall(run_job, source, job, outdir=tmp, progress=progress)
             prof.dump_stats(profile)
         else:
-            result = run_job(source, job, outdir=tmp)
+            result = run_job(source, job, outdir=tmp, progress=progress)
         wall = time.perf_counter() - start
+    progress(None, 0, 0)
     film = result.film
     totals = result.totals
     if film is not None:
@@ -91,6 +102,7 @@ def child(name: str, profile: str | None) -> None:
         "part": name,
         "wall_s": round(wall, 2),
         "stages_s": result.timings_s,
+        "stages_cpu_s": {k: round(v, 3) for k, v in cpu.items()},
         "cpu_s": round(sum(resource.getrusage(resource.RUSAGE_SELF)[:2]), 2),
         "maxrss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
         "load": round(os.getloadavg()[0], 2),
@@ -182,16 +194,24 @@ def main() -> None:
 def table(name: str, runs: dict[str, list[dict]]) -> None:
     builds = list(runs)
     stages = list(runs[builds[0]][0]["stages_s"])
-    med = lambda build, key: statistics.median(r["stages_s"].get(key, 0.0) for r in runs[build])
+
+    def med(build, key, field="stages_s"):
+        return statistics.median(r.get(field, {}).get(key, 0.0) for r in runs[build])
+
     print(f"\n#### {name}\n")
-    head = " | ".join(f"{b} s" for b in builds) + (" | new / base" if "base" in runs else "")
+    head = " | ".join(f"{b} wall s | {b} CPU s" for b in builds)
+    head += " | new / base, wall | new / base, CPU" if "base" in runs else ""
     print(f"| stage | {head} |")
-    print("|---" * (len(builds) + 1 + ("base" in runs)) + "|")
+    print("|---" * (2 * len(builds) + 1 + 2 * ("base" in runs)) + "|")
     for stage in stages:
-        cells = [f"{med(b, stage):.2f}" for b in builds]
+        has_cpu = {b: all("stages_cpu_s" in r for r in runs[b]) for b in builds}
+        cells = [
+            f"{med(b, stage):.2f} | " + (f"{med(b, stage, 'stages_cpu_s'):.2f}" if has_cpu[b] else "-") for b in builds
+        ]
         if "base" in runs:
-            base = med("base", stage)
-            cells.append(f"{med('new', stage) / base:.2f}" if base > 0.05 else "-")
+            for field in ("stages_s", "stages_cpu_s"):
+                base = med("base", stage, field) if field == "stages_s" or has_cpu["base"] else 0.0
+                cells.append(f"{med('new', stage, field) / base:.2f}" if base > 0.05 else "-")
         print(f"| {stage} | {' | '.join(cells)} |")
     for key, label in (
         ("wall_s", "wall s (whole run)"),
@@ -199,9 +219,9 @@ def table(name: str, runs: dict[str, list[dict]]) -> None:
         ("maxrss_mb", "peak RSS MB"),
     ):
         vals = {b: statistics.median(r[key] for r in runs[b]) for b in builds}
-        cells = [f"{vals[b]:.1f}" for b in builds]
+        cells = [f"{vals[b]:.1f} |" for b in builds]
         if "base" in runs:
-            cells.append(f"{vals['new'] / vals['base']:.2f}")
+            cells.append(f"{vals['new'] / vals['base']:.2f} |")
         print(f"| {label} | {' | '.join(cells)} |")
     loads = {b: ", ".join(f"{r['load']:.1f}" for r in runs[b]) for b in builds}
     print(f"\nload average (1 min) at the end of each run: {loads}")
