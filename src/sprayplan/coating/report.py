@@ -17,6 +17,7 @@ from scipy.spatial import cKDTree
 from sprayplan.checks import MAX_REPORT_SAMPLES
 from sprayplan.coating.thickness import CoatingResult
 from sprayplan.errors import ConfigError
+from sprayplan.surface.pairs import unique_pairs
 
 log = logging.getLogger(__name__)
 
@@ -138,14 +139,14 @@ def boundary_distance(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     if not len(faces):
         return np.full(len(points), np.inf)
     edges = np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
-    unique, counts = np.unique(edges, axis=0, return_counts=True)
+    unique, counts = unique_pairs(edges, return_counts=True)
     border = unique[counts == 1]
     if not len(border):
         return np.full(len(points), np.inf)
     a, b = points[border[:, 0]], points[border[:, 1]]
     t = np.linspace(0.0, 1.0, 9)
     samples = (a[:, None, :] + (b - a)[:, None, :] * t[None, :, None]).reshape(-1, 3)
-    return cKDTree(samples).query(points)[0]
+    return cKDTree(samples).query(points, workers=-1)[0]  # both cores: the same distances
 
 
 def _measuring_points(samples, painted: np.ndarray, area: np.ndarray, seed: int) -> np.ndarray:

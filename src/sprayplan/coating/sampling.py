@@ -17,6 +17,7 @@ from sprayplan.coating.process import Process, StrokeOverride
 from sprayplan.errors import ConfigError, InputError
 from sprayplan.paths.speed import segment_speeds
 from sprayplan.surface import normals as nm
+from sprayplan.surface.pairs import unique_rows
 from sprayplan.types import Part, Paths, Targets, read_only
 
 
@@ -159,9 +160,7 @@ def _subdivided(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray, ma
 
     new_v, new_f, index = remesh.subdivide_to_size(vertices, faces, max_edge, max_iter=30, return_index=True)
     scale = max(float(np.abs(vertices).max()), 1.0) * 1e-9
-    _, first, inverse = np.unique(
-        np.round(new_v / scale).astype(np.int64), axis=0, return_index=True, return_inverse=True
-    )
+    _, first, inverse = unique_rows(np.round(new_v / scale).astype(np.int64))
     new_f = inverse.reshape(-1)[new_f]
     new_v = new_v[first]
     # barycentric coordinates of every new face corner in its original triangle

@@ -327,24 +327,40 @@ def deposit_matrix(
     waypoints = int(sum(len(s) for s in paths.strokes))
     entries = []
     if setup.occlusion is not None:
-        guns = setup.guns
-
-        def one(pairs):
-            sample, gun, value = pairs
-            vals = (value[:, None] * guns.node_share[gun]).reshape(-1)
-            # neighbouring time steps share waypoints: sum the batch's repeated entries before keeping them
-            batch = sparse.coo_matrix((vals, (np.repeat(sample, 4), guns.node[gun].reshape(-1))), shape=(n, waypoints))
-            batch = batch.tocsr().tocoo()
-            keep = batch.data != 0.0
-            return batch.row[keep], batch.col[keep], batch.data[keep]
-
-        entries = _in_batches(setup, one, progress)
+        entries = _in_batches(setup, lambda pairs: _deposit_entries(pairs, setup.guns, n, waypoints), progress)
     if entries:
         rows, cols, vals = (np.concatenate([e[k] for e in entries]) for k in range(3))
     else:
         rows, cols, vals = np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
     # repeated (sample, waypoint) entries are summed
     return setup.samples, sparse.coo_matrix((vals, (rows, cols)), shape=(n, waypoints)).tocsr()
+
+
+def _deposit_entries(pairs, guns: GunSamples, n: int, waypoints: int):
+    """One batch's (sample, waypoint, mm) entries of the deposit matrix, each (sample, waypoint) once.
+
+    The batch's film is (samples x gun samples) ``P``, each gun sample's time spread over its waypoints by
+    (gun samples x waypoints) ``S`` (``node_share`` at ``node``, four a row): the entries are those of the
+    product ``P @ S``, neighbouring time steps' shares of a waypoint summed (a sparse product, with no
+    sorting of the four entries a pair would make)."""
+    sample, gun, value = pairs
+    keep = value != 0.0
+    sample, gun, value = sample[keep], gun[keep], value[keep]
+    if not len(gun):
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+    lo, hi = int(gun.min()), int(gun.max()) + 1
+    order = np.argsort(gun, kind="stable")
+    column = gun[order] - lo
+    # P by columns (one a gun sample), its rows the samples
+    indptr = np.r_[0, np.cumsum(np.bincount(column, minlength=hi - lo))]
+    film = sparse.csc_matrix((value[order], sample[order], indptr), shape=(n, hi - lo))
+    share = sparse.csr_matrix(
+        (guns.node_share[lo:hi].reshape(-1), guns.node[lo:hi].reshape(-1), np.arange(0, 4 * (hi - lo) + 1, 4)),
+        shape=(hi - lo, waypoints),
+    )
+    batch = (film.tocsr() @ share).tocoo()
+    keep = batch.data != 0.0
+    return batch.row[keep].astype(np.int64), batch.col[keep].astype(np.int64), batch.data[keep]
 
 
 @dataclass(frozen=True)

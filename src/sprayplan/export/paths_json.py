@@ -73,7 +73,7 @@ def write_paths_json(path: str | os.PathLike, paths: Paths, settings=None) -> No
     """Write paths.json (atomically)."""
     data = paths_to_dict(paths, settings)
     with atomic_output(path, "w", encoding="utf-8") as handle:
-        json.dump(data, handle, separators=(",", ":"))
+        handle.write(json.dumps(data, separators=(",", ":")))
         handle.write("\n")
 
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sprayplan.surface.normals import unit
+from sprayplan.surface.pairs import unique_pairs
 
 
 @dataclass(frozen=True)
@@ -63,7 +64,7 @@ class MeshSlicer:
         self.face_min = face_h.min(axis=1)
         self.face_max = face_h.max(axis=1)
         edges = np.sort(np.stack([self.faces, np.roll(self.faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
-        self.edges, inverse = np.unique(edges, axis=0, return_inverse=True)
+        self.edges, inverse = unique_pairs(edges, return_inverse=True)
         self.face_edges = inverse.reshape(-1, 3)  # edge k of face f joins corners k and k+1
         self.travel = unit(np.cross(self.normal[None, :], self.face_normals))
 

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import sparse
 from scipy.optimize import least_squares
+from threadpoolctl import threadpool_limits
 
 from sprayplan.checks import check_dwell_bounds
 from sprayplan.coating.process import Process
@@ -314,16 +315,18 @@ def _solve(
             progress(min(evaluations, int(config.iterations)), int(config.iterations))
             return plain(x)
 
-    result = least_squares(
-        residual,
-        np.ones(len(cols)),
-        jac=jacobian,
-        bounds=(np.minimum(low, config.max_dwell - 1e-9), config.max_dwell),
-        method="trf",
-        tr_solver="lsmr",
-        loss=loss,
-        max_nfev=int(config.iterations),
-    )
+    # LSMR's dot products are short and many: one BLAS thread (two stall each other on a busy machine)
+    with threadpool_limits(limits=1, user_api="blas"):
+        result = least_squares(
+            residual,
+            np.ones(len(cols)),
+            jac=jacobian,
+            bounds=(np.minimum(low, config.max_dwell - 1e-9), config.max_dwell),
+            method="trf",
+            tr_solver="lsmr",
+            loss=loss,
+            max_nfev=int(config.iterations),
+        )
     return np.clip(result.x, low, config.max_dwell)
 
 
@@ -339,11 +342,18 @@ def _residuals(system: sparse.csr_matrix, target_vec: np.ndarray, n_fit: int, ba
             r[:n_fit] = np.sign(f) * np.maximum(np.abs(f) - band, 0.0)
         return r
 
+    if band <= 0:
+        return residual, lambda x: system
+    # the film rows sliced once; the slope (0 or 1 a row) keeps or drops whole rows of ``system``, which is
+    # ``diags(slope) @ system`` without the product
+    fit = system[:n_fit]
+    row_of_value = np.repeat(np.arange(system.shape[0]), np.diff(system.indptr))
+
     def jacobian(x):
-        if band <= 0:
-            return system
-        f = system[:n_fit] @ x - target_vec[:n_fit]
-        slope = np.r_[(np.abs(f) > band).astype(float), np.ones(system.shape[0] - n_fit)]
-        return sparse.diags(slope) @ system
+        f = fit @ x - target_vec[:n_fit]
+        outside = np.r_[np.abs(f) > band, np.ones(system.shape[0] - n_fit, bool)]
+        kept = outside[row_of_value] & (system.data != 0.0)
+        indptr = np.r_[0, np.cumsum(np.bincount(row_of_value[kept], minlength=system.shape[0]))]
+        return sparse.csr_matrix((system.data[kept], system.indices[kept], indptr), shape=system.shape)
 
     return residual, jacobian

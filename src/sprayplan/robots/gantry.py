@@ -24,8 +24,11 @@ SQP (scipy's SLSQP) over the six joints and the three gantry axes, minimising eq
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -341,6 +344,48 @@ def solve_sqp(
     return SQPResult(result.x, ok, float(position), float(axis), int(result.nit), str(result.message))
 
 
+#: How many SQP solves :func:`solve_gantry_path` remembers (about 1 kB each).
+SQP_MEMO_SIZE = 20_000
+_sqp_memo: OrderedDict = OrderedDict()
+_sqp_memo_lock = threading.Lock()
+
+
+def _gantry_key(gantry: Gantry) -> bytes:
+    """The numbers an SQP solve of ``gantry`` depends on (its arm's geometry and limits, its gun), as bytes."""
+    robot = gantry.robot
+    parts = [robot.d, robot.a, robot.alpha, robot.theta_offset, robot.lower, robot.upper, robot.base2world]
+    parts += [robot.tool2flange, gantry.gun.gun2flange, gantry.gun.target2gun]
+    return b"".join(np.ascontiguousarray(p, dtype=np.float64).tobytes() for p in parts)
+
+
+def remembered_sqp(gantry: Gantry, target2world, start_q9, *, gantry_key: bytes | None = None, **options) -> SQPResult:
+    """:func:`solve_sqp`, remembered: the same problem (gantry, pose, start, reference and options, bit for bit)
+    gives the remembered result instead of a new solve. The touch-ups solve a station's appended strokes
+    again after each cut (``refine.extend``): the waypoints before a cut repeat their problems exactly, so
+    their answers are the same as solving them again. The last ``SQP_MEMO_SIZE`` problems are kept."""
+    key_parts = [gantry_key if gantry_key is not None else _gantry_key(gantry)]
+    key_parts += [np.ascontiguousarray(target2world, dtype=np.float64).tobytes()]
+    key_parts += [np.ascontiguousarray(start_q9, dtype=np.float64).tobytes()]
+    reference = options.get("reference_q9")
+    key_parts += [b"" if reference is None else np.ascontiguousarray(reference, dtype=np.float64).tobytes()]
+    key_parts += [repr(sorted((k, v) for k, v in options.items() if k != "reference_q9")).encode()]
+    key = b"|".join(key_parts)
+    with _sqp_memo_lock:
+        found = _sqp_memo.get(key)
+        if found is not None:
+            _sqp_memo.move_to_end(key)
+            return found
+    result = solve_sqp(gantry, target2world, start_q9, **options)
+    q9 = np.array(result.q9, dtype=float)
+    q9.flags.writeable = False
+    result = dataclasses.replace(result, q9=q9)
+    with _sqp_memo_lock:
+        _sqp_memo[key] = result
+        while len(_sqp_memo) > SQP_MEMO_SIZE:
+            _sqp_memo.popitem(last=False)
+    return result
+
+
 #: Gantry steps tried (mm, in the plane) to find an exact starting point for SQP when the station has none.
 ASIDE_STEPS = np.array([[150.0, 0, 0], [-150.0, 0, 0], [0, 150.0, 0], [0, -150.0, 0], [0, 0, 150.0], [0, 0, -150.0]])
 
@@ -479,6 +524,7 @@ def solve_gantry_path(
     jump = np.zeros(n, dtype=bool)
     previous = np.array([0.0, -math.pi / 2, 0.0, -math.pi / 2, 0.0, 0.0]) if seed_q is None else np.asarray(seed_q)
     previous_branch = -1
+    gantry_key = _gantry_key(gantry)
     for i in range(n):
         candidates = nearest_equivalent(solutions.q[i], np.broadcast_to(previous, (8, 6)), robot.lower, robot.upper)
         valid = solutions.valid[i] & robot.within_limits(candidates)
@@ -501,10 +547,11 @@ def solve_gantry_path(
                 shifted = _shifted_start(gantry, gun2world[i], platform[i], previous)
                 if shifted is not None:
                     start = shifted
-            result = solve_sqp(
+            result = remembered_sqp(
                 gantry,
                 wanted_target[i],
                 start,
+                gantry_key=gantry_key,
                 k_d=k_d,
                 position_tol_mm=position_tol_mm,
                 axis_tol_rad=axis_tol_rad,

@@ -25,6 +25,8 @@ from scipy import sparse
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
+from sprayplan.surface.pairs import unique_pairs
+
 ORIENT_METHODS = ("mesh", "centroid", "propagate")
 
 
@@ -177,7 +179,7 @@ def outward_face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.nd
 def _closed_components(faces: np.ndarray, component: np.ndarray, n_comp: int) -> np.ndarray:
     """(n_comp,) bool: pieces in which every edge is shared by exactly two faces."""
     key = np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
-    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    _, inverse, counts = unique_pairs(key, return_inverse=True, return_counts=True)
     boundary = counts[inverse.reshape(-1)] != 2
     open_comp = np.bincount(np.repeat(component, 3), boundary, n_comp) > 0
     return ~open_comp

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sprayplan.errors import RegionError
+from sprayplan.surface.pairs import unique_pairs
 from sprayplan.types import Part
 
 _AXES = {"x": 0, "y": 1, "z": 2}
@@ -207,7 +208,7 @@ def clip_halfspace(
     edges = np.concatenate([one[:, [0, 1]], one[:, [0, 2]], two[:, [1, 0]], two[:, [2, 0]]]).reshape(-1, 2)
     if len(edges) == 0:
         return vertices, keep
-    unique, inverse = np.unique(edges, axis=0, return_inverse=True)
+    unique, inverse = unique_pairs(edges, return_inverse=True)
     inverse = inverse.reshape(-1)
     v_in, v_out = vertices[unique[:, 0]], vertices[unique[:, 1]]
     s_in, s_out = s[unique[:, 0]], s[unique[:, 1]]
