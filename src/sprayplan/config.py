@@ -684,6 +684,72 @@ class RefineConfig(Section):
 
 
 @dataclass(frozen=True)
+class CollisionConfig(Section):
+    """Collision checks and repairs of the plan (``[collision]``, ``sprayplan.collision``).
+
+    Attributes
+    ----------
+    check : bool
+        Check every waypoint and every motion of the plan against the part, the floor and the cell.
+    repair : bool
+        Free waypoints found in collision (another IK branch, a roll about the gun axis, a tilt within the
+        axis tolerance, another gantry position) before flagging them.
+    clearance_mm : float
+        The smallest gap allowed between the part and any link, the gun body, the carriage or the column
+        (the spray cone in front of the nozzle is free space and never counts).
+    floor_offset_mm : float
+        The floor (a half-space) lies this far below the part's lowest point, when ``floor_z_mm`` is None.
+    floor_z_mm : float or None
+        The floor's height in the part frame, mm; must not be above the part's lowest point.
+    gun_radius_mm : float
+        The radius of the gun's capsule, from the flange to the nozzle.
+    motion_step_mm : float
+        Between two waypoints, the motion is checked at joint configurations no body point moves more than
+        this between (see :mod:`sprayplan.collision.motion`); at most twice the clearance, so that no contact
+        with the part between two checks can be missed.
+    skip_floor_facing : bool
+        Leave out of the painted surface what faces the floor (a body's underside): surface whose outward
+        normal points more than ``floor_facing_deg`` below the horizontal. False for a part hung on a
+        conveyor, painted from below too.
+    floor_facing_deg : float
+        0 to 90 degrees below the horizontal.
+    tilt_deg : float or None
+        How far the tilt repair turns the gun axis; default 80 % of ``[kinematics] axis_tol_deg``.
+    platform_raise_mm : float
+        The gantry repair tries the station this much higher, then twice and three times as high.
+    """
+
+    SECTION = "collision"
+    check: bool = True
+    repair: bool = True
+    clearance_mm: float = 30.0
+    floor_offset_mm: float = 1.0
+    floor_z_mm: float | None = None
+    gun_radius_mm: float = 30.0
+    motion_step_mm: float = 10.0
+    skip_floor_facing: bool = True
+    floor_facing_deg: float = 45.0
+    tilt_deg: float | None = None
+    platform_raise_mm: float = 150.0
+
+    def _check(self):
+        _at_least(CollisionConfig, "clearance_mm", self.clearance_mm, 0)
+        _at_least(CollisionConfig, "floor_offset_mm", self.floor_offset_mm, 0)
+        _at_least(CollisionConfig, "gun_radius_mm", self.gun_radius_mm, 0, strict=True)
+        _at_least(CollisionConfig, "motion_step_mm", self.motion_step_mm, 0, strict=True)
+        _within(CollisionConfig, "floor_facing_deg", self.floor_facing_deg, 0, 90)
+        _at_least(CollisionConfig, "tilt_deg", self.tilt_deg, 0)
+        _at_least(CollisionConfig, "platform_raise_mm", self.platform_raise_mm, 0)
+        if self.clearance_mm > 0 and self.motion_step_mm > 2 * self.clearance_mm:
+            raise _fail(
+                CollisionConfig,
+                "motion_step_mm",
+                f"at most twice collision.clearance_mm ({2 * self.clearance_mm:g})",
+                self.motion_step_mm,
+            )
+
+
+@dataclass(frozen=True)
 class OutputConfig(Section):
     """What the main job writes besides plan.json and waypoints.csv (``[output]``).
 
@@ -891,7 +957,7 @@ class JobConfig:
     ----------
     mode : {"paths", "points"}
         ``paths``: slicing strokes (the default); ``points``: the seed's target points visited in a tour.
-    load, targets, paths, stations, ordering, kinematics, motion, coating, tuning, output, export
+    load, targets, paths, stations, ordering, kinematics, motion, coating, tuning, collision, output, export
         One section each (``[load]``, ``[targets]``, ...).
     """
 
@@ -905,6 +971,7 @@ class JobConfig:
     motion: MotionConfig = MotionConfig()
     coating: FilmConfig = FilmConfig()
     tuning: RefineConfig = RefineConfig()
+    collision: CollisionConfig = CollisionConfig()
     output: OutputConfig = OutputConfig()
     export: ExportConfig = ExportConfig()
 
@@ -948,6 +1015,7 @@ SECTIONS = {
     "motion": MotionConfig,
     "coating": FilmConfig,
     "tuning": RefineConfig,
+    "collision": CollisionConfig,
     "output": OutputConfig,
     "export": ExportConfig,
 }

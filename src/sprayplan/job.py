@@ -14,6 +14,7 @@ stations       gantry stations, their tour, the work of each           ``station
 ordering       each station's strokes in order, with transfers         ``ordering.stage``
 kinematics     the nine axes at every waypoint                         ``robots.stage``
 refine         speeds tuned to the film, touch-ups, added stations     ``refine.stage``
+collision      waypoints and motions checked, repaired, or flagged     ``collision.repair``
 film           the film the final plan leaves                          ``coating.stage``
 totals         lengths, counts, cycle time                             ``export.summary``
 programs       ``[export] programs``: robot programs, in memory        ``programs.stage``
@@ -58,7 +59,10 @@ class JobState:
     source : str or Part
         A part file's path, or a part given in memory.
     part : Part or None
-        The part in mm, z up, cut to its region.
+        The part in mm, z up, cut to its region (and without the surface facing the floor, ``[collision]
+        skip_floor_facing``).
+    whole : Part or None
+        The whole part as loaded, which the robot must not hit (the collision stage).
     chosen : dict
         The spacing and speed chosen for a film target ({} without one).
     strokes : tuple of Stroke
@@ -69,6 +73,8 @@ class JobState:
     plan : Plan or None
     tuning : dict
         The refine stage's summary ({} when it did not run).
+    collisions : dict
+        The collision stage's summary ({} when it did not run).
     film : coating.CoatingResult or None
         The final plan's film (None when not simulated).
     totals : dict
@@ -81,12 +87,14 @@ class JobState:
     job: JobConfig
     source: object
     part: Part | None = None
+    whole: Part | None = None
     chosen: dict = field(default_factory=dict)
     strokes: tuple = ()
     layout: object = None
     ordered: object = None
     plan: Plan | None = None
     tuning: dict = field(default_factory=dict)
+    collisions: dict = field(default_factory=dict)
     film: object = None
     totals: dict = field(default_factory=dict)
     programs: tuple = ()
@@ -125,9 +133,15 @@ def _load(state: JobState, progress: Progress) -> JobState:
 
 
 def _region(state: JobState, progress: Progress) -> JobState:
-    from sprayplan.surface.region import select_region
+    from sprayplan.surface.region import drop_floor_facing, select_region
 
-    return dataclasses.replace(state, part=select_region(state.part, state.job.load.region))
+    part = select_region(state.part, state.job.load.region)
+    left_out = 0.0
+    collision = state.job.collision
+    if collision.skip_floor_facing:
+        part, left_out = drop_floor_facing(part, collision.floor_facing_deg)
+    totals = {**state.totals, "floor_facing_left_out_mm2": round(left_out, 3)} if left_out else state.totals
+    return dataclasses.replace(state, part=part, whole=state.part, totals=totals)
 
 
 def _film_target(state: JobState, progress: Progress) -> JobState:
@@ -186,6 +200,21 @@ def _refine(state: JobState, progress: Progress) -> JobState:
     return dataclasses.replace(state, plan=plan, tuning=summary, film=film)
 
 
+def _collision(state: JobState, progress: Progress) -> JobState:
+    if not state.job.collision.check:
+        return state
+    from sprayplan.collision.repair import collision_stage
+
+    whole = state.whole if state.whole is not None else state.part
+    if not whole.is_mesh:
+        log.warning(
+            "%s: a point cloud: collisions are not checked (a surface from the cloud is not built yet)", state.name
+        )
+        return dataclasses.replace(state, collisions={"checked": False, "reason": "point cloud"})
+    plan, summary = collision_stage(state.plan, whole, state.job, state.gantry(), progress)
+    return dataclasses.replace(state, plan=plan, collisions=summary)
+
+
 def _film(state: JobState, progress: Progress) -> JobState:
     job = state.job
     if state.film is not None or not (job.output.simulate or job.film_target):
@@ -198,7 +227,9 @@ def _film(state: JobState, progress: Progress) -> JobState:
 def _totals(state: JobState, progress: Progress) -> JobState:
     from sprayplan.export.summary import plan_totals
 
-    totals = plan_totals(state.plan, state.job)
+    totals = {**state.totals, **plan_totals(state.plan, state.job)}
+    if state.collisions:
+        totals["collisions"] = state.collisions
     if state.chosen:
         totals["chosen_for_thickness"] = state.chosen
     if state.tuning:
@@ -251,6 +282,7 @@ STAGES = (
     Stage("ordering", _ordering),
     Stage("kinematics", _kinematics),
     Stage("refine", _refine),
+    Stage("collision", _collision),
     Stage("film", _film),
     Stage("totals", _totals),
     Stage("programs", _programs),

@@ -163,6 +163,9 @@ STROKE_KINDS = ("spray", "transfer", "touch-up")
 #: all (unreachable).
 IK_METHODS = ("analytic", "sqp", "")
 
+#: How the collision stage freed a waypoint (``StationPlan.repair``), or empty.
+REPAIR_KINDS = ("branch", "roll", "tilt", "platform", "")
+
 
 @dataclass(frozen=True)
 class Stroke:
@@ -331,6 +334,19 @@ class StationPlan:
     position_error_mm, axis_error_deg : (n,) float
         NaN where unreachable.
     branch_change : (n,) bool
+    collision : (n,) bool
+        The robot at this waypoint is closer to the part, the floor or the cell than allowed
+        (``sprayplan.collision``; all False until the ``collision`` stage checks the plan).
+    motion_collision : (n,) bool
+        The motion into this waypoint from the previous checked one is in collision.
+    collision_distance_mm : (n,) float
+        The distance of the closest pair (exact within the check's margin of its gap, a lower bound beyond);
+        NaN where not checked.
+    collision_with : (n,) str
+        That pair, ``"elbow/part"``; empty where not checked.
+    repair : (n,) str
+        How a waypoint found in collision was freed: ``branch``, ``roll``, ``tilt`` or ``platform``
+        (:data:`sprayplan.collision.repair.REPAIRS`); empty where nothing was repaired.
     """
 
     index: int
@@ -342,6 +358,11 @@ class StationPlan:
     position_error_mm: np.ndarray
     axis_error_deg: np.ndarray
     branch_change: np.ndarray
+    collision: np.ndarray = None  # type: ignore[assignment]
+    motion_collision: np.ndarray = None  # type: ignore[assignment]
+    collision_distance_mm: np.ndarray = None  # type: ignore[assignment]
+    collision_with: np.ndarray = None  # type: ignore[assignment]
+    repair: np.ndarray = None  # type: ignore[assignment]
 
     def __post_init__(self):
         object.__setattr__(self, "index", int(self.index))
@@ -379,6 +400,29 @@ class StationPlan:
             object.__setattr__(self, name, value)
         if (self.reachable != (method != "")).any():
             raise ValueError("a waypoint is reachable exactly when it has a method (analytic or sqp)")
+        defaults = {
+            "collision": (False, bool),
+            "motion_collision": (False, bool),
+            "collision_distance_mm": (np.nan, np.float64),
+        }
+        for name, (empty, dtype) in defaults.items():
+            value = getattr(self, name)
+            value = np.full(n, empty, dtype=dtype) if value is None else np.asarray(value).reshape(-1)
+            value = _frozen(value, dtype, (), name)
+            if len(value) != n:
+                raise ValueError(f"{name} must have one entry per waypoint ({n}), got {len(value)}")
+            object.__setattr__(self, name, value)
+        for name in ("collision_with", "repair"):
+            value = getattr(self, name)
+            value = np.full(n, "", dtype=object) if value is None else np.asarray(value, dtype=object).reshape(-1)
+            if len(value) != n:
+                raise ValueError(f"{name} must have one entry per waypoint ({n}), got {len(value)}")
+            value = np.array([str(v) for v in value], dtype=object)
+            value.flags.writeable = False
+            object.__setattr__(self, name, value)
+        bad = sorted(set(self.repair) - set(REPAIR_KINDS))
+        if bad:
+            raise ValueError(f"repair must be one of branch, roll, tilt, platform or empty, got {bad[0]!r}")
 
     def __len__(self) -> int:
         return len(self.q9)

@@ -97,6 +97,17 @@ def summary_line(result, outdir) -> str:
         f"{totals['platform_travel_mm'] / 1000:.2f} m, cycle {totals['cycle_time_s']:.0f} s, planned in "
         f"{totals['planning_time_s']:.1f} s -> {outdir}/plan.json"
     )
+    collisions = totals.get("collisions")
+    if collisions and collisions.get("checked") is False:
+        line += f"\ncollisions: not checked ({collisions['reason']})"
+    elif collisions:
+        line += (
+            f"\ncollisions: {collisions['flagged_waypoints']} waypoints and {collisions['flagged_motions']} motions "
+            f"flagged, {collisions['repaired']} of {collisions['in_collision_before_repair']} repaired "
+            f"(clearance {collisions['clearance_mm']:g} mm)"
+        )
+    if totals.get("floor_facing_left_out_mm2"):
+        line += f"; surface facing the floor left out: {totals['floor_facing_left_out_mm2'] / 1e6:.3f} m2"
     if result.film is not None:
         from sprayplan.export.film import film_report
 

@@ -26,6 +26,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from sprayplan.collision.bodies import CapsuleBody, GantryBodies, gun_capsule, link_bodies, reach_radii_mm
+from sprayplan.collision.broadphase import (
+    capsules_to_surface,
+    point_box_distance,
+    segment_points,
+    segments_gap,
+    surface_samples,
+)
 from sprayplan.collision.motion import motion_bound_mm, motion_checks
 from sprayplan.collision.settings import CollisionConfig
 from sprayplan.errors import ConfigError, DataError
@@ -100,6 +107,41 @@ class BodyDistances:
 
 
 @dataclass(frozen=True)
+class ConfigChecks:
+    """The least slack of n joint vectors over every pair, exact where it matters (:meth:`CellCollision.check`).
+
+    Attributes
+    ----------
+    in_collision : (n,) bool
+        Some pair is closer than its required gap (decided by coal's exact distance, never by a bound).
+    column : (n,) int
+        The pair (an index into ``CellCollision.pairs``) with the least slack.
+    distance_mm : (n,) float
+        That pair's distance: exact where ``exact``, else a lower bound.
+    slack_mm : (n,) float
+        ``distance_mm`` minus the pair's required gap (a lower bound where not exact).
+    exact : (n,) bool
+        The distance is coal's (or the floor's, which is exact by construction); pairs whose lower bound
+        leaves more than ``margin_mm`` over their gap are not queried.
+    part_distance_mm : (n,) float
+        The least distance of any link, the gun, the carriage or the column to the part (a lower bound where
+        ``part_exact`` is False).
+    part_exact : (n,) bool
+    """
+
+    in_collision: np.ndarray
+    column: np.ndarray
+    distance_mm: np.ndarray
+    slack_mm: np.ndarray
+    exact: np.ndarray
+    part_distance_mm: np.ndarray
+    part_exact: np.ndarray
+
+    def __post_init__(self):
+        read_only(self)
+
+
+@dataclass(frozen=True)
 class WaypointCollisions:
     """Every waypoint of a plan checked, stations in visiting order, waypoints in order within each.
 
@@ -112,11 +154,13 @@ class WaypointCollisions:
     in_collision : (n,) bool
         Some pair is closer than its required gap (the part: the clearance; the floor and the cell: 0).
     distance_mm : (n,) float
-        The distance of the pair with the least slack (NaN where not checked).
+        The distance of the pair with the least slack (NaN where not checked): exact within
+        ``CellCollision.MARGIN_MM`` of its gap, a lower bound beyond (:meth:`CellCollision.check`).
     body_a, body_b : (n,) str
         That pair's bodies (``""`` where not checked).
     part_distance_mm : (n,) float
-        The smallest distance from any link, the gun, the carriage or the column to the part.
+        The smallest distance from any link, the gun, the carriage or the column to the part (exact within
+        the margin of the clearance, a lower bound beyond).
     clearance_mm : float
         The clearance the part pairs were checked with.
     """
@@ -187,6 +231,15 @@ class MotionCollisions:
         return int(self.in_collision.sum())
 
 
+def _joint_vectors(q9) -> np.ndarray:
+    q9 = np.asarray(q9, dtype=float)
+    if q9.ndim == 1:
+        q9 = q9[None]
+    if q9.ndim != 2 or q9.shape[1] != 9 or not np.isfinite(q9).all():
+        raise DataError(f"q9 must be finite joint vectors of shape (9,) or (n, 9), got shape {np.shape(q9)}")
+    return q9
+
+
 class CellCollision:
     """The cell's bodies for one plan: distances at joint vectors, checks of waypoints and motions.
 
@@ -246,6 +299,7 @@ class CellCollision:
         self._mesh = coal.BVHModelOBBRSS()
         vertices = np.ascontiguousarray(part.vertices, dtype=float)
         faces = np.ascontiguousarray(part.faces, dtype=np.int64)
+        self._part_vertices, self._part_faces = vertices, faces
         self._mesh.beginModel(len(faces), len(vertices))
         self._mesh.addVertices(vertices)
         self._mesh.addTriangles(faces)
@@ -283,6 +337,9 @@ class CellCollision:
             "part": (self._mesh, coal.Transform3s()),
             "floor": (self._floor, coal.Transform3s()),
         }
+        self._samples = None  # the part's surface samples for the lower bounds, made on first use
+        self._radii = np.array([b.radius_mm for b in self.capsules])
+        self._box_half = np.array(box_sizes, dtype=float) / 2.0
 
     # -------------------------------------------------------------------------------------- body poses
 
@@ -330,11 +387,7 @@ class CellCollision:
         DataError
             Joint vectors of the wrong shape or not finite.
         """
-        q9 = np.asarray(q9, dtype=float)
-        if q9.ndim == 1:
-            q9 = q9[None]
-        if q9.ndim != 2 or q9.shape[1] != 9 or not np.isfinite(q9).all():
-            raise DataError(f"q9 must be finite joint vectors of shape (9,) or (n, 9), got shape {np.shape(q9)}")
+        q9 = _joint_vectors(q9)
         poses = self.body_poses(q9)
         tcp_z = self.tcp(q9)[:, 2]
         out = np.empty((len(q9), len(self.pairs)))
@@ -350,6 +403,130 @@ class CellCollision:
                 out[row, column] = coal.distance(geometries[b], transforms[b], geometry, transform, request, result)
         out[:, -1] = tcp_z - self.floor_z_mm
         return BodyDistances(out, self.pairs, self.required_mm)
+
+    #: Pairs whose lower bound leaves at least this much over their gap are not queried exactly, mm.
+    MARGIN_MM = 20.0
+    #: Points along a capsule for the lower bounds are at most this far apart, mm.
+    SPACING_MM = 20.0
+    #: The part's surface samples cover it to this radius, mm.
+    COVER_MM = 8.0
+    #: Joint vectors bounded at once (memory of the lower bounds).
+    CHUNK = 2048
+
+    def samples(self):
+        """The part's :class:`~sprayplan.collision.broadphase.SurfaceSamples` (made once)."""
+        if self._samples is None:
+            vertices = np.asarray(self._part_vertices)
+            self._samples = surface_samples(Part(vertices, self._part_faces), self.COVER_MM)
+        return self._samples
+
+    def check(self, q9, clearance_mm: float | None = None, margin_mm: float | None = None) -> ConfigChecks:
+        """The least slack over every pair at joint vectors ``q9`` (9,) or (n, 9), coal queried only for the
+        pairs whose lower bound (:mod:`~sprayplan.collision.broadphase`) leaves less than ``margin_mm`` over
+        their gap. Gives the same ``in_collision`` as :meth:`distances` (tested), far faster.
+
+        Raises
+        ------
+        DataError
+            Joint vectors of the wrong shape or not finite.
+        """
+        q9 = _joint_vectors(q9)
+        clearance = self._clearance(clearance_mm, motion=False)
+        margin = self.MARGIN_MM if margin_mm is None else float(margin_mm)
+        required = self._required(clearance)
+        parts = [self._check_chunk(q9[i : i + self.CHUNK], required, margin) for i in range(0, len(q9), self.CHUNK)]
+        if not parts:
+            parts = [self._check_chunk(np.zeros((0, 9)), required, margin)]
+        fields = [np.concatenate(f) for f in zip(*parts)]
+        return ConfigChecks(*fields)
+
+    def _bounds(self, q9: np.ndarray, upper_mm: float) -> tuple[np.ndarray, np.ndarray]:
+        """(n, p) lower bounds on every pair's distance and (n, p) which of them are exact."""
+        n, c = len(q9), len(self.capsules)
+        segments = self.capsule_segments(q9)  # (n, c, 2, 3)
+        radii = self._radii
+        boxes = q9[:, None, 6:9] + np.array([[0.0, 0.0, h] for h in self._box_heights])[None]  # (n, 2, 3) centres
+        bound = np.full((n, len(self.pairs)), np.inf)
+        exact = np.zeros((n, len(self.pairs)), dtype=bool)
+        samples = self.samples()
+        points = {}
+
+        def along(i):
+            if i not in points:
+                points[i] = segment_points(segments[:, i], self.SPACING_MM)
+            return points[i]
+
+        for column, (a, b) in enumerate(self._tests):
+            if a == "floor":
+                if b < c:
+                    bound[:, column] = segments[:, b, :, 2].min(axis=1) - radii[b] - self.floor_z_mm
+                else:
+                    box = b - c
+                    bound[:, column] = boxes[:, box, 2] - self._box_half[box, 2] - self.floor_z_mm
+                exact[:, column] = True
+            elif a == "part":
+                if b < c:
+                    ends, radius = segments[:, b], float(radii[b])
+                else:  # a box: inside the capsule along its vertical axis with its cross-section's half-diagonal
+                    box = b - c
+                    half = self._box_half[box]
+                    ends = np.stack([boxes[:, box] - [0, 0, half[2]], boxes[:, box] + [0, 0, half[2]]], axis=1)
+                    radius = float(np.hypot(half[0], half[1]))
+                bound[:, column] = capsules_to_surface(samples, ends, radius, upper_mm, self.SPACING_MM)
+            elif b < c and a >= c:  # an arm body against a gantry box
+                box = a - c
+                pts, half = along(b)
+                distance = point_box_distance(pts, boxes[:, box, None, :], self._box_half[box]).min(axis=1)
+                bound[:, column] = distance - half - radii[b]
+            else:  # the gun (b) against a link (a)
+                pts_a, half_a = along(a)
+                pts_b, half_b = along(b)
+                bound[:, column] = segments_gap(pts_a, pts_b) - half_a - half_b - radii[a] - radii[b]
+        bound[:, -1] = self.tcp(q9)[:, 2] - self.floor_z_mm
+        exact[:, -1] = True
+        return bound, exact
+
+    def _check_chunk(self, q9: np.ndarray, required: np.ndarray, margin: float):
+        n = len(q9)
+        upper = float(required.max()) + margin
+        bound, exact = self._bounds(q9, upper)
+        rows, columns = np.nonzero(~exact & (bound - required < margin))
+        if len(rows):
+            poses = self.body_poses(q9)
+            geometries, static = self._geometries, self._static
+            for row, column in zip(rows, columns):
+                a, b = self._tests[column]
+                pose_b = poses[row, b]
+                if isinstance(a, str):
+                    geometry, transform = static[a]
+                else:
+                    pose_a = poses[row, a]
+                    geometry, transform = geometries[a], coal.Transform3s(pose_a[:3, :3], pose_a[:3, 3])
+                result = coal.DistanceResult()
+                bound[row, column] = coal.distance(
+                    geometries[b],
+                    coal.Transform3s(pose_b[:3, :3], pose_b[:3, 3]),
+                    geometry,
+                    transform,
+                    self._request,
+                    result,
+                )
+                exact[row, column] = True
+        slack = bound - required
+        column = np.argmin(slack, axis=1) if n else np.zeros(0, int)
+        rows = np.arange(n)
+        part_columns = np.array([i for i, (_, b) in enumerate(self.pairs) if b == "part"])
+        part = bound[:, part_columns]
+        part_best = np.argmin(part, axis=1) if n else np.zeros(0, int)
+        return (
+            slack[rows, column] < 0,
+            column,
+            bound[rows, column],
+            slack[rows, column],
+            exact[rows, column],
+            part[rows, part_best],
+            exact[:, part_columns][rows, part_best],
+        )
 
     def check_waypoints(self, plan: Plan, clearance_mm: float | None = None) -> WaypointCollisions:
         """Every waypoint of every station of ``plan`` checked at the plan's joints.
@@ -368,18 +545,13 @@ class CellCollision:
         body_b = np.full(n, "", dtype=object)
         in_collision = np.zeros(n, dtype=bool)
         if checked.any():
-            found = self.distances(q9[checked])
-            required = self._required(clearance)
-            slack = found.distance_mm - required
-            column = np.argmin(slack, axis=1)
-            rows = np.arange(len(column))
-            distance[checked] = found.distance_mm[rows, column]
-            in_collision[checked] = slack[rows, column] < 0
+            found = self.check(q9[checked], clearance)
             names = np.array(self.pairs, dtype=object)
-            body_a[checked] = names[column, 0]
-            body_b[checked] = names[column, 1]
-            part_columns = [i for i, (_, b) in enumerate(self.pairs) if b == "part"]
-            part_distance[checked] = found.distance_mm[:, part_columns].min(axis=1)
+            distance[checked] = found.distance_mm
+            in_collision[checked] = found.in_collision
+            body_a[checked] = names[found.column, 0]
+            body_b[checked] = names[found.column, 1]
+            part_distance[checked] = found.part_distance_mm
         return WaypointCollisions(
             station=station.astype(int),
             checked=checked,
@@ -421,16 +593,15 @@ class CellCollision:
         best = (np.inf, np.nan, ("", ""))
         s = 0.0
         while True:
-            found = self.distances(q_a + s * (q_b - q_a)).distance_mm[0]
-            slack = found - required
-            column = int(np.argmin(slack))
+            found = self._check_chunk((q_a + s * (q_b - q_a))[None], required, self.MARGIN_MM)
+            column, slack = int(found[1][0]), float(found[3][0])
             fractions.append(s)
-            slacks.append(float(slack[column]))
-            if slack[column] < best[0]:
-                best = (float(slack[column]), float(found[column]), self.pairs[column])
-            if slack[column] < 0 or s >= 1.0 or total == 0:
+            slacks.append(slack)
+            if slack < best[0]:
+                best = (slack, float(found[2][0]), self.pairs[column])
+            if slack < 0 or s >= 1.0 or total == 0:
                 break
-            advance = max(step, float(slack[column]) + step / 2.0)
+            advance = max(step, slack + step / 2.0)
             s = min(1.0, s + advance / total)
         return np.array(fractions), np.array(slacks), best[1], best[2]
 

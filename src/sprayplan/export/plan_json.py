@@ -109,6 +109,11 @@ def plan_to_dict(plan, job, totals: dict, part_file: str | None = None, film: di
                     "position_error_mm": _floats(st.position_error_mm[sl]),
                     "axis_error_deg": _floats(st.axis_error_deg[sl]),
                     "branch_change": st.branch_change[sl].tolist(),
+                    "collision": st.collision[sl].tolist(),
+                    "motion_collision": st.motion_collision[sl].tolist(),
+                    "collision_distance_mm": _floats(st.collision_distance_mm[sl]),
+                    "collision_with": st.collision_with[sl].tolist(),
+                    "repair": st.repair[sl].tolist(),
                     "flow_ml_min": flow if s.spray_on else 0.0,
                     "speed_mm_s": job.motion.gun_speed_mm_s if s.spray_on else job.motion.transfer_speed_mm_s,
                     "tcp_speed_mm_s": _floats(tip_speeds(s, job)),
@@ -155,7 +160,10 @@ def write_plan(outdir, plan, job, totals: dict, part_file: str | None = None, fi
 
 def write_waypoints_csv(path, plan, job) -> None:
     """Write waypoints.csv: one row per waypoint, for people (docs/plan-json.md)."""
-    header = "station,stroke,waypoint,spray_on,x,y,z,ax,ay,az,q1,q2,q3,q4,q5,q6,tx,ty,tz,reachable,position_error_mm,axis_error_deg,speed_mm_s\n"
+    header = (
+        "station,stroke,waypoint,spray_on,x,y,z,ax,ay,az,q1,q2,q3,q4,q5,q6,tx,ty,tz,reachable,position_error_mm,"
+        "axis_error_deg,speed_mm_s,collision,motion_collision,collision_distance_mm,collision_with,repair\n"
+    )
     with atomic_output(path, "w", newline="") as handle:
         handle.write(header)
         for place, st in enumerate(plan.stations):
@@ -179,7 +187,15 @@ def write_waypoints_csv(path, plan, job) -> None:
                         tip_speeds(s, job),
                     ]
                 )
-                for row in table:
+                sl = slice(start, start + n)
+                distance = st.collision_distance_mm[sl]
+                extra = [
+                    f"{int(c)},{int(m)},{'' if not np.isfinite(d) else f'{d:.6g}'},{w},{r}"
+                    for c, m, d, w, r in zip(
+                        st.collision[sl], st.motion_collision[sl], distance, st.collision_with[sl], st.repair[sl]
+                    )
+                ]
+                for k, row in enumerate(table):
                     cells = (
                         [f"{int(v)}" for v in row[:4]]
                         + ["" if not np.isfinite(v) else f"{v:.10g}" for v in row[4:19]]
@@ -187,5 +203,5 @@ def write_waypoints_csv(path, plan, job) -> None:
                         + ["" if not np.isfinite(v) else f"{v:.6g}" for v in row[20:22]]
                         + [f"{row[22]:.6g}"]
                     )
-                    handle.write(",".join(cells) + "\n")
+                    handle.write(",".join(cells) + "," + extra[k] + "\n")
                 start += n

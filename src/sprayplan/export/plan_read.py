@@ -99,10 +99,21 @@ _STROKE_ARRAYS = (("points", (3,)), ("normals", (3,)), ("tcp", (3,)), ("dwell", 
 _STATION_FLOATS = (("joints", (9,)), ("position_error_mm", ()), ("axis_error_deg", ()))
 
 
+#: The collision stage's per-waypoint keys of a stroke (``StationPlan`` fields of the same names), optional.
+_COLLISION = {
+    "collision": bool,
+    "motion_collision": bool,
+    "collision_distance_mm": float,
+    "collision_with": str,
+    "repair": str,
+}
+
+
 def _station(r: _Reader, st, where: str) -> StationPlan:
     r.check(st, where, dict)
     strokes, methods = [], []
-    parts: dict = {key: [] for key in ("joints", "reachable", "position_error_mm", "axis_error_deg", "branch_change")}
+    keys = ("joints", "reachable", "position_error_mm", "axis_error_deg", "branch_change", *_COLLISION)
+    parts: dict = {key: [] for key in keys}
     for i, s in enumerate(r.get(st, "strokes", list, where)):
         at = f"{where}.strokes[{i}]"
         r.check(s, at, dict)
@@ -130,6 +141,16 @@ def _station(r: _Reader, st, where: str) -> StationPlan:
         for key in ("reachable", "branch_change"):
             parts[key].append(r.flags(r.get(s, key, list, at), f"{at}.{key}", n))
         methods += r.strings(r.get(s, "method", list, at), f"{at}.method", n)
+        for key, kind in _COLLISION.items():  # absent from files written before the collision checks
+            if key not in s:
+                empty = {bool: False, float: np.nan, str: ""}[kind]
+                parts[key].append(np.full(n, empty, dtype=object if kind is str else kind))
+            elif kind is bool:
+                parts[key].append(r.flags(r.get(s, key, list, at), f"{at}.{key}", n))
+            elif kind is float:
+                parts[key].append(r.floats(r.get(s, key, list, at), f"{at}.{key}", (), n))
+            else:
+                parts[key].append(np.array(r.strings(r.get(s, key, list, at), f"{at}.{key}", n), dtype=object))
     joined = {key: np.concatenate(p) if p else np.zeros(0) for key, p in parts.items()}
     return r.build(
         StationPlan,
@@ -143,6 +164,7 @@ def _station(r: _Reader, st, where: str) -> StationPlan:
         joined["position_error_mm"],
         joined["axis_error_deg"],
         joined["branch_change"],
+        *(joined[key] for key in _COLLISION),
     )
 
 

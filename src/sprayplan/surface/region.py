@@ -14,6 +14,7 @@ placed exactly on the boundary plane.
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 
@@ -165,6 +166,45 @@ def select_region(part: Part, region: Region | str | None) -> Part:
     used[faces.reshape(-1)] = True
     remap = np.cumsum(used) - 1
     return Part(vertices[used], remap[faces], None, part.name)
+
+
+def drop_floor_facing(part: Part, below_deg: float) -> tuple[Part, float]:
+    """The part without the surface that faces the floor: faces (or, for a point cloud, points with normals)
+    whose outward normal points more than ``below_deg`` below the horizontal, ``n_z < -sin(below_deg)``.
+
+    Returns the part and the area left out, mm^2 (for a point cloud, 0: its points carry no area).
+
+    Raises
+    ------
+    RegionError
+        When all of the part faces the floor.
+    """
+    limit = -math.sin(math.radians(below_deg))
+    if not part.is_mesh:
+        if part.vertex_normals is None:
+            return part, 0.0
+        keep = part.vertex_normals[:, 2] >= limit
+        if keep.all():
+            return part, 0.0
+        if not keep.any():
+            raise RegionError(f"part {part.name!r}: all of it faces the floor ([collision] skip_floor_facing)")
+        return Part(part.vertices[keep], part.faces, part.vertex_normals[keep], part.name), 0.0
+    tri = part.triangles
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    double_area = np.linalg.norm(cross, axis=1)
+    nz = np.divide(cross[:, 2], double_area, out=np.zeros(len(tri)), where=double_area > 0)
+    keep = nz >= limit
+    if keep.all():
+        return part, 0.0
+    if not keep.any():
+        raise RegionError(f"part {part.name!r}: all of it faces the floor ([collision] skip_floor_facing)")
+    left_out = float(0.5 * double_area[~keep].sum())
+    faces = part.faces[keep]
+    used = np.zeros(len(part.vertices), dtype=bool)
+    used[faces.reshape(-1)] = True
+    remap = np.cumsum(used) - 1
+    normals = None if part.vertex_normals is None else part.vertex_normals[used]
+    return Part(part.vertices[used], remap[faces], normals, part.name), left_out
 
 
 def _raise_empty(part: Part, region: Region):

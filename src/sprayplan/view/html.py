@@ -84,9 +84,11 @@ def waypoint_table(scene: Scene):
 
 def flagged_waypoints(scene: Scene) -> dict[str, tuple[np.ndarray, list[str]]]:
     """The waypoints to warn about, by reason: ``unreachable``, ``approximate`` (SQP within the tolerance),
-    ``branch change`` and ``unassigned`` (points no station reaches): (positions (k, 3), hover texts)."""
+    ``branch change``, ``collision`` (the waypoint or the motion into it, after repairs) and ``unassigned``
+    (points no station reaches): (positions (k, 3), hover texts)."""
     kin = scene.job.kinematics
-    out: dict[str, tuple[list, list]] = {k: ([], []) for k in ("unreachable", "approximate", "branch change")}
+    kinds = ("unreachable", "approximate", "branch change", "collision")
+    out: dict[str, tuple[list, list]] = {k: ([], []) for k in kinds}
     for st, i, s, sl, _ in waypoint_table(scene):
         reach = st.reachable[sl]
         method = st.method[sl]
@@ -107,6 +109,15 @@ def flagged_waypoints(scene: Scene) -> dict[str, tuple[np.ndarray, list[str]]]:
         for j in np.flatnonzero(reach & flip):
             out["branch change"][0].append(s.tcp[j])
             out["branch change"][1].append(where + f"{j}: the arm changes its IK branch here (a flip)")
+        hit, moving = st.collision[sl], st.motion_collision[sl]
+        for j in np.flatnonzero(reach & (hit | moving)):
+            what = []
+            if hit[j]:
+                what.append(f"{st.collision_with[sl][j]} at {st.collision_distance_mm[sl][j]:.1f} mm")
+            if moving[j]:
+                what.append("the motion into it")
+            out["collision"][0].append(s.tcp[j])
+            out["collision"][1].append(where + f"{j}: in collision, no repair freed it: " + "; ".join(what))
     result = {k: (np.array(v[0]).reshape(-1, 3), v[1]) for k, v in out.items()}
     un = scene.plan.unassigned
     result["unassigned"] = (
@@ -120,6 +131,7 @@ FLAG_STYLE = {
     "unreachable": ("#d62728", "x", "unreachable waypoints"),
     "approximate": ("#ff7f0e", "diamond", "waypoints reached only within the tolerance (SQP)"),
     "branch change": ("#e377c2", "circle", "waypoints where the arm changes IK branch"),
+    "collision": ("#8c564b", "square", "waypoints in collision (closer than the clearance, or below the floor)"),
     "unassigned": ("#000000", "cross", "points no station reaches"),
 }
 

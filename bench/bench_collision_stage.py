@@ -1,0 +1,69 @@
+"""The collision stage on whole plans: time to check and repair, and the waypoints in collision before repairs,
+repaired and left flagged (docs/benchmarks.md, "Collision stage").
+
+Each part is planned to the ``refine`` stage once (no film target, so no tuning), then the collision stage is
+timed ``--runs`` times on that plan (median). Parts: the demo roof (``z > 1000``), the reach part
+(``x > -250``), and with ``--large`` the DTC hull and the BMW body (from ``$SPRAYPLAN_TESTDATA`` or
+shared/testdata).
+
+    PYTHONPATH=src python bench/bench_collision_stage.py [--runs 3] [--large]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "src"))
+sys.path.insert(0, str(REPO / "bench"))
+
+from _data import meshes_dir  # noqa: E402
+
+from sprayplan.collision.repair import collision_stage  # noqa: E402
+from sprayplan.config import JobConfig  # noqa: E402
+from sprayplan.demo import DEMO_REGION, car_roof  # noqa: E402
+from sprayplan.job import run_job  # noqa: E402
+
+
+def cases(large: bool):
+    yield "demo roof (z > 1000)", car_roof(), JobConfig().replace(load={"region": DEMO_REGION})
+    reach = REPO / "tests" / "data" / "meshes" / "reach_curved_part.ply"
+    yield "reach part (x > -250)", reach, JobConfig().replace(load={"units": "m", "region": "x > -250"})
+    if large:
+        yield "DTC hull", meshes_dir() / "dtc_ship_hull_ascii.stl.gz", JobConfig().replace(load={"units": "m"})
+        yield "BMW body", meshes_dir() / "bmw_m6_body_m_yup.ply", JobConfig().replace(load={"units": "m", "up": "y"})
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--large", action="store_true")
+    args = parser.parse_args(argv)
+    print(
+        "| part | waypoints | in collision before | repaired (branch/roll/tilt/platform) | flagged | motions | flagged motions | stage s (median) |"
+    )
+    print("|---|---|---|---|---|---|---|---|")
+    for name, source, job in cases(args.large):
+        state = run_job(source, job.replace(collision={"check": False}), until="refine")
+        times = []
+        for _ in range(args.runs):
+            began = time.perf_counter()
+            _, summary = collision_stage(state.plan, state.whole, state.job, state.gantry())
+            times.append(time.perf_counter() - began)
+        by = summary["repaired_by"]
+        print(
+            f"| {name} | {summary['waypoints_checked']} | {summary['in_collision_before_repair']} | "
+            f"{summary['repaired']} ({by['branch']}/{by['roll']}/{by['tilt']}/{by['platform']}) | "
+            f"{summary['flagged_waypoints']} | {summary['motions_checked']} | {summary['flagged_motions']} | "
+            f"{statistics.median(times):.1f} |",
+            flush=True,
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,150 @@
+"""Lower bounds on the cell's distances, vectorised over many joint vectors: which pairs need an exact query.
+
+A plan has tens of thousands of waypoints and each has some forty body pairs; nearly all of them are far apart
+(the gun stands its standoff off the surface, the upper arm far above it). coal answers one pair at a time, so
+:class:`~sprayplan.collision.cell.CellCollision` first bounds every pair from below here, in numpy, and asks
+coal only for the pairs whose bound leaves less than a margin over their required gap. The bounds never
+decide a collision on their own: a pair is in collision only by coal's distance.
+
+The bounds (``s`` the spacing of points along a capsule's segment, so every segment point is within ``s / 2``
+of one of them):
+
+- capsule to part: the part's surface is sampled (:class:`SurfaceSamples`) so that every surface point lies
+  within ``h`` of a sample; a point ``x`` whose nearest sample is ``d_s`` away is at least ``d_s - h`` from the
+  surface. Over the segment's points: ``min d_s - h - s / 2 - r``;
+- capsule to box (the gantry's axis-aligned carriage and column): the exact point-to-box distance of the
+  segment's points, ``- s / 2 - r``;
+- capsule to capsule: the least distance between the two segments' points, ``- s - r_a - r_b``;
+- capsule or box to the floor (a half-space ``z <= floor``), and the TCP's height: exact (the lowest end's
+  height minus the radius, the box's bottom).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from sprayplan.types import Part
+
+#: Queries of at least this many points use every core (``cKDTree.query(workers=-1)``).
+PARALLEL_QUERIES = 50_000
+
+
+@dataclass(frozen=True)
+class SurfaceSamples:
+    """Points on a mesh's surface with every surface point within ``cover_mm`` of one of them.
+
+    Attributes
+    ----------
+    points : (m, 3) float, mm
+    cover_mm : float
+        The covering radius ``h`` (see the module docstring).
+    tree : scipy.spatial.cKDTree
+    """
+
+    points: np.ndarray
+    cover_mm: float
+    tree: cKDTree
+
+    def lower_bound_mm(self, x: np.ndarray, upper_mm: float) -> np.ndarray:
+        """(...) float: a lower bound on each point's distance to the surface, capped at ``upper_mm``
+        (a point farther than that from every sample gets ``upper_mm - cover``, still a lower bound)."""
+        x = np.asarray(x, dtype=float)
+        flat = x.reshape(-1, 3)
+        workers = -1 if len(flat) >= PARALLEL_QUERIES else 1  # threads cost more than they save on small queries
+        d, _ = self.tree.query(flat, k=1, distance_upper_bound=upper_mm + self.cover_mm, workers=workers)
+        d = np.minimum(d, upper_mm + self.cover_mm)
+        return (d - self.cover_mm).reshape(x.shape[:-1])
+
+
+def surface_samples(part: Part, cover_mm: float = 10.0) -> SurfaceSamples:
+    """Sample a mesh part's triangles on barycentric grids fine enough that every surface point is within
+    ``cover_mm`` of a sample.
+
+    A triangle split into ``m x m`` similar sub-triangles has sub-edges at most ``e / m`` long (``e`` its
+    longest edge). Every point of a triangle lies within ``e' / sqrt(3)`` of one of its corners, ``e'`` its
+    longest edge (in an acute triangle the farthest point is the circumcentre, at ``R = e' / (2 sin A)`` with
+    the angle ``A >= 60`` degrees opposite the longest edge; in a right or obtuse one it is no farther). So
+    ``m = ceil(e / (sqrt(3) cover))`` and the grid's points (the sub-triangles' corners) cover the triangle.
+    """
+    vertices = np.asarray(part.vertices, dtype=float)
+    faces = np.asarray(part.faces, dtype=np.int64)
+    tri = vertices[faces]  # (f, 3, 3)
+    edges = np.linalg.norm(tri - np.roll(tri, -1, axis=1), axis=2).max(axis=1)
+    m = np.maximum(1, np.ceil(edges / (math.sqrt(3.0) * cover_mm) - 1e-9)).astype(int)
+    chunks = [vertices]
+    for level in np.unique(m[m > 1]):
+        pick = tri[m == level]
+        i, j = np.meshgrid(np.arange(level + 1), np.arange(level + 1), indexing="ij")
+        keep = i + j <= level
+        a, b = i[keep] / level, j[keep] / level
+        interior = ~(((a == 0) & (b == 0)) | ((a == 1) & (b == 0)) | ((a == 0) & (b == 1)))  # corners are vertices
+        a, b = a[interior], b[interior]
+        weights = np.stack([1.0 - a - b, a, b], axis=1)  # (g, 3)
+        chunks.append(np.einsum("gk,fkd->fgd", weights, pick).reshape(-1, 3))
+    points = np.concatenate(chunks)
+    return SurfaceSamples(points, float(cover_mm), cKDTree(points))
+
+
+def segment_points(segments: np.ndarray, spacing_mm: float) -> tuple[np.ndarray, float]:
+    """Points along segments ``(..., 2, 3)``, the same count on each, at most ``spacing_mm`` apart.
+
+    Returns the points ``(..., k, 3)`` and half the largest gap between neighbours, the most any segment point
+    lies from one of them.
+    """
+    length = np.linalg.norm(segments[..., 1, :] - segments[..., 0, :], axis=-1)
+    longest = float(length.max()) if length.size else 0.0
+    k = max(2, math.ceil(longest / spacing_mm) + 1)
+    t = np.linspace(0.0, 1.0, k)
+    points = segments[..., :1, :] + t[:, None] * (segments[..., 1:, :] - segments[..., :1, :])
+    return points, longest / (k - 1) / 2.0
+
+
+def capsules_to_surface(
+    samples: SurfaceSamples, segments: np.ndarray, radius_mm: float, upper_mm: float, spacing_mm: float
+) -> np.ndarray:
+    """(n,) lower bounds on the distance from capsules (segments ``(n, 2, 3)``, one radius) to the sampled
+    surface, capped near ``upper_mm``: bounding spheres of the whole segment, then of pieces about
+    ``4 spacing`` long, then points ``spacing`` apart, each level only where the last left less than
+    ``upper_mm``. Every level is a lower bound (a sphere of radius ``rho`` about ``c`` holds the capsule part,
+    so its distance is at least ``lb(c) - rho``); the best of them is kept."""
+    start, end = segments[:, 0], segments[:, 1]
+    length = np.linalg.norm(end - start, axis=1)
+    reach = length / 2.0 + radius_mm
+    out = samples.lower_bound_mm((start + end) / 2.0, upper_mm + float(reach.max(initial=0.0))) - reach
+    near = np.flatnonzero(out < upper_mm)
+    if not len(near):
+        return out
+    pieces = max(1, math.ceil(float(length[near].max()) / (4.0 * spacing_mm)))
+    t = (np.arange(pieces) + 0.5) / pieces
+    centres = start[near, None] + t[None, :, None] * (end[near] - start[near])[:, None]  # (k, pieces, 3)
+    piece_reach = (length[near] / pieces / 2.0 + radius_mm)[:, None]
+    level1 = samples.lower_bound_mm(centres, upper_mm + float(piece_reach.max())) - piece_reach  # (k, pieces)
+    out[near] = np.maximum(out[near], level1.min(axis=1))
+    rows, which = np.nonzero(level1 < upper_mm)
+    if not len(rows):
+        return out
+    a = start[near[rows]] + (which / pieces)[:, None] * (end[near[rows]] - start[near[rows]])
+    b = start[near[rows]] + ((which + 1) / pieces)[:, None] * (end[near[rows]] - start[near[rows]])
+    points, half = segment_points(np.stack([a, b], axis=1), spacing_mm)
+    fine = samples.lower_bound_mm(points, upper_mm + half + radius_mm).min(axis=1) - half - radius_mm
+    # a piece's fine bound replaces its sphere's; the capsule's bound is the least over its pieces
+    level1[rows, which] = np.maximum(level1[rows, which], fine)
+    out[near] = np.maximum(out[near], level1.min(axis=1))
+    return out
+
+
+def point_box_distance(points: np.ndarray, centres: np.ndarray, half_sizes: np.ndarray) -> np.ndarray:
+    """Distances from points ``(..., 3)`` to axis-aligned boxes (centres broadcast with the points, half sizes
+    (3,)); 0 inside."""
+    gap = np.maximum(np.abs(points - centres) - half_sizes, 0.0)
+    return np.linalg.norm(gap, axis=-1)
+
+
+def segments_gap(a_points: np.ndarray, b_points: np.ndarray) -> np.ndarray:
+    """The least distance between two sets of points along segments: ``(n, ka, 3)`` and ``(n, kb, 3)`` -> (n,)."""
+    diff = a_points[:, :, None, :] - b_points[:, None, :, :]
+    return np.sqrt(np.einsum("nijd,nijd->nij", diff, diff).min(axis=(1, 2)))
