@@ -262,3 +262,21 @@ def test_a_point_cloud_is_planned_and_says_its_collisions_are_not_checked(testda
     result = run_job(cloud, JobConfig().replace(load={"units": "m"}), until="totals")
     assert result.totals["collisions"] == {"checked": False, "reason": "point cloud"}
     assert result.plan.stations and not any(st.collision.any() for st in result.plan.stations)
+
+
+def test_the_distance_grid_and_the_tree_bound_the_true_distance_from_below(testdata):
+    import trimesh
+
+    part = load_part(testdata / "meshes" / "tray_bottom_mm_ascii.stl")
+    samples = surface_samples(part, cover_mm=6.0)
+    rng = np.random.default_rng(5)
+    lo, hi = part.bounds
+    x = rng.uniform(lo - 150.0, hi + 150.0, (3000, 3))
+    mesh = trimesh.Trimesh(part.vertices, part.faces, process=False)
+    _, true, _ = trimesh.proximity.closest_point(mesh, x)
+    grid = samples.grid.lower_bound_mm(x)
+    assert (grid <= true + 1e-6).all()
+    bound = samples.lower_bound_mm(x, upper_mm=60.0)
+    assert (bound <= np.minimum(true, 60.0) + 1e-6).all()
+    near = true < 40.0
+    assert near.any() and (bound[near] >= true[near] - 6.0 - 1e-6).all()  # within the cover where it counts

@@ -11,7 +11,9 @@ of one of them):
 
 - capsule to part: the part's surface is sampled (:class:`SurfaceSamples`) so that every surface point lies
   within ``h`` of a sample; a point ``x`` whose nearest sample is ``d_s`` away is at least ``d_s - h`` from the
-  surface. Over the segment's points: ``min d_s - h - s / 2 - r``;
+  surface. Over the segment's points: ``min d_s - h - s / 2 - r``. A voxel grid of distances
+  (:class:`DistanceGrid`) bounds most points first, far more cheaply; only the points it leaves near the
+  surface go to the k-d tree;
 - capsule to box (the gantry's axis-aligned carriage and column): the exact point-to-box distance of the
   segment's points, ``- s / 2 - r``;
 - capsule to capsule: the least distance between the two segments' points, ``- s - r_a - r_b``;
@@ -29,6 +31,45 @@ from scipy.spatial import cKDTree
 
 from sprayplan.types import Part
 
+@dataclass(frozen=True)
+class DistanceGrid:
+    """Distances from voxel centres to the nearest voxel holding a surface sample, for quick lower bounds.
+
+    A point ``x`` in voxel ``i`` (centre ``c_i``, side ``v``) is at least ``EDT(i) - v sqrt(3) - cover`` from the
+    surface: ``|x - c_i| <= v sqrt(3) / 2``, every surface point is within ``cover`` of a sample, and every
+    sample within ``v sqrt(3) / 2`` of its voxel's centre, whose distance from ``c_i`` is at least ``EDT(i)``.
+    Outside the grid (``pad_mm`` beyond the samples on every side) a point is at least ``pad_mm - cover`` away.
+    """
+
+    origin: np.ndarray
+    voxel_mm: float
+    edt_mm: np.ndarray
+    pad_mm: float
+    cover_mm: float
+
+    def lower_bound_mm(self, flat: np.ndarray) -> np.ndarray:
+        index = np.floor((flat - self.origin) / self.voxel_mm).astype(np.int64)
+        shape = np.array(self.edt_mm.shape)
+        inside = ((index >= 0) & (index < shape)).all(axis=1)
+        out = np.full(len(flat), self.pad_mm - self.cover_mm)
+        i = index[inside]
+        out[inside] = self.edt_mm[i[:, 0], i[:, 1], i[:, 2]] - self.voxel_mm * math.sqrt(3.0) - self.cover_mm
+        return out
+
+
+def distance_grid(points: np.ndarray, cover_mm: float, voxel_mm: float = 10.0, pad_mm: float = 200.0) -> DistanceGrid:
+    """The :class:`DistanceGrid` of surface samples (scipy's exact Euclidean distance transform)."""
+    from scipy.ndimage import distance_transform_edt
+
+    origin = points.min(axis=0) - pad_mm
+    shape = np.ceil((points.max(axis=0) + pad_mm - origin) / voxel_mm).astype(int) + 1
+    free = np.ones(tuple(shape), dtype=bool)
+    index = np.floor((points - origin) / voxel_mm).astype(np.int64)
+    free[index[:, 0], index[:, 1], index[:, 2]] = False
+    edt = distance_transform_edt(free, sampling=voxel_mm).astype(np.float32)
+    return DistanceGrid(origin, float(voxel_mm), edt, float(pad_mm), float(cover_mm))
+
+
 #: Queries of at least this many points use every core (``cKDTree.query(workers=-1)``).
 PARALLEL_QUERIES = 50_000
 
@@ -43,21 +84,28 @@ class SurfaceSamples:
     cover_mm : float
         The covering radius ``h`` (see the module docstring).
     tree : scipy.spatial.cKDTree
+    grid : DistanceGrid
+        Quick, looser bounds: only points it leaves near the surface are looked up in the tree.
     """
 
     points: np.ndarray
     cover_mm: float
     tree: cKDTree
+    grid: DistanceGrid
 
     def lower_bound_mm(self, x: np.ndarray, upper_mm: float) -> np.ndarray:
-        """(...) float: a lower bound on each point's distance to the surface, capped at ``upper_mm``
-        (a point farther than that from every sample gets ``upper_mm - cover``, still a lower bound)."""
+        """(...) float: a lower bound on each point's distance to the surface, at most ``upper_mm`` (a cap that
+        keeps it a lower bound): the grid's bound, and the tree's (``nearest sample - cover``) where the grid
+        leaves less than ``upper_mm``."""
         x = np.asarray(x, dtype=float)
         flat = x.reshape(-1, 3)
-        workers = -1 if len(flat) >= PARALLEL_QUERIES else 1  # threads cost more than they save on small queries
-        d, _ = self.tree.query(flat, k=1, distance_upper_bound=upper_mm + self.cover_mm, workers=workers)
-        d = np.minimum(d, upper_mm + self.cover_mm)
-        return (d - self.cover_mm).reshape(x.shape[:-1])
+        out = self.grid.lower_bound_mm(flat)
+        near = np.flatnonzero(out < upper_mm)
+        if len(near):
+            workers = -1 if len(near) >= PARALLEL_QUERIES else 1  # threads cost more than they save on few points
+            d, _ = self.tree.query(flat[near], k=1, distance_upper_bound=upper_mm + self.cover_mm, workers=workers)
+            out[near] = np.maximum(out[near], np.minimum(d, upper_mm + self.cover_mm) - self.cover_mm)
+        return np.minimum(out, upper_mm).reshape(x.shape[:-1])
 
 
 def surface_samples(part: Part, cover_mm: float = 10.0) -> SurfaceSamples:
@@ -86,7 +134,7 @@ def surface_samples(part: Part, cover_mm: float = 10.0) -> SurfaceSamples:
         weights = np.stack([1.0 - a - b, a, b], axis=1)  # (g, 3)
         chunks.append(np.einsum("gk,fkd->fgd", weights, pick).reshape(-1, 3))
     points = np.concatenate(chunks)
-    return SurfaceSamples(points, float(cover_mm), cKDTree(points))
+    return SurfaceSamples(points, float(cover_mm), cKDTree(points), distance_grid(points, cover_mm))
 
 
 def segment_points(segments: np.ndarray, spacing_mm: float) -> tuple[np.ndarray, float]:
