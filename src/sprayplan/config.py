@@ -684,6 +684,69 @@ class RefineConfig(Section):
 
 
 @dataclass(frozen=True)
+class TimingConfig(Section):
+    """Timing within the joints' limits (``[timing]``, ``sprayplan.timing``): each stroke time-optimal along its
+    joint path, transfers and station moves time-optimal from point to point.
+
+    Attributes
+    ----------
+    enabled : bool
+        Time the plan (time stamps, the real cycle time, the film at the speeds the robot makes); false: the
+        cycle time is length over speed only.
+    arm_max_velocity_deg_s, arm_max_acceleration_deg_s2 : list of 6 float or None
+        The arm's joint limits; None: the robot model's (UR5 / UR5e: 180 deg/s, 80.2 deg/s^2; see
+        ``robots.model``).
+    gantry_max_velocity_mm_s : list of 3 float or None
+        The gantry's x, y, z axis speeds; None: ``[motion] platform_speed_mm_s`` on each.
+    gantry_max_acceleration_mm_s2 : list of 3 float
+        The gantry's x, y, z axis accelerations (the seed gives none: an assumption, 500 mm/s^2).
+    check_steps : int
+        The time-parameterised strokes are checked against every limit at this many points per waypoint
+        segment (toppra holds the limits at its grid points only), and tightened where they do not hold.
+    max_rounds : int
+        Most tightening rounds before the stroke's time is stretched uniformly (which always holds).
+    joint_jump_deg : float
+        A spray stroke is not followed across two waypoints where an arm joint moves by more than this (an IK
+        branch change, an SQP solution far from its neighbours): the arm makes a joint move there instead.
+    """
+
+    SECTION = "timing"
+    enabled: bool = True
+    arm_max_velocity_deg_s: tuple | None = None
+    arm_max_acceleration_deg_s2: tuple | None = None
+    gantry_max_velocity_mm_s: tuple | None = None
+    gantry_max_acceleration_mm_s2: tuple = (500.0, 500.0, 500.0)
+    check_steps: int = 4
+    max_rounds: int = 6
+    joint_jump_deg: float = 30.0
+
+    def _check(self):
+        from sprayplan.robots.model import check_rate_limits
+
+        for name, n in (
+            ("arm_max_velocity_deg_s", 6),
+            ("arm_max_acceleration_deg_s2", 6),
+            ("gantry_max_velocity_mm_s", 3),
+            ("gantry_max_acceleration_mm_s2", 3),
+        ):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or any(
+                isinstance(v, (bool, str)) for v in value
+            ):
+                raise _fail(TimingConfig, name, f"{n} positive finite numbers", value)
+            try:
+                checked = check_rate_limits(value, f"{TimingConfig.SECTION}.{name}", n)
+            except ConfigError as exc:
+                raise ConfigError(str(exc).replace(" (one per joint)", "")) from None
+            object.__setattr__(self, name, tuple(float(v) for v in checked))
+        _within(TimingConfig, "check_steps", self.check_steps, 1, 100)
+        _within(TimingConfig, "max_rounds", self.max_rounds, 0, 100)
+        _within(TimingConfig, "joint_jump_deg", self.joint_jump_deg, 1e-6, 360.0)
+
+
+@dataclass(frozen=True)
 class OutputConfig(Section):
     """What the main job writes besides plan.json and waypoints.csv (``[output]``).
 
@@ -891,7 +954,7 @@ class JobConfig:
     ----------
     mode : {"paths", "points"}
         ``paths``: slicing strokes (the default); ``points``: the seed's target points visited in a tour.
-    load, targets, paths, stations, ordering, kinematics, motion, coating, tuning, output, export
+    load, targets, paths, stations, ordering, kinematics, motion, coating, tuning, timing, output, export
         One section each (``[load]``, ``[targets]``, ...).
     """
 
@@ -905,6 +968,7 @@ class JobConfig:
     motion: MotionConfig = MotionConfig()
     coating: FilmConfig = FilmConfig()
     tuning: RefineConfig = RefineConfig()
+    timing: TimingConfig = TimingConfig()
     output: OutputConfig = OutputConfig()
     export: ExportConfig = ExportConfig()
 
@@ -948,6 +1012,7 @@ SECTIONS = {
     "motion": MotionConfig,
     "coating": FilmConfig,
     "tuning": RefineConfig,
+    "timing": TimingConfig,
     "output": OutputConfig,
     "export": ExportConfig,
 }

@@ -14,7 +14,8 @@ stations       gantry stations, their tour, the work of each           ``station
 ordering       each station's strokes in order, with transfers         ``ordering.stage``
 kinematics     the nine axes at every waypoint                         ``robots.stage``
 refine         speeds tuned to the film, touch-ups, added stations     ``refine.stage``
-film           the film the final plan leaves                          ``coating.stage``
+timing         time stamps within the joints' limits, the cycle time   ``timing.stage``
+film           the film the final plan leaves (at the timed speeds)    ``coating.stage``
 totals         lengths, counts, cycle time                             ``export.summary``
 programs       ``[export] programs``: robot programs, in memory        ``programs.stage``
 =============  ======================================================  ===========================
@@ -69,6 +70,8 @@ class JobState:
     plan : Plan or None
     tuning : dict
         The refine stage's summary ({} when it did not run).
+    timing : timing.stage.PlanTiming or None
+        The plan's time stamps and achievable speeds (None with ``[timing] enabled = false``).
     film : coating.CoatingResult or None
         The final plan's film (None when not simulated).
     totals : dict
@@ -87,6 +90,7 @@ class JobState:
     ordered: object = None
     plan: Plan | None = None
     tuning: dict = field(default_factory=dict)
+    timing: object = None
     film: object = None
     totals: dict = field(default_factory=dict)
     programs: tuple = ()
@@ -186,19 +190,38 @@ def _refine(state: JobState, progress: Progress) -> JobState:
     return dataclasses.replace(state, plan=plan, tuning=summary, film=film)
 
 
+def _timing(state: JobState, progress: Progress) -> JobState:
+    if not state.job.timing.enabled:
+        return state
+    from sprayplan.timing.stage import time_plan
+
+    return dataclasses.replace(state, timing=time_plan(state.plan, state.job, state.gantry(), progress))
+
+
 def _film(state: JobState, progress: Progress) -> JobState:
     job = state.job
-    if state.film is not None or not (job.output.simulate or job.film_target):
+    if not (job.output.simulate or job.film_target):
+        return state
+    if state.film is not None and state.timing is None:
         return state  # a tuned plan's film is known already (the tuning's deposit matrix)
     from sprayplan.coating.stage import simulate_plan
 
-    return dataclasses.replace(state, film=simulate_plan(state.part, state.plan, job, progress))
+    plan = state.plan
+    if state.timing is not None:  # the film at the speeds the robot makes
+        from sprayplan.timing.stage import real_plan
+
+        plan = real_plan(plan, state.timing)
+    return dataclasses.replace(state, film=simulate_plan(state.part, plan, job, progress))
 
 
 def _totals(state: JobState, progress: Progress) -> JobState:
     from sprayplan.export.summary import plan_totals
 
     totals = plan_totals(state.plan, state.job)
+    if state.timing is not None:
+        totals["cycle_time_length_over_speed_s"] = totals["cycle_time_s"]
+        totals["cycle_time_s"] = round(state.timing.cycle_time_s, 3)
+        totals["timing"] = state.timing.summary(state.plan, state.job)
     if state.chosen:
         totals["chosen_for_thickness"] = state.chosen
     if state.tuning:
@@ -247,6 +270,7 @@ STAGES = (
     Stage("ordering", _ordering),
     Stage("kinematics", _kinematics),
     Stage("refine", _refine),
+    Stage("timing", _timing),
     Stage("film", _film),
     Stage("totals", _totals),
     Stage("programs", _programs),
