@@ -189,7 +189,6 @@ def time_plan(plan: Plan, job, gantry, progress: Progress | None = None) -> Plan
                 if len(run) >= 2:
                     timed = time_path(
                         st.q9[idx[run]],
-                        s.tcp[run],
                         cap[run[:-1]],
                         limits,
                         tip,
