@@ -153,8 +153,13 @@ def cmd_simulate(args) -> int:
     inputs = [(part_file, "--part" if args.part else "part"), (outdir / "plan.json", "plan.json")]
     check_folder_outputs(outdir, own, "OUTDIR", inputs)
     part = select_region(load_part(part_file, units=job.load.units, up=job.load.up), job.load.region)
+    filmed = result
+    if read.timing is not None:  # a timed plan's film at the speeds the robot makes, as the plan's own
+        from sprayplan.timing.stage import real_plan
+
+        filmed = real_plan(result, read.timing, job)
     with stage("coating"):
-        film = simulate_plan(part, result, job)
+        film = simulate_plan(part, filmed, job)
     report = film_report(film, job, args.samples)
     with staged_folder(outdir, own, whole=False) as folder:  # the film files and their pictures, or none
         write_coating(folder, film, job, report)
@@ -162,7 +167,7 @@ def cmd_simulate(args) -> int:
             from sprayplan.view.files import write_view_files
             from sprayplan.view.scene import make_scene
 
-            scene = make_scene(result, job, read.totals, film, report)
+            scene = make_scene(result, job, read.totals, film, report, timing=read.timing)
             with stage("pictures"):
                 write_view_files(folder, scene, **view)
     print(_coating_line(report, outdir))

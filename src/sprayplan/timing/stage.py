@@ -140,13 +140,12 @@ def time_plan(plan: Plan, job, gantry, progress: Progress | None = None) -> Plan
     clock = 0.0
     totals = {"spray": 0.0, "transfer": 0.0, "station": 0.0}
     worst = {"velocity": 0.0, "acceleration": 0.0, "tip_speed": 0.0, "stretched": 0}
-    out_t, out_speed, out_bound, out_dwell, out_time, out_planned = [], [], [], [], [], []
+    out_t, out_speed, out_bound, out_time, out_planned = [], [], [], [], []
     for st in plan.stations:
         n = len(st)
         t = np.full(n, np.nan)
         speed = np.full(n, np.nan)
         bound = np.full(n, np.nan)
-        dwell = np.concatenate([s.dwell for s in st.strokes]) if st.strokes else np.zeros(0)
         stroke_time, planned_time = [], []
         reach = np.flatnonzero(st.reachable)
         if len(reach):
@@ -174,7 +173,6 @@ def time_plan(plan: Plan, job, gantry, progress: Progress | None = None) -> Plan
                 stroke_time.append(clock - began)
                 continue
             cap = segment_speeds(s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio, s.dwell)
-            base = segment_speeds(s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio)
             seg_len = np.linalg.norm(np.diff(s.tcp, axis=0), axis=1)
             planned_time.append(float((seg_len / cap).sum()) if len(cap) else 0.0)
             if len(cap):
@@ -202,19 +200,17 @@ def time_plan(plan: Plan, job, gantry, progress: Progress | None = None) -> Plan
                     for key in ("velocity", "acceleration", "tip_speed"):
                         worst[key] = max(worst[key], timed.worst[key])
                     worst["stretched"] += timed.stretch > 1.0
-                    dwell[idx[run]] = _real_dwell(local_t[run], seg_len[run[:-1]] / base[run[:-1]], s.dwell[run])
                 else:
                     local_t[run] = clock
                     speed[idx[run]] = 0.0
                 current = st.q9[idx[run[-1]]]
             t[idx] = local_t
             stroke_time.append(clock - began)
-        for a in (t, speed, bound, dwell):
+        for a in (t, speed, bound):
             a.flags.writeable = False
         out_t.append(t)
         out_speed.append(speed)
         out_bound.append(bound)
-        out_dwell.append(dwell)
         out_time.append(np.array(stroke_time, float))
         out_planned.append(np.array(planned_time, float))
         step()
@@ -225,7 +221,7 @@ def time_plan(plan: Plan, job, gantry, progress: Progress | None = None) -> Plan
         tuple(out_t),
         tuple(out_speed),
         tuple(out_bound),
-        tuple(out_dwell),
+        timed_dwell(plan, out_t, job),
         tuple(out_time),
         tuple(out_planned),
         float(totals["spray"]),
@@ -248,30 +244,53 @@ def _runs(ok: np.ndarray, q: np.ndarray, jump_rad: float) -> list[np.ndarray]:
     return np.split(where, cuts)
 
 
-def _real_dwell(t: np.ndarray, base_segment_s: np.ndarray, planned: np.ndarray) -> np.ndarray:
-    """Time factors (n,) of a timed stretch: each waypoint's time (half of each adjacent segment's) over its time
-    at the process speed with factors 1; the planned factor where that time is 0 (a waypoint that does not move)."""
-    real = np.diff(t)
-    share = np.zeros(len(t))
-    share[:-1] += real / 2
-    share[1:] += real / 2
-    base = np.zeros(len(t))
-    base[:-1] += base_segment_s / 2
-    base[1:] += base_segment_s / 2
-    out = np.array(planned, float)
-    moving = base > 1e-12
-    out[moving] = share[moving] / base[moving]
-    return out
+def timed_dwell(plan: Plan, t_s, job) -> tuple:
+    """Per station, each waypoint's time factor (``Stroke.dwell``) from the time stamps ``t_s`` (per station,
+    NaN where unreachable): on a spray stroke's timed stretches (the runs :func:`_runs` cuts, as
+    :func:`time_plan` times them), a waypoint's time (half of each adjacent segment's) over its time at the
+    process speed with factors 1; the planned factor elsewhere and where a waypoint's time at the process
+    speed is 0 (the tip does not move)."""
+    motion = job.motion
+    jump = np.radians(job.timing.joint_jump_deg)
+    out = []
+    for st, t in zip(plan.stations, t_s):
+        dwell = np.concatenate([s.dwell for s in st.strokes]) if st.strokes else np.zeros(0)
+        start = 0
+        for s in st.strokes:
+            idx = np.arange(start, start + len(s))
+            start += len(s)
+            if not s.spray_on or len(s) < 2:
+                continue
+            base = np.linalg.norm(np.diff(s.tcp, axis=0), axis=1) / segment_speeds(
+                s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio
+            )
+            for run in _runs(st.reachable[idx], st.q9[idx], jump):
+                if len(run) < 2:
+                    continue
+                real = np.diff(t[idx[run]])
+                share = np.zeros(len(run))
+                share[:-1] += real / 2
+                share[1:] += real / 2
+                planned = np.zeros(len(run))
+                planned[:-1] += base[run[:-1]] / 2
+                planned[1:] += base[run[:-1]] / 2
+                moving = planned > 1e-12
+                dwell[idx[run[moving]]] = share[moving] / planned[moving]
+        dwell.flags.writeable = False
+        out.append(dwell)
+    return tuple(out)
 
 
-def real_plan(plan: Plan, timing: PlanTiming) -> Plan:
-    """The plan with every stroke's time factors (``Stroke.dwell``) from its timing: what the film is
-    predicted with. Geometry and joints unchanged."""
+def real_plan(plan: Plan, timing, job=None) -> Plan:
+    """The plan with every spray stroke's time factors (``Stroke.dwell``) from its timing: what the film is
+    predicted with; geometry and joints unchanged. ``timing``: a :class:`PlanTiming`, or the time stamps read
+    back from plan.json (``export.plan_read.WaypointTimes``, then with the plan's ``job``)."""
+    dwell = timing.dwell if isinstance(timing, PlanTiming) else timed_dwell(plan, timing.t_s, job)
     stations = []
-    for st, dwell in zip(plan.stations, timing.dwell):
+    for st, w_station in zip(plan.stations, dwell):
         strokes, start = [], 0
         for s in st.strokes:
-            w = dwell[start : start + len(s)]
+            w = w_station[start : start + len(s)]
             start += len(s)
             strokes.append(s.with_dwell(w) if s.spray_on else s)
         stations.append(dataclasses.replace(st, strokes=tuple(strokes)))
