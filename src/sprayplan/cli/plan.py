@@ -87,6 +87,12 @@ def run_shown(part_path, job, quiet: bool = False, outdir=None):
     return result
 
 
+def _length_over_speed(totals: dict) -> str:
+    """`` (length over speed 366 s)`` beside a timed cycle time; empty for an untimed plan."""
+    value = totals.get("cycle_time_length_over_speed_s")
+    return "" if value is None else f" (length over speed {value:.0f} s)"
+
+
 def summary_line(result, outdir) -> str:
     """What ``sprayplan plan`` prints: the plan's counts and lengths, and its film when it has one."""
     totals = result.totals
@@ -94,7 +100,7 @@ def summary_line(result, outdir) -> str:
         f"{totals['stations']} stations, {totals['strokes']} strokes, {totals['waypoints']} waypoints "
         f"({totals['unreachable_waypoints']} unreachable, {totals['unassigned_points']} unassigned), spray "
         f"{totals['spray_length_mm'] / 1000:.2f} m, transfer {totals['transfer_length_mm'] / 1000:.2f} m, gantry "
-        f"{totals['platform_travel_mm'] / 1000:.2f} m, cycle {totals['cycle_time_s']:.0f} s, planned in "
+        f"{totals['platform_travel_mm'] / 1000:.2f} m, cycle {totals['cycle_time_s']:.0f} s{_length_over_speed(totals)}, planned in "
         f"{totals['planning_time_s']:.1f} s -> {outdir}/plan.json"
     )
     if result.film is not None:
