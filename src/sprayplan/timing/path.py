@@ -132,7 +132,7 @@ def time_path(
     tip: Callable[[np.ndarray], np.ndarray],
     *,
     check_steps: int = 4,
-    max_rounds: int = 6,
+    max_rounds: int = 2,
     knot_speeds: tuple | None = None,
 ) -> PathTiming:
     """Time a joint path from rest to rest, fastest within ``limits`` and the gun-tip speed bound.
