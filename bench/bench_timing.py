@@ -1,6 +1,7 @@
 """Timing within the joints' limits (issue 16, section 4): the timing stage's cost and the cycle time it finds.
 
     PYTHONPATH=src python bench/bench_timing.py [--runs 3] [--parts roof,reach,suv]
+    PYTHONPATH=src python bench/bench_timing.py --parts roof --stations 1 --runs 1 --max-rounds 6,2,1
 
 Each part is planned once to the kinematics stage with the default settings (``sprayplan plan``'s), then the
 timing stage (``timing.stage.time_plan``) runs ``--runs`` times on that plan: the median wall time, the time
@@ -13,6 +14,7 @@ roof cut at z > 1000), the reach part (whole, in metres) and the SUV body (whole
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import statistics
 import time
 
@@ -33,26 +35,55 @@ def parts():
     }
 
 
+def _plan(key, stations):
+    label, source, job = parts()[key]
+    state = run_job(source, job, until="kinematics")
+    plan = state.plan
+    if stations is not None:
+        plan = dataclasses.replace(plan, stations=plan.stations[:stations])
+    return label, job, state, plan
+
+
+def compare_rounds(args) -> int:
+    """Wall time and timed cycle for each ``--max-rounds`` value on the same plan (median of ``--runs``)."""
+    for key in args.parts.split(","):
+        label, job, state, plan = _plan(key, args.stations)
+        for rounds in (int(v) for v in args.max_rounds.split(",")):
+            varied = job.replace(timing={"max_rounds": rounds})
+            walls, timing = [], None
+            for _ in range(args.runs):
+                began = time.perf_counter()
+                timing = time_plan(plan, varied, state.gantry())
+                walls.append(time.perf_counter() - began)
+            print(f"{label}, max_rounds {rounds}: {statistics.median(walls):.1f} s, timed cycle {timing.cycle_time_s:.2f} s")
+    return 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--parts", default="roof,reach,suv")
+    parser.add_argument("--stations", type=int, default=None, help="time only the plan's first N stations")
+    parser.add_argument(
+        "--max-rounds", default=None, help="compare [timing] max_rounds values (e.g. 6,2,1): wall and cycle of each"
+    )
     args = parser.parse_args(argv)
+    if args.max_rounds:
+        return compare_rounds(args)
     rows = []
     for key in args.parts.split(","):
-        label, source, job = parts()[key]
         began = time.perf_counter()
-        state = run_job(source, job, until="kinematics")
+        label, job, state, plan = _plan(key, args.stations)
         planned_s = time.perf_counter() - began
         gantry = state.gantry()
         walls, timing = [], None
         for _ in range(args.runs):
             began = time.perf_counter()
-            timing = time_plan(state.plan, job, gantry)
+            timing = time_plan(plan, job, gantry)
             walls.append(time.perf_counter() - began)
-        before = plan_totals(state.plan, job)["cycle_time_s"]
-        summary = timing.summary(state.plan, job)
-        waypoints = sum(len(st) for st in state.plan.stations)
+        before = plan_totals(plan, job)["cycle_time_s"]
+        summary = timing.summary(plan, job)
+        waypoints = sum(len(st) for st in plan.stations)
         wall = statistics.median(walls)
         rows.append(
             (
