@@ -30,7 +30,11 @@ from sprayplan.timing.stage import time_plan
 def parts():
     return {
         "roof": ("demo roof (z > 1000)", car_roof(), JobConfig().replace(load={"region": DEMO_REGION})),
-        "reach": ("reach part (whole)", meshes_dir() / "reach_curved_part.ply", JobConfig().replace(load={"units": "m"})),
+        "reach": (
+            "reach part (whole)",
+            meshes_dir() / "reach_curved_part.ply",
+            JobConfig().replace(load={"units": "m"}),
+        ),
         "suv": ("SUV body (whole)", meshes_dir() / "gazebo_suv_body_m.ply", JobConfig().replace(load={"units": "m"})),
     }
 
@@ -55,7 +59,9 @@ def compare_rounds(args) -> int:
                 began = time.perf_counter()
                 timing = time_plan(plan, varied, state.gantry())
                 walls.append(time.perf_counter() - began)
-            print(f"{label}, max_rounds {rounds}: {statistics.median(walls):.1f} s, timed cycle {timing.cycle_time_s:.2f} s")
+            print(
+                f"{label}, max_rounds {rounds}: {statistics.median(walls):.1f} s, timed cycle {timing.cycle_time_s:.2f} s"
+            )
     return 0
 
 
@@ -100,12 +106,14 @@ def main(argv=None) -> int:
                 planned_s,
             )
         )
-        print(f"{label}: planned in {planned_s:.1f} s; timing runs {', '.join(f'{w:.2f}' for w in walls)} s", flush=True)
+        print(
+            f"{label}: planned in {planned_s:.1f} s; timing runs {', '.join(f'{w:.2f}' for w in walls)} s", flush=True
+        )
     print()
     print(
-        "| part | waypoints | timing (median of %d) | per 1000 waypoints | cycle, length / speed | cycle, timed |"
-        " timed / length-over-speed | spray / transfers / station moves (timed) | slowed spray waypoints (on the part) |"
-        " strokes slowed | worst limit ratio (speed, acceleration, tip) |" % args.runs
+        f"| part | waypoints | timing (median of {args.runs}) | per 1000 waypoints | cycle, length / speed |"
+        " cycle, timed | timed / length-over-speed | spray / transfers / station moves (timed) |"
+        " slowed spray waypoints (on the part) | strokes slowed | worst limit ratio (speed, acceleration, tip) |"
     )
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for label, n, wall, per, before, after, spray, transfer, station, summary, _ in rows:

@@ -291,8 +291,10 @@ def test_robot_without_limits_cannot_be_timed(tmp_path):
     from sprayplan.timing.limits import arm_limits
 
     path = tmp_path / "bare.toml"
-    path.write_text("d_mm = [89.159, 0, 0, 109.15, 94.65, 82.3]\na_mm = [0, -425, -392.25, 0, 0, 0]\n"
-                    "alpha_deg = [90, 0, 0, 90, -90, 0]\n")
+    path.write_text(
+        "d_mm = [89.159, 0, 0, 109.15, 94.65, 82.3]\na_mm = [0, -425, -392.25, 0, 0, 0]\n"
+        "alpha_deg = [90, 0, 0, 90, -90, 0]\n"
+    )
     with pytest.raises(ConfigError, match="max_velocity_deg_s"):
         arm_limits(load_robot(path))
 

@@ -89,7 +89,9 @@ class PlanTiming:
         """The totals' ``timing`` entry: the times, and where the limits keep a stroke below its speed."""
         slowed = slowed_on_part = strokes_slowed = spray_waypoints = 0
         ratios, planned_spray, real_spray = [], 0.0, 0.0
-        rows = zip(plan.stations, self.speed_mm_s, self.planned_speed_mm_s, self.stroke_time_s, self.planned_stroke_time_s)
+        rows = zip(
+            plan.stations, self.speed_mm_s, self.planned_speed_mm_s, self.stroke_time_s, self.planned_stroke_time_s
+        )
         for st, speed, bound, times, planned in rows:
             start = 0
             for k, s in enumerate(st.strokes):
@@ -172,7 +174,9 @@ def time_plan(plan: Plan, job, gantry, progress: Progress | None = None) -> Plan
                     current = st.q9[last]
                 stroke_time.append(clock - began)
                 continue
-            cap = segment_speeds(s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio, s.dwell)
+            cap = segment_speeds(
+                s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio, s.dwell
+            )
             seg_len = np.linalg.norm(np.diff(s.tcp, axis=0), axis=1)
             planned_time.append(float((seg_len / cap).sum()) if len(cap) else 0.0)
             if len(cap):
