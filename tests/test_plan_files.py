@@ -126,7 +126,7 @@ def _round_trip(result, out, tmp_path):
     assert_same(result.plan, read.plan)
     assert read.job == result.job and read.totals == json.loads(json.dumps(result.totals))
     again = tmp_path / "again"
-    write_plan(again, read.plan, read.job, read.totals, read.part_file, read.film)
+    write_plan(again, read.plan, read.job, read.totals, read.part_file, read.film, read.timing)
     for name in ("plan.json", "waypoints.csv"):
         assert (again / name).read_bytes() == (out / name).read_bytes(), name
     return read

@@ -115,15 +115,22 @@ def test_the_strokes_carry_their_plan_data(planned):
     with_kind = lambda kind: sum(any(s.kind == kind for s in st.strokes) for st in plan.stations)
     assert len([n for n in names if not n.endswith("touch-ups")]) == with_kind("spray")
     assert len([n for n in names if n.endswith("touch-ups")]) == with_kind("touch-up") > 0
-    rows = np.vstack([t["customdata"][np.isfinite(t["customdata"]).all(axis=1)] for t in strokes])
+    # the rows between polylines are all NaN; a waypoint's achievable speed and time stamp may be NaN (transfers,
+    # unreachable waypoints)
+    rows = np.vstack([t["customdata"][np.isfinite(t["customdata"][:, :5]).all(axis=1)] for t in strokes])
     assert len(rows) == sum(len(s) for s in plan.strokes)  # every waypoint, none thinned at this size
     by_key = {(int(r[0]), int(r[1]), int(r[2])): r[3:] for r in rows}
-    for st in plan.stations:
+    assert read.timing is not None and rows.shape[1] == 7
+    for place, st in enumerate(plan.stations):
+        start = 0
         for i, s in enumerate(st.strokes):
             speed = tip_speeds(s, job)
             for j in (0, len(s) - 1):
                 got = by_key[(st.index, i, j)]
                 assert got[0] == pytest.approx(speed[j], rel=1e-6) and got[1] == pytest.approx(s.dwell[j], rel=1e-6)
+                achieved, stamp = read.timing.speed_mm_s[place][start + j], read.timing.t_s[place][start + j]
+                np.testing.assert_allclose(got[2:], np.float32([achieved, stamp]), rtol=1e-6, equal_nan=True)
+            start += len(s)
     tcp = np.vstack([_points(t) for t in strokes])
     expected = np.vstack([s.tcp for s in plan.strokes]).astype(np.float32)
     assert len(tcp) == len(expected)

@@ -15,6 +15,7 @@ ordering       each station's strokes in order, with transfers         ``orderin
 kinematics     the nine axes at every waypoint                         ``robots.stage``
 refine         speeds tuned to the film, touch-ups, added stations     ``refine.stage``
 collision      waypoints and motions checked, repaired, or flagged     ``collision.repair``
+timing         time stamps within the joints' limits, the cycle time   ``timing.stage``
 film           the film the final plan leaves                          ``coating.stage``
 totals         lengths, counts, cycle time                             ``export.summary``
 programs       ``[export] programs``: robot programs, in memory        ``programs.stage``
@@ -75,6 +76,8 @@ class JobState:
         The refine stage's summary ({} when it did not run).
     collisions : dict
         The collision stage's summary ({} when it did not run).
+    timing : timing.stage.PlanTiming or None
+        The plan's time stamps and achievable speeds (None with ``[timing] enabled = false``).
     film : coating.CoatingResult or None
         The final plan's film (None when not simulated).
     totals : dict
@@ -95,6 +98,7 @@ class JobState:
     plan: Plan | None = None
     tuning: dict = field(default_factory=dict)
     collisions: dict = field(default_factory=dict)
+    timing: object = None
     film: object = None
     totals: dict = field(default_factory=dict)
     programs: tuple = ()
@@ -215,13 +219,29 @@ def _collision(state: JobState, progress: Progress) -> JobState:
     return dataclasses.replace(state, plan=plan, collisions=summary)
 
 
+def _timing(state: JobState, progress: Progress) -> JobState:
+    if not state.job.timing.enabled:
+        return state
+    from sprayplan.timing.stage import time_plan
+
+    return dataclasses.replace(state, timing=time_plan(state.plan, state.job, state.gantry(), progress))
+
+
 def _film(state: JobState, progress: Progress) -> JobState:
     job = state.job
-    if state.film is not None or not (job.output.simulate or job.film_target):
+    if not (job.output.simulate or job.film_target):
+        return state
+    timed = state.timing is not None and job.timing.film_at_timed_speeds
+    if state.film is not None and not timed:
         return state  # a tuned plan's film is known already (the tuning's deposit matrix)
     from sprayplan.coating.stage import simulate_plan
 
-    return dataclasses.replace(state, film=simulate_plan(state.part, state.plan, job, progress))
+    plan = state.plan
+    if timed:  # the film at the speeds the robot makes
+        from sprayplan.timing.stage import real_plan
+
+        plan = real_plan(plan, state.timing)
+    return dataclasses.replace(state, film=simulate_plan(state.part, plan, job, progress))
 
 
 def _totals(state: JobState, progress: Progress) -> JobState:
@@ -230,6 +250,10 @@ def _totals(state: JobState, progress: Progress) -> JobState:
     totals = {**state.totals, **plan_totals(state.plan, state.job)}
     if state.collisions:
         totals["collisions"] = state.collisions
+    if state.timing is not None:
+        totals["cycle_time_length_over_speed_s"] = totals["cycle_time_s"]
+        totals["cycle_time_s"] = round(state.timing.cycle_time_s, 3)
+        totals["timing"] = state.timing.summary(state.plan, state.job)
     if state.chosen:
         totals["chosen_for_thickness"] = state.chosen
     if state.tuning:
@@ -283,6 +307,7 @@ STAGES = (
     Stage("kinematics", _kinematics),
     Stage("refine", _refine),
     Stage("collision", _collision),
+    Stage("timing", _timing),
     Stage("film", _film),
     Stage("totals", _totals),
     Stage("programs", _programs),

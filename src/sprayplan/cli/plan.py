@@ -87,6 +87,12 @@ def run_shown(part_path, job, quiet: bool = False, outdir=None):
     return result
 
 
+def _length_over_speed(totals: dict) -> str:
+    """`` (length over speed 366 s)`` beside a timed cycle time; empty for an untimed plan."""
+    value = totals.get("cycle_time_length_over_speed_s")
+    return "" if value is None else f" (length over speed {value:.0f} s)"
+
+
 def summary_line(result, outdir) -> str:
     """What ``sprayplan plan`` prints: the plan's counts and lengths, and its film when it has one."""
     totals = result.totals
@@ -94,7 +100,7 @@ def summary_line(result, outdir) -> str:
         f"{totals['stations']} stations, {totals['strokes']} strokes, {totals['waypoints']} waypoints "
         f"({totals['unreachable_waypoints']} unreachable, {totals['unassigned_points']} unassigned), spray "
         f"{totals['spray_length_mm'] / 1000:.2f} m, transfer {totals['transfer_length_mm'] / 1000:.2f} m, gantry "
-        f"{totals['platform_travel_mm'] / 1000:.2f} m, cycle {totals['cycle_time_s']:.0f} s, planned in "
+        f"{totals['platform_travel_mm'] / 1000:.2f} m, cycle {totals['cycle_time_s']:.0f} s{_length_over_speed(totals)}, planned in "
         f"{totals['planning_time_s']:.1f} s -> {outdir}/plan.json"
     )
     collisions = totals.get("collisions")
@@ -143,7 +149,7 @@ def cmd_simulate(args) -> int:
     from sprayplan.export.job_files import FILM_FILES, VIEW_FILES
     from sprayplan.export.plan_read import read_plan_file
     from sprayplan.io.load import load_part
-    from sprayplan.surface.region import select_region
+    from sprayplan.surface.region import drop_floor_facing, select_region
 
     output_option(args.outdir, "OUTDIR")
     _check_samples(args.samples)
@@ -164,8 +170,15 @@ def cmd_simulate(args) -> int:
     inputs = [(part_file, "--part" if args.part else "part"), (outdir / "plan.json", "plan.json")]
     check_folder_outputs(outdir, own, "OUTDIR", inputs)
     part = select_region(load_part(part_file, units=job.load.units, up=job.load.up), job.load.region)
+    if job.collision.skip_floor_facing:  # the surface the plan paints, as its region stage cut it
+        part, _ = drop_floor_facing(part, job.collision.floor_facing_deg)
+    filmed = result
+    if read.timing is not None and job.timing.film_at_timed_speeds:  # the film at the speeds the robot makes
+        from sprayplan.timing.stage import real_plan
+
+        filmed = real_plan(result, read.timing, job)
     with stage("coating"):
-        film = simulate_plan(part, result, job)
+        film = simulate_plan(part, filmed, job)
     report = film_report(film, job, args.samples)
     with staged_folder(outdir, own, whole=False) as folder:  # the film files and their pictures, or none
         write_coating(folder, film, job, report)
@@ -173,7 +186,7 @@ def cmd_simulate(args) -> int:
             from sprayplan.view.files import write_view_files
             from sprayplan.view.scene import make_scene
 
-            scene = make_scene(result, job, read.totals, film, report)
+            scene = make_scene(result, job, read.totals, film, report, timing=read.timing)
             with stage("pictures"):
                 write_view_files(folder, scene, **view)
     print(_coating_line(report, outdir))

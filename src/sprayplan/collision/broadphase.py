@@ -31,6 +31,7 @@ from scipy.spatial import cKDTree
 
 from sprayplan.types import Part
 
+
 @dataclass(frozen=True)
 class DistanceGrid:
     """Distances from voxel centres to the nearest voxel holding a surface sample, for quick lower bounds.

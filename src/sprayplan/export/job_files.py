@@ -73,7 +73,7 @@ def write_job_files(
     job = result.job
     if result.film is not None and report is None:
         report = film_report(result.film, job, job.output.samples, result.chosen)
-    written = write_plan(folder, result.plan, job, result.totals, part_file, report)
+    written = write_plan(folder, result.plan, job, result.totals, part_file, report, getattr(result, "timing", None))
     if report is not None:
         written += write_coating(folder, result.film, job, report)
     if job.output.viewer or job.output.report:

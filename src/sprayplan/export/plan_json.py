@@ -77,11 +77,13 @@ def tip_speeds(stroke, job) -> np.ndarray:
     )
 
 
-def plan_to_dict(plan, job, totals: dict, part_file: str | None = None, film: dict | None = None) -> dict:
+def plan_to_dict(plan, job, totals: dict, part_file: str | None = None, film: dict | None = None, timing=None) -> dict:
     """The JSON-ready form of a plan: everything :func:`plan_file_from_dict` reads back, and the derived keys a
     robot program wants (``tool_axis``, ``flow_ml_min``, ``speed_mm_s``, ``tcp_speed_mm_s``).
 
     ``film`` is the film report (``export.film.film_report``) or a summary of one (:func:`film_summary`).
+    ``timing`` (``timing.stage.PlanTiming``, or the ``export.plan_read.WaypointTimes`` read back) adds each
+    waypoint's ``t_s`` and ``achievable_speed_mm_s``.
     """
     from sprayplan.coating import load_preset
 
@@ -120,6 +122,9 @@ def plan_to_dict(plan, job, totals: dict, part_file: str | None = None, film: di
                     "dwell": _floats(s.dwell),
                 }
             )
+            if timing is not None:
+                strokes[-1]["t_s"] = _floats(timing.t_s[place][sl])
+                strokes[-1]["achievable_speed_mm_s"] = _floats(timing.speed_mm_s[place][sl])
         stations.append(
             {"order": place, "station": st.index, "platform_mm": _floats(st.platform_mm), "strokes": strokes}
         )
@@ -140,30 +145,36 @@ def plan_to_dict(plan, job, totals: dict, part_file: str | None = None, film: di
     }
 
 
-def write_plan(outdir, plan, job, totals: dict, part_file: str | None = None, film: dict | None = None) -> list[str]:
+def write_plan(
+    outdir, plan, job, totals: dict, part_file: str | None = None, film: dict | None = None, timing=None
+) -> list[str]:
     """Write OUTDIR/plan.json and OUTDIR/waypoints.csv (atomically); returns the paths written.
 
     ``part_file`` (the part's file, made absolute) lets ``sprayplan simulate OUTDIR`` load the part again;
-    ``film`` (the film report or its summary) is kept in plan.json as a summary.
+    ``film`` (the film report or its summary) is kept in plan.json as a summary; ``timing`` adds the time
+    stamps (:func:`plan_to_dict`).
     """
     outdir = os.fspath(outdir)
-    data = plan_to_dict(plan, job, totals, None if part_file is None else os.path.abspath(part_file), film)
+    data = plan_to_dict(plan, job, totals, None if part_file is None else os.path.abspath(part_file), film, timing)
     plan_path = os.path.join(outdir, "plan.json")
     with atomic_output(plan_path, "w", encoding="utf-8") as handle:
         # one string, written once: the C encoder (json.dump writes piece by piece, several times slower)
         handle.write(json.dumps(data, separators=(",", ":"), allow_nan=False))
         handle.write("\n")
     csv_path = os.path.join(outdir, "waypoints.csv")
-    write_waypoints_csv(csv_path, plan, job)
+    write_waypoints_csv(csv_path, plan, job, timing)
     return [plan_path, csv_path]
 
 
-def write_waypoints_csv(path, plan, job) -> None:
-    """Write waypoints.csv: one row per waypoint, for people (docs/plan-json.md)."""
+def write_waypoints_csv(path, plan, job, timing=None) -> None:
+    """Write waypoints.csv: one row per waypoint, for people (docs/plan-json.md); with ``timing``, each row's
+    time stamp ``t_s`` and ``achievable_speed_mm_s`` (empty where unknown); then the collision stage's flags."""
     header = (
         "station,stroke,waypoint,spray_on,x,y,z,ax,ay,az,q1,q2,q3,q4,q5,q6,tx,ty,tz,reachable,position_error_mm,"
-        "axis_error_deg,speed_mm_s,collision,motion_collision,collision_distance_mm,collision_with,repair\n"
+        "axis_error_deg,speed_mm_s"
     )
+    header += ",t_s,achievable_speed_mm_s" if timing is not None else ""
+    header += ",collision,motion_collision,collision_distance_mm,collision_with,repair\n"
     with atomic_output(path, "w", newline="") as handle:
         handle.write(header)
         for place, st in enumerate(plan.stations):
@@ -187,6 +198,10 @@ def write_waypoints_csv(path, plan, job) -> None:
                         tip_speeds(s, job),
                     ]
                 )
+                if timing is not None:
+                    times = timing.t_s[place][start : start + n]
+                    speeds = timing.speed_mm_s[place][start : start + n]
+                    table = np.column_stack([table, times, speeds])
                 sl = slice(start, start + n)
                 distance = st.collision_distance_mm[sl]
                 extra = [
@@ -202,6 +217,7 @@ def write_waypoints_csv(path, plan, job) -> None:
                         + [f"{int(row[19])}"]
                         + ["" if not np.isfinite(v) else f"{v:.6g}" for v in row[20:22]]
                         + [f"{row[22]:.6g}"]
+                        + ["" if not np.isfinite(v) else f"{v:.10g}" for v in row[23:]]
                     )
                     handle.write(",".join(cells) + "," + extra[k] + "\n")
                 start += n

@@ -38,6 +38,8 @@ class PlanFile:
         The part's file (absolute), when the plan was made from one.
     film : dict or None
         The film summary (``export.plan_json.film_summary``), when the plan had a film.
+    timing : WaypointTimes or None
+        The waypoints' time stamps and achievable speeds, when the plan was timed.
     """
 
     plan: Plan
@@ -45,6 +47,22 @@ class PlanFile:
     totals: dict
     part_file: str | None = None
     film: dict | None = None
+    timing: WaypointTimes | None = None
+
+
+@dataclass(frozen=True)
+class WaypointTimes:
+    """The time stamps of a timed plan read back, per station in visiting order (``timing.stage.PlanTiming``'s
+    ``t_s`` and ``speed_mm_s``; NaN where the file has null).
+
+    Attributes
+    ----------
+    t_s : tuple of (n,) float, s
+    speed_mm_s : tuple of (n,) float, mm/s
+    """
+
+    t_s: tuple
+    speed_mm_s: tuple
 
 
 def read_plan(path) -> dict:
@@ -80,7 +98,9 @@ def plan_file_from_dict(data: dict, name: str = "plan.json") -> PlanFile:
         job = job_from_dict(r.get(data, "settings", dict))
     except (ConfigError, TypeError, ValueError) as exc:
         raise PartFileError(name, f"settings: {exc}") from None
-    stations = tuple(_station(r, st, f"stations[{i}]") for i, st in enumerate(r.get(data, "stations", list)))
+    rows = r.get(data, "stations", list)
+    stations = tuple(_station(r, st, f"stations[{i}]") for i, st in enumerate(rows))
+    timing = _times(r, rows)
     home = r.floats(r.get(data, "home_mm", list), "home_mm", (), length=3, bounded=True)
     unassigned = r.floats(r.get(data, "unassigned_points", list), "unassigned_points", (3,))
     plan = r.build(Plan, "", stations, home, unassigned, r.get(data, "part", str))
@@ -88,7 +108,26 @@ def plan_file_from_dict(data: dict, name: str = "plan.json") -> PlanFile:
     r.check(part_file, "part_file", (str, type(None)))
     film = data.get("film")
     r.check(film, "film", (dict, type(None)))
-    return PlanFile(plan, job, r.get(data, "totals", dict), part_file, film)
+    return PlanFile(plan, job, r.get(data, "totals", dict), part_file, film, timing)
+
+
+def _times(r: _Reader, rows: list) -> WaypointTimes | None:
+    """The strokes' ``t_s`` and ``achievable_speed_mm_s`` (all strokes have both, or none has either)."""
+    strokes = [(i, k, s) for i, st in enumerate(rows) for k, s in enumerate(st["strokes"])]
+    timed = [("t_s" in s) + ("achievable_speed_mm_s" in s) for _, _, s in strokes]
+    if not any(timed):
+        return None
+    times, speeds = [], []
+    for i, st in enumerate(rows):
+        t, v = [], []
+        for k, s in enumerate(st["strokes"]):
+            at = f"stations[{i}].strokes[{k}]"
+            n = len(s["points"])
+            t.append(r.floats(r.get(s, "t_s", list, at), f"{at}.t_s", (), n))
+            v.append(r.floats(r.get(s, "achievable_speed_mm_s", list, at), f"{at}.achievable_speed_mm_s", (), n))
+        times.append(np.concatenate(t) if t else np.zeros(0))
+        speeds.append(np.concatenate(v) if v else np.zeros(0))
+    return WaypointTimes(tuple(times), tuple(speeds))
 
 
 #: The stroke arrays that place and time the gun: bounded by ``checks.MAX_COORDINATE_MM`` on reading, so that a

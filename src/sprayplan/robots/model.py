@@ -17,6 +17,21 @@ Trans(z, d) Trans(x, a) Rot(x, alpha)`` per joint), joint offsets and limits. Pr
     The Lab-Volt R5150 of seed 001, table 2: d1 255.55, a2 190, a3 190, d5 115 mm, alpha1 = alpha4 = pi/2,
     joint ranges -185..153, -32..149, -147..51, -5..180, -360..360 degrees.
 
+Joint speed and acceleration limits (``max_velocity``, ``max_acceleration``; the timing stage,
+:mod:`sprayplan.timing`):
+
+UR5, UR5e (and ``ur5-seed``, the same arm)
+    180 deg/s on every joint: Universal Robots' technical specifications of the UR5 (CB3: "all joints 180
+    deg/s") and of the UR5e (base, shoulder, elbow and the three wrists 180 deg/s). UR publishes no joint
+    acceleration limit; the acceleration is 80.2 deg/s^2 (1.4 rad/s^2), the default joint acceleration of
+    URScript's ``movej`` (``movej(q, a=1.4, v=1.05)``, the URScript manual), which is also what
+    ``[export] joint_acceleration_deg_s2`` writes into the programs. A cell that runs its arm harder sets
+    its own figures (``[timing]`` or a robot TOML).
+R5150
+    Seed 001 gives no speeds and the maker's (Lab-Volt) data sheet was not available: 90 deg/s and
+    180 deg/s^2 on every joint are an assumption (a small, geared, stepper-driven teaching arm), marked as such;
+    give a real arm's figures in a robot TOML.
+
 A user model is a TOML file (see :func:`load_robot`).
 """
 
@@ -63,6 +78,10 @@ class RobotModel:
         Where the robot's base stands in the world (the cell); identity by default.
     tool2flange : (4, 4) float, mm
         The tool (gun) on the flange; identity by default.
+    max_velocity : (dof,) float, rad/s, or None
+        Each joint's speed limit (None: not known; the timing stage then refuses the model).
+    max_acceleration : (dof,) float, rad/s^2, or None
+        Each joint's acceleration limit (None: not known).
     """
 
     name: str
@@ -74,6 +93,8 @@ class RobotModel:
     upper: np.ndarray = field(default=None)  # type: ignore[assignment]
     base2world: np.ndarray = field(default=None)  # type: ignore[assignment]
     tool2flange: np.ndarray = field(default=None)  # type: ignore[assignment]
+    max_velocity: np.ndarray | None = None
+    max_acceleration: np.ndarray | None = None
 
     def __post_init__(self):
         for name in ("base2world", "tool2flange"):
@@ -95,6 +116,9 @@ class RobotModel:
         object.__setattr__(self, "upper", _frozen(upper, "upper", dof))
         if np.any(self.lower > self.upper):
             raise ConfigError(f"robot {self.name}: a lower joint limit exceeds its upper limit")
+        for name, key in (("max_velocity", "max_velocity_deg_s"), ("max_acceleration", "max_acceleration_deg_s2")):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, check_rate_limits(getattr(self, name), key, dof, scale=180 / math.pi))
 
     @property
     def dof(self) -> int:
@@ -105,6 +129,28 @@ class RobotModel:
         """(n,) bool: joint vectors inside the limits."""
         q = np.atleast_2d(q)
         return ((q >= self.lower - tol) & (q <= self.upper + tol)).all(axis=-1)
+
+
+def check_rate_limits(values, setting: str, n: int, scale: float = 1.0) -> np.ndarray:
+    """(n,) float, read-only: speed or acceleration limits, one per axis, each positive and finite.
+
+    ``setting`` names the key in messages; ``scale`` turns the values into the setting's unit for the message
+    (180 / pi for a limit in rad held as deg).
+
+    Raises
+    ------
+    ConfigError
+        ``"max_velocity_deg_s must be 6 positive finite numbers (one per joint), got [180, 0, ...]"``.
+    """
+    try:
+        out = np.array(values, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{setting} must be {n} positive finite numbers (one per joint), got {values!r}") from None
+    if len(out) != n or not (np.isfinite(out).all() and (out > 0).all()):
+        shown = "[" + ", ".join(f"{v * scale:.6g}" for v in out) + "]"
+        raise ConfigError(f"{setting} must be {n} positive finite numbers (one per joint), got {shown}")
+    out.flags.writeable = False
+    return out
 
 
 def dh_transforms(model: RobotModel, q: np.ndarray) -> np.ndarray:
@@ -182,21 +228,30 @@ def _deg(values) -> list[float]:
     return [math.radians(v) for v in values]
 
 
+#: UR5 / UR5e joint limits (see the module docstring): 180 deg/s (technical specifications), 1.4 rad/s^2
+#: (URScript ``movej``'s default acceleration).
+UR_RATES = dict(max_velocity=[math.pi] * 6, max_acceleration=[1.4] * 6)
+#: R5150: assumed (seed 001 gives no speeds; see the module docstring).
+R5150_RATES = dict(max_velocity=_deg([90.0] * 5), max_acceleration=_deg([180.0] * 5))
+
 PRESETS = {
     "ur5": dict(
         d=[89.159, 0, 0, 109.15, 94.65, 82.3],
         a=[0, -425.0, -392.25, 0, 0, 0],
         alpha=[math.pi / 2, 0, 0, math.pi / 2, -math.pi / 2, 0],
+        **UR_RATES,
     ),
     "ur5-seed": dict(
         d=[89.2, 0, 0, 109.2, 94.7, 82.3],
         a=[0, 425.0, 392.3, 0, 0, 0],
         alpha=[math.pi / 2, 0, 0, math.pi / 2, -math.pi / 2, 0],
+        **UR_RATES,
     ),
     "ur5e": dict(
         d=[162.5, 0, 0, 133.3, 99.7, 99.6],
         a=[0, -425.0, -392.2, 0, 0, 0],
         alpha=[math.pi / 2, 0, 0, math.pi / 2, -math.pi / 2, 0],
+        **UR_RATES,
     ),
     "r5150": dict(
         d=[255.55, 0, 0, 0, 115.0],
@@ -204,6 +259,7 @@ PRESETS = {
         alpha=[math.pi / 2, 0, 0, math.pi / 2, 0],
         lower=_deg([-185, -32, -147, -5, -360]),
         upper=_deg([153, 149, 51, 180, 360]),
+        **R5150_RATES,
     ),
 }
 
@@ -225,7 +281,11 @@ def load_robot(name_or_path: str | os.PathLike, setting: str = "robot") -> Robot
     The TOML file has ``name``, and lists ``d_mm``, ``a_mm``, ``alpha_deg`` and optionally ``theta_offset_deg``,
     ``lower_deg``, ``upper_deg``, one value per joint; optionally the base in the world and the tool on the
     flange as ``base_xyz_mm``, ``base_rpy_deg``, ``tool_xyz_mm``, ``tool_rpy_deg`` (three values each; angles
-    as seed 001's eq. 9, ``Rot(x) Rot(y) Rot(z)``).
+    as seed 001's eq. 9, ``Rot(x) Rot(y) Rot(z)``); optionally the joints' speed and acceleration limits
+    ``max_velocity_deg_s`` and ``max_acceleration_deg_s2`` (one positive value per joint).
+
+    A TOML file may also start from a preset: ``preset = "ur5"`` takes that preset's table and limits, and
+    the file's keys override them (e.g. only ``max_velocity_deg_s`` for a slower arm).
 
     ``setting`` names the option or key the name came from (``--robot``), first in the message of an
     unknown name.
@@ -245,12 +305,24 @@ def load_robot(name_or_path: str | os.PathLike, setting: str = "robot") -> Robot
         raise ConfigError(f"{setting} {key!r} is not a known robot: use one of {', '.join(PRESETS)} or a .toml file")
     data = read_robot_toml(path)
     known = {"name", "d_mm", "a_mm", "alpha_deg", "theta_offset_deg", "lower_deg", "upper_deg"}
-    known |= {"base_xyz_mm", "base_rpy_deg", "tool_xyz_mm", "tool_rpy_deg"}
+    known |= {"base_xyz_mm", "base_rpy_deg", "tool_xyz_mm", "tool_rpy_deg", "preset"}
+    known |= {"max_velocity_deg_s", "max_acceleration_deg_s2"}
     unknown = sorted(set(data) - known)
     if unknown:
         raise PartFileError(key, f"unknown key(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}")
     try:
+        base = {}
+        if "preset" in data:
+            if data["preset"] not in PRESETS:
+                raise ConfigError(f"preset must be one of {', '.join(PRESETS)}, got {data['preset']!r}")
+            base = _preset_table(data["preset"])
+        data = {**base, **data}
         dof = len(data["d_mm"])
+        rates = {
+            name: _deg(_limit_list(data[toml], toml))
+            for name, toml in (("max_velocity", "max_velocity_deg_s"), ("max_acceleration", "max_acceleration_deg_s2"))
+            if toml in data
+        }
         return RobotModel(
             name=str(data.get("name", path.stem)),
             d=data["d_mm"],
@@ -261,8 +333,31 @@ def load_robot(name_or_path: str | os.PathLike, setting: str = "robot") -> Robot
             upper=_deg(data["upper_deg"]) if "upper_deg" in data else None,
             base2world=transform_from_xyz_rpy(data.get("base_xyz_mm", [0, 0, 0]), data.get("base_rpy_deg", [0, 0, 0])),
             tool2flange=transform_from_xyz_rpy(data.get("tool_xyz_mm", [0, 0, 0]), data.get("tool_rpy_deg", [0, 0, 0])),
+            **rates,
         )
     except KeyError as exc:
         raise PartFileError(key, f"missing key {exc.args[0]}") from None
     except (ConfigError, TypeError, ValueError) as exc:
         raise PartFileError(key, str(exc)) from None
+
+
+def _limit_list(values, setting: str) -> list[float]:
+    """A TOML list of limits as floats (a non-list or a non-number is an error naming the key)."""
+    if not isinstance(values, list) or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in values):
+        raise ConfigError(f"{setting} must be a list of positive finite numbers (one per joint), got {values!r}")
+    return [float(v) for v in values]
+
+
+def _preset_table(name: str) -> dict:
+    """A preset as the keys of a robot TOML file (degrees), for ``preset = "..."``."""
+    model = RobotModel(name=name, **PRESETS[name])
+    out = {
+        "d_mm": model.d.tolist(),
+        "a_mm": model.a.tolist(),
+        "alpha_deg": np.degrees(model.alpha).tolist(),
+        "lower_deg": np.degrees(model.lower).tolist(),
+        "upper_deg": np.degrees(model.upper).tolist(),
+    }
+    out["max_velocity_deg_s"] = np.degrees(model.max_velocity).tolist()
+    out["max_acceleration_deg_s2"] = np.degrees(model.max_acceleration).tolist()
+    return out

@@ -209,30 +209,31 @@ def _stroke_traces(scene: Scene, limits: ViewerLimits, go) -> tuple[list, dict]:
     keep = thin_indices([len(r[2]) for r in rows], limits.max_waypoints)
     by_station: dict[tuple, list] = {}
     order = {st.index: place for place, st in enumerate(scene.plan.stations)}
-    for (st, i, s, _sl, speed), idx in zip(rows, keep):
-        data = np.column_stack(
-            [
-                s.tcp[idx],
-                np.full(len(idx), st.index),
-                np.full(len(idx), i),
-                idx,
-                speed[idx],
-                s.dwell[idx],
-            ]
-        )
+    timing = scene.timing
+    place_of = {id(st): place for place, st in enumerate(scene.plan.stations)}
+    for (st, i, s, sl, speed), idx in zip(rows, keep):
+        columns = [s.tcp[idx], np.full(len(idx), st.index), np.full(len(idx), i), idx, speed[idx], s.dwell[idx]]
+        if timing is not None:  # the tip speed the robot makes and the time stamp
+            place = place_of[id(st)]
+            columns += [timing.speed_mm_s[place][sl][idx], timing.t_s[place][sl][idx]]
+        data = np.column_stack(columns)
         kind = s.kind
         by_station.setdefault((kind, st.index), []).append(data)
     template = (
         "station %{customdata[0]:d}, stroke %{customdata[1]:d}, waypoint %{customdata[2]:d}<br>"
-        "tip speed %{customdata[3]:.0f} mm/s, dwell %{customdata[4]:.3f}<extra>%{fullData.name}</extra>"
+        "tip speed %{customdata[3]:.0f} mm/s, dwell %{customdata[4]:.3f}"
     )
+    if timing is not None:
+        template += "<br>achievable %{customdata[5]:.0f} mm/s, t = %{customdata[6]:.2f} s"
+    template += "<extra>%{fullData.name}</extra>"
+    width = 10 if timing is not None else 8
     traces = []
     transfers = []
     for (kind, station), chunks in sorted(by_station.items(), key=lambda kv: (kv[0][0] != "spray", order[kv[0][1]])):
         if kind == "transfer":
             transfers += chunks
             continue
-        data = _joined(chunks, 8)
+        data = _joined(chunks, width)
         colour = STATION_COLOURS[order[station] % len(STATION_COLOURS)]
         traces.append(
             go.Scatter3d(
@@ -249,7 +250,7 @@ def _stroke_traces(scene: Scene, limits: ViewerLimits, go) -> tuple[list, dict]:
             )
         )
     if transfers:
-        data = _joined(transfers, 8)
+        data = _joined(transfers, width)
         traces.append(
             go.Scatter3d(
                 x=data[:, 0],

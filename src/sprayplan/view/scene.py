@@ -71,6 +71,7 @@ class Scene:
     painted_fraction: float
     working_radius_mm: float
     notes: tuple = ()
+    timing: object = None
 
     @property
     def painted(self) -> np.ndarray | None:
@@ -136,9 +137,12 @@ def _vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return np.divide(out, length, out=np.zeros_like(out), where=length > 0)
 
 
-def make_scene(plan, job, totals: dict, film=None, report: dict | None = None, part=None, notes=()) -> Scene:
+def make_scene(
+    plan, job, totals: dict, film=None, report: dict | None = None, part=None, notes=(), timing=None
+) -> Scene:
     """A scene from a plan and its settings, its film (``coating.CoatingResult``, or None: the bare ``part``
-    is drawn grey) and the film's report (computed when None)."""
+    is drawn grey) and the film's report (computed when None); ``timing``: its time stamps and achievable
+    speeds (``timing.stage.PlanTiming`` or ``export.plan_read.WaypointTimes``), when it was timed."""
     notes = list(notes)
     surface = None
     if film is not None:
@@ -153,15 +157,36 @@ def make_scene(plan, job, totals: dict, film=None, report: dict | None = None, p
         notes.append(NO_FILM)
         if part is not None:
             surface = _bare(part)
-    return _scene(plan, job, totals, surface, report, notes)
+    return _scene(plan, job, totals, surface, report, notes, timing)
 
 
-def _scene(plan, job, totals: dict, surface: Surface | None, report: dict | None, notes) -> Scene:
+def _scene(plan, job, totals: dict, surface: Surface | None, report: dict | None, notes, timing=None) -> Scene:
     target, tolerance, painted = _spec(job, report)
     name = os.path.basename(plan.name)
     return Scene(
-        name, plan, job, dict(totals), surface, report, target, tolerance, painted, _working_radius(job), tuple(notes)
+        name,
+        plan,
+        job,
+        dict(totals),
+        surface,
+        report,
+        target,
+        tolerance,
+        painted,
+        _working_radius(job),
+        tuple(notes),
+        _times_only(timing),
     )
+
+
+def _times_only(timing):
+    """What the pictures take of a plan's timing: its time stamps and achievable speeds (the same from a job
+    and from plan.json)."""
+    if timing is None:
+        return None
+    from sprayplan.export.plan_read import WaypointTimes
+
+    return WaypointTimes(tuple(timing.t_s), tuple(timing.speed_mm_s))
 
 
 NO_FILM = "no film was simulated: the part is drawn grey (plan with --simulate or --thickness-um)"
@@ -174,7 +199,9 @@ def scene_from_result(result, report: dict | None = None) -> Scene:
         from sprayplan.export.film import film_report
 
         report = film_report(result.film, result.job, result.job.output.samples, result.chosen)
-    return make_scene(result.plan, result.job, result.totals, result.film, report, result.part)
+    return make_scene(
+        result.plan, result.job, result.totals, result.film, report, result.part, timing=getattr(result, "timing", None)
+    )
 
 
 def scene_from_folder(folder: str | os.PathLike) -> Scene:
@@ -219,7 +246,7 @@ def scene_from_folder(folder: str | os.PathLike) -> Scene:
         else:
             notes.append(NO_FILM)
         surface = _part_from_file(read.part_file, job, notes)
-    return _scene(read.plan, job, read.totals, surface, report, notes)
+    return _scene(read.plan, job, read.totals, surface, report, notes, read.timing)
 
 
 def _read_coating(path: str) -> dict:

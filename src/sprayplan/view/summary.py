@@ -42,6 +42,11 @@ def summary_rows(scene: Scene) -> list[tuple[str, list[tuple[str, str]]]]:
                 ("transfer length", _fmt(t.get("transfer_length_mm"), "{:,.1f} m", 1e-3)),
                 ("gantry travel", _fmt(t.get("platform_travel_mm"), "{:,.1f} m", 1e-3)),
                 ("cycle time", _fmt(t.get("cycle_time_s"), "{:,.0f} s")),
+                *(
+                    [("cycle time, length over speed", _fmt(t["cycle_time_length_over_speed_s"], "{:,.0f} s"))]
+                    if "cycle_time_length_over_speed_s" in t
+                    else []
+                ),
                 ("planning time", _fmt(t.get("planning_time_s"), "{:,.1f} s")),
             ],
         )
