@@ -177,7 +177,7 @@ def test_plan_files_carry_the_flags_and_read_back(testdata, tmp_path):
     out = tmp_path / "out"
     code = main(
         ["plan", str(testdata / "meshes" / "reach_curved_part.ply"), "--units", "m", "--region", "x > -250",
-         "-o", str(out), "--no-viewer", "--no-report"]
+         "-o", str(out), "--no-viewer", "--no-report", "--collisions"]
     )  # fmt: skip
     assert code == 0
     data = json.loads((out / "plan.json").read_text())
@@ -199,7 +199,7 @@ def test_strict_refuses_a_plan_left_in_collision(testdata, tmp_path, capsys):
     out = tmp_path / "strict"
     # a clearance no arm near this part can keep, and no repairs: flagged for sure
     args = ["plan", str(testdata / "meshes" / "reach_curved_part.ply"), "--units", "m", "--region", "x > -250",
-            "-o", str(out), "--no-viewer", "--no-report", "--strict"]  # fmt: skip
+            "-o", str(out), "--no-viewer", "--no-report", "--strict", "--collisions"]  # fmt: skip
     config = tmp_path / "c.toml"
     config.write_text("[collision]\nclearance_mm = 150.0\nmotion_step_mm = 10.0\nrepair = false\n")
     code = main([*args, "--config", str(config)])
@@ -232,7 +232,7 @@ def test_bad_collision_settings_exit_2_naming_the_key(testdata, tmp_path, capsys
 
 def test_a_floor_above_the_part_is_a_config_error(testdata, tmp_path, capsys):
     config = tmp_path / "c.toml"
-    config.write_text("[collision]\nfloor_z_mm = 100000\n")
+    config.write_text("[collision]\ncheck = true\nfloor_z_mm = 100000\n")
     out = tmp_path / "o"
     code = main(
         ["plan", str(testdata / "meshes" / "tray_bottom_mm_ascii.stl"), "-o", str(out), "--config", str(config)]
@@ -253,13 +253,14 @@ def test_checks_can_be_turned_off(reach):
 
 def test_collision_config_is_the_job_section():
     assert JobConfig().collision == CollisionConfig()
+    assert not JobConfig().collision.check  # opt-in (``--collisions``) until the stage is fast
 
 
 def test_a_point_cloud_is_planned_and_says_its_collisions_are_not_checked(testdata):
     from sprayplan.job import run_job
 
     cloud = testdata / "pointclouds" / "reach_part_normals_ascii.pcd"
-    result = run_job(cloud, JobConfig().replace(load={"units": "m"}), until="totals")
+    result = run_job(cloud, JobConfig().replace(load={"units": "m"}, collision={"check": True}), until="totals")
     assert result.totals["collisions"] == {"checked": False, "reason": "point cloud"}
     assert result.plan.stations and not any(st.collision.any() for st in result.plan.stations)
 

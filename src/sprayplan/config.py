@@ -690,7 +690,9 @@ class CollisionConfig(Section):
     Attributes
     ----------
     check : bool
-        Check every waypoint and every motion of the plan against the part, the floor and the cell.
+        Check every waypoint and every motion of the plan against the part, the floor and the cell
+        (``sprayplan plan --collisions``). Off by default for now: the check takes minutes on a car roof
+        (docs/benchmarks.md, "The collision stage"), longer than the rest of the plan.
     repair : bool
         Free waypoints found in collision (another IK branch, a roll about the gun axis, a tilt within the
         axis tolerance, another gantry position) before flagging them.
@@ -720,7 +722,7 @@ class CollisionConfig(Section):
     """
 
     SECTION = "collision"
-    check: bool = True
+    check: bool = False
     repair: bool = True
     clearance_mm: float = 30.0
     floor_offset_mm: float = 1.0

@@ -486,7 +486,15 @@ def build_parser() -> argparse.ArgumentParser:
         "--program", action="append", type=program_format, metavar="FORMAT",
         help="also write OUTDIR/programs/FORMAT/: urscript, rapid or krl (repeat for several; docs/programs.md)",
     )  # fmt: skip
-    group.add_argument("--strict", action="store_true", help="with --program: a left-out spray waypoint is an error")
+    group.add_argument(
+        "--strict", action="store_true",
+        help="a left-out spray waypoint (with --program) or a waypoint left in collision (with --collisions) is an error",
+    )  # fmt: skip
+    group = plan_cmd.add_argument_group("collisions")
+    group.add_argument(
+        "--collisions", action="store_true",
+        help="check every waypoint and motion against the part, the floor and the cell, repair, flag ([collision] check)",
+    )  # fmt: skip
     plan_cmd.set_defaults(func=cmd_plan)
 
     sim = sub.add_parser("simulate", parents=[common], help="predict the film of a planned OUTDIR (coating.json)")

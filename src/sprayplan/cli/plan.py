@@ -46,6 +46,8 @@ def _job_config(args):
         "tuning": {"tune_speed": False} if getattr(args, "no_tune_speed", False) else {},
         "output": {**({"simulate": True} if args.simulate else {}), **given("samples"), **view_flags(args)},
     }
+    if getattr(args, "collisions", False):
+        changes["collision"] = {"check": True}
     if getattr(args, "seed", None) is not None:
         changes["stations"] = {"seed": args.seed}
         changes["ordering"] = changes["ordering"] | {"seed": args.seed}
