@@ -193,6 +193,16 @@ def test_plan_files_carry_the_flags_and_read_back(testdata, tmp_path):
     assert sum(int(r["collision"]) for r in rows) == flagged
     assert sum(r["repair"] != "" for r in rows) == summary["repaired"]
     assert sum(r["collision_distance_mm"] != "" for r in rows) == checked
+    # the viewer's summary panel and its flagged layer say the same
+    from sprayplan.view.html import flagged_waypoints
+    from sprayplan.view.scene import scene_from_folder
+    from sprayplan.view.summary import summary_rows
+
+    scene = scene_from_folder(out)
+    table = dict(dict(summary_rows(scene))["collisions"])
+    assert table["left flagged"] == f"{flagged:,}" and table["repaired"] == f"{summary['repaired']:,}"
+    moving = sum(int((st.reachable & (st.collision | st.motion_collision)).sum()) for st in back.stations)
+    assert len(flagged_waypoints(scene)["collision"][1]) == moving
 
 
 def test_strict_refuses_a_plan_left_in_collision(testdata, tmp_path, capsys):

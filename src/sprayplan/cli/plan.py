@@ -115,7 +115,7 @@ def summary_line(result, outdir) -> str:
             f"(clearance {collisions['clearance_mm']:g} mm)"
         )
     if totals.get("floor_facing_left_out_mm2"):
-        line += f"; surface facing the floor left out: {totals['floor_facing_left_out_mm2'] / 1e6:.3f} m2"
+        line += f"; surface facing the floor left out: {totals['floor_facing_left_out_mm2'] / 1e6:.4g} m2"
     if result.film is not None:
         from sprayplan.export.film import film_report
 

@@ -51,6 +51,22 @@ def summary_rows(scene: Scene) -> list[tuple[str, list[tuple[str, str]]]]:
             ],
         )
     ]
+    c = t.get("collisions")
+    if isinstance(c, dict) and c.get("checked") is False:
+        rows.append(("collisions", [("checked", f"no ({c.get('reason', '')})")]))
+    elif isinstance(c, dict):
+        rows.append(
+            (
+                "collisions",
+                [
+                    ("clearance", _fmt(c.get("clearance_mm"), "{:g} mm")),
+                    ("waypoints in collision as planned", _fmt(c.get("in_collision_before_repair"), "{:,.0f}")),
+                    ("repaired", _fmt(c.get("repaired"), "{:,.0f}")),
+                    ("left flagged", _fmt(c.get("flagged_waypoints"), "{:,.0f}")),
+                    ("motions flagged", _fmt(c.get("flagged_motions"), "{:,.0f}")),
+                ],
+            )
+        )
     film = scene.film
     p = film.get("painted") if film is not None else None
     if isinstance(p, dict) and number(p.get("count")):
