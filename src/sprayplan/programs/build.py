@@ -59,9 +59,8 @@ SAME_DEG = 0.01
 #: The slowest TCP speed written (a move that is almost a pure reorientation about the TCP), mm/s.
 MIN_SPEED_MM_S = 0.001
 #: Blend radii are computed this much (mm) below their cap, so that the cap holds on the positions as written
-#: (to 1e-4 mm) too: a segment read back has measured up to 5.4e-4 mm shorter than the builder's (the reach
-#: part's URScript), more than the rounding of its two ends alone explains; 1 um covers it.
-BLEND_MARGIN_MM = 1e-3
+#: (to 1e-4 mm) too.
+BLEND_MARGIN_MM = 2e-4
 
 
 @dataclass(frozen=True)
