@@ -70,6 +70,11 @@ def _rot(axis: int, angle: float) -> np.ndarray:
     return out
 
 
+def pair_names(cell: CellCollision) -> np.ndarray:
+    """The cell's body pairs as ``StationPlan.collision_with`` names them, ``"elbow/part"``."""
+    return np.array([f"{a}/{b}" for a, b in cell.pairs], dtype=object)
+
+
 def _slices(st: StationPlan) -> list[slice]:
     out, start = [], 0
     for s in st.strokes:
@@ -115,6 +120,10 @@ class _Station:
             np.zeros(n, bool),
         )
 
+    def copy(self) -> _Station:
+        """A copy whose arrays can be changed without changing this one's."""
+        return dataclasses.replace(self, **{f.name: getattr(self, f.name).copy() for f in dataclasses.fields(self)})
+
     def check(self, cell: CellCollision, rows=None) -> None:
         rows = np.flatnonzero(self.reachable) if rows is None else rows
         self.collision[:] = False
@@ -124,10 +133,9 @@ class _Station:
         if not len(rows):
             return
         found = cell.check(self.q9[rows])
-        names = np.array([f"{a}/{b}" for a, b in cell.pairs], dtype=object)
         self.collision[rows] = found.in_collision
         self.distance[rows] = found.distance_mm
-        self.pair[rows] = names[found.column]
+        self.pair[rows] = pair_names(cell)[found.column]
         self.slack[rows] = found.slack_mm
 
     def plan(self, st: StationPlan, motion: np.ndarray) -> StationPlan:
@@ -166,7 +174,7 @@ class Repairer:
         self.cell, self.gantry, self.kin = cell, gantry, kinematics
         tilt = 0.8 * kinematics.axis_tol_deg if config.tilt_deg is None else config.tilt_deg
         self.tilt = math.radians(min(tilt, kinematics.axis_tol_deg))
-        self.names = np.array([f"{a}/{b}" for a, b in cell.pairs], dtype=object)
+        self.names = pair_names(cell)
 
     def _poses(self, base: np.ndarray):
         """(repair, poses) in the order tried: the stroke's own poses (other branches), rolled, tilted."""
@@ -283,12 +291,7 @@ def _raised(repairer: Repairer, st: StationPlan, work: _Station, config: Collisi
         if config.platform_raise_mm <= 0:
             break
         platform = work.platform + np.array([0.0, 0.0, k * config.platform_raise_mm])
-        trial = dataclasses.replace(
-            work, platform=platform, q9=work.q9.copy(), collision=work.collision.copy(), repair=work.repair.copy(),
-            method=work.method.copy(), position=work.position.copy(), axis=work.axis.copy(),
-            branch_change=work.branch_change.copy(), distance=work.distance.copy(), pair=work.pair.copy(),
-            slack=work.slack.copy(), changed=work.changed.copy(),
-        )  # fmt: skip
+        trial = dataclasses.replace(work.copy(), platform=platform)
         previous, complete = HOME_JOINTS, True
         for stroke, sl in zip(st.strokes, slices):
             reached = np.flatnonzero(work.reachable[sl])
