@@ -282,6 +282,7 @@ def cmd_paths(args) -> int:
 from sprayplan.cli.batch import add_batch_parser  # noqa: E402 - batches of jobs
 from sprayplan.cli.export import add_export_parser, program_format  # noqa: E402 - robot programs
 from sprayplan.cli.plan import cmd_plan, cmd_simulate  # noqa: E402 - the main job's commands
+from sprayplan.cli.cells import add_parsers as add_cell_parsers  # noqa: E402 - the cell commands, own module
 from sprayplan.cli.robots import cmd_fk, cmd_ik, cmd_robots  # noqa: E402 - the robot commands, own module
 from sprayplan.cli.view import cmd_view  # noqa: E402
 
@@ -406,6 +407,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     robots_cmd.add_argument("robot", nargs="?", help="an industrial arm's name or an OPW arm's .toml file")
     robots_cmd.set_defaults(func=cmd_robots)
+    add_cell_parsers(sub, common, _add_load_options)
     fk_cmd = sub.add_parser("fk", parents=[common], help="forward kinematics: joints CSV -> poses CSV")
     fk_cmd.add_argument("joints", help="CSV with columns q1..q6 (rad; q1..q5 for r5150)")
     fk_cmd.add_argument("-o", "--output", required=True)
