@@ -140,3 +140,59 @@ def add_parsers(sub, common, add_load_options) -> None:
     )
     add_load_options(areas)
     areas.set_defaults(func=cmd_areas)
+
+
+#: ``plan --cell`` options that belong to the gantry's plan and have no meaning in a cell of arms.
+GANTRY_ONLY = ("robot", "mode", "tour", "program", "collisions", "strict")
+
+
+def cmd_plan_cell(args, job) -> int:
+    """``sprayplan plan PART --cell NAME -o OUT``: a whole body painted by the robots of a cell
+    (:func:`sprayplan.cells.plan.plan_cell`), written all or nothing into OUT (``cells.files``)."""
+    import os
+
+    from sprayplan.cells import load_cell
+    from sprayplan.cells.files import CELL_FILES, write_cell_plan
+    from sprayplan.cells.plan import plan_cell
+    from sprayplan.cli.common import check_folder_outputs
+    from sprayplan.errors import ConfigError
+    from sprayplan.export.files import staged_folder
+    from sprayplan.io.load import load_part
+
+    for name in GANTRY_ONLY:
+        value = getattr(args, name, None)
+        if value not in (None, False, []):
+            raise ConfigError(f"--{name.replace('_', '-')}: not available with --cell (a cell of arms is planned)")
+    cell = load_cell(args.cell)
+    if cell.is_gantry:
+        args.cell = None
+        from sprayplan.cli.plan import cmd_plan
+
+        return cmd_plan(args)
+    inputs = [(args.part, "part"), (args.config, "-c"), (file_input(args.cell), "--cell")]
+    check_folder_outputs(args.output, CELL_FILES, "-o", inputs)
+    with _stage("load"):
+        part = load_part(args.part, units=job.load.units, up=job.load.up)
+    if job.load.region is not None:
+        raise ConfigError("--region: not available with --cell (the areas split the whole body)")
+    plan = plan_cell(part, cell, job)
+    target = job.coating.thickness_um if job.coating.thickness_um is not None else 50.0
+    with staged_folder(args.output, CELL_FILES) as folder:
+        write_cell_plan(folder, plan, target, job.coating.tolerance_um)
+    report = plan.report
+    robots = ", ".join(
+        f"{name} {r['strokes']} strokes {r['waypoints']} waypoints ({r['unreached_waypoints']} unreached) "
+        f"{r['cycle_time_s']:.0f} s"
+        for name, r in report["robots"].items()
+    )
+    line = f"{cell.name}: {report['areas']} areas; {robots}; cycle {report['cycle_time_s']:.0f} s"
+    film = report.get("film")
+    if film:
+        whole = film["whole"]
+        line += (
+            f"; film mean {whole['mean_um']:.1f} um, {100 * whole['share_in_spec']:.1f} % in spec"
+            f" ({film['report'].get('measuring_points', {}).get('count', 0)} measuring points:"
+            f" {100 * film['report'].get('measuring_points', {}).get('share_in_spec', 0.0):.1f} % in spec)"
+        )
+    print(f"{line} -> {os.path.join(args.output, 'cell_plan.json')}")
+    return 0

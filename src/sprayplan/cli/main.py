@@ -449,6 +449,11 @@ def build_parser() -> argparse.ArgumentParser:
     group.add_argument("--region")
     group = plan_cmd.add_argument_group("plan")
     group.add_argument("--robot", help="gantry-ur5 (default) or gantry-ur5e: seed 000's gantry and its arm")
+    group.add_argument(
+        "--cell",
+        help="plan a whole body in a cell of several robots: line3, sides2 (`sprayplan cells`) or a cell .toml "
+        "(docs/cells.md); writes cell_plan.json instead of plan.json",
+    )
     group.add_argument("--seed", type=int, help="random seed of the station cover and the tours (default 0)")
     group.add_argument(
         "--mode", choices=["paths", "points"], help="slicing strokes (default) or the seed's target points"

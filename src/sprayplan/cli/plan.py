@@ -201,6 +201,10 @@ def cmd_plan(args) -> int:
     check_outputs([(args.output, "-o")], [], folder=True)
     _check_samples(args.samples)
     job = _job_config(args)
+    if getattr(args, "cell", None) is not None:
+        from sprayplan.cli.cells import cmd_plan_cell
+
+        return cmd_plan_cell(args, job)
     inputs = [(args.part, "part"), (args.config, "-c"), (file_input(job.coating.process), "--process")]
     check_folder_outputs(args.output, JOB_FILES, "-o", inputs)
     if job.export.programs:
