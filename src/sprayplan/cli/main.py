@@ -280,9 +280,9 @@ def cmd_paths(args) -> int:
 
 
 from sprayplan.cli.batch import add_batch_parser  # noqa: E402 - batches of jobs
+from sprayplan.cli.cells import add_parsers as add_cell_parsers  # noqa: E402 - the cell commands, own module
 from sprayplan.cli.export import add_export_parser, program_format  # noqa: E402 - robot programs
 from sprayplan.cli.plan import cmd_plan, cmd_simulate  # noqa: E402 - the main job's commands
-from sprayplan.cli.cells import add_parsers as add_cell_parsers  # noqa: E402 - the cell commands, own module
 from sprayplan.cli.robots import cmd_fk, cmd_ik, cmd_robots  # noqa: E402 - the robot commands, own module
 from sprayplan.cli.view import cmd_view  # noqa: E402
 
