@@ -21,13 +21,12 @@ position and axis tolerances against the *original* poses (``[kinematics] positi
 ``axis_tol_deg``), and no waypoint of the stroke is in collision. What no repair frees stays flagged
 (``StationPlan.collision``); nothing is silently kept.
 
-Motions (:func:`flag_motions`): between two checked waypoints whose least slacks are ``S_a`` and ``S_b``
-(distance minus the pair's gap, over every pair) and whose joint motion moves no body point more than ``B``
-(``collision.motion``), every configuration in between keeps a slack of at least ``(S_a + S_b - B) / 2``: each
-distance is 1-Lipschitz in the bodies' displacement, at most ``B s`` from one end and ``B (1 - s)`` from the
-other. Where that is not negative the motion is free; the others are bisected, then checked on a fixed grid
-(:func:`flag_motions`). A motion in collision flags the waypoint it arrives at
-(``StationPlan.motion_collision``); transfers are not yet re-routed (retract, via pose, joint-space detour).
+Motions (:func:`flag_motions`): every motion between consecutive reached waypoints proven free in bulk or
+checked on a grid (:func:`sprayplan.collision.proof.motion_hits`). A motion in collision flags the waypoint it
+arrives at (``StationPlan.motion_collision``). Then the transfers in collision are re-routed
+(:mod:`sprayplan.collision.transfers`: a longer retract, via poses at a safe height, a joint-space detour); a
+transfer no route frees stays flagged. Motions inside a spray stroke cannot be re-routed (the path is fixed)
+and stay flagged.
 """
 
 from __future__ import annotations
@@ -429,7 +428,7 @@ def collision_stage(plan: Plan, whole, job: JobConfig, gantry: Gantry, progress:
         repairer.errors(work, st)
         works.append(work)
         step()
-    motion_flags, _, _ = flag_motions(cell, works)
+    motion_flags, _, motion_hits_before = flag_motions(cell, works)
     strokes = [st.strokes for st in plan.stations]
     transfers = {"in_collision": 0, "rerouted_by": dict.fromkeys(TRANSFER_REPAIRS, 0), "flagged": 0}
     if config.repair:
@@ -454,6 +453,7 @@ def collision_stage(plan: Plan, whole, job: JobConfig, gantry: Gantry, progress:
         "flagged_waypoints": flagged,
         "motions_checked": max(0, reached - 1),
         "flagged_motions": motion_hits,
+        "flagged_motions_before_reroute": motion_hits_before,
         "transfers_in_collision": transfers["in_collision"],
         "transfers_rerouted": int(sum(transfers["rerouted_by"].values())),
         "transfers_rerouted_by": transfers["rerouted_by"],
