@@ -1,5 +1,9 @@
 """The collision stage on whole plans: time to check and repair, and the waypoints in collision before repairs,
-repaired and left flagged (docs/benchmarks.md, "Collision stage").
+repaired and left flagged; the transfers in collision, re-routed by kind and left flagged, and the motions
+flagged before and after the transfers were re-routed (docs/benchmarks.md, "The collision stage").
+
+With ``--transfers`` each plan is also run with the transfer routes off (``retract_mm = []``,
+``via_height_mm`` none, ``detour`` false), so that the routes' cost is the difference of the two medians.
 
 Each part is planned to the ``refine`` stage once (no film target, so no tuning), then the collision stage is
 timed ``--runs`` times on that plan (median). Parts: the demo roof (``z > 1000``), the reach part
@@ -42,7 +46,11 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--large", action="store_true")
+    parser.add_argument("--transfers", action="store_true", help="the transfer table (routes on and off)")
+    parser.add_argument("--only", default=None, help="only the parts whose name starts with this")
     args = parser.parse_args(argv)
+    if args.transfers:
+        return transfer_table(args)
     print(
         "| part | waypoints | in collision before | repaired (branch/roll/tilt/platform) | flagged | motions | flagged motions | stage s (median) |"
     )
@@ -60,6 +68,36 @@ def main(argv=None) -> int:
             f"{summary['repaired']} ({by['branch']}/{by['roll']}/{by['tilt']}/{by['platform']}) | "
             f"{summary['flagged_waypoints']} | {summary['motions_checked']} | {summary['flagged_motions']} | "
             f"{statistics.median(times):.1f} |",
+            flush=True,
+        )
+    return 0
+
+
+def transfer_table(args) -> int:
+    off = {"retract_mm": [], "via_height_mm": None, "detour": False}
+    print(
+        "| part | transfers in collision | re-routed (retract/via/detour) | transfers flagged | motions flagged "
+        "before / after | stage s, routes off | stage s, routes on (median) |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    for name, source, job in cases(args.large):
+        if args.only and not name.startswith(args.only):
+            continue
+        state = run_job(source, job.replace(collision={"check": False}), until="refine")
+        times = {}
+        for label, settings in (("off", off), ("on", {})):
+            run = state.job.replace(collision=settings) if settings else state.job
+            times[label] = []
+            for _ in range(args.runs):
+                began = time.perf_counter()
+                _, summary = collision_stage(state.plan, state.whole, run, state.gantry())
+                times[label].append(time.perf_counter() - began)
+        by = summary["transfers_rerouted_by"]
+        print(
+            f"| {name} | {summary['transfers_in_collision']} | {summary['transfers_rerouted']} "
+            f"({by['retract']}/{by['via']}/{by['detour']}) | {summary['transfers_flagged']} | "
+            f"{summary['flagged_motions_before_reroute']} / {summary['flagged_motions']} | "
+            f"{statistics.median(times['off']):.1f} | {statistics.median(times['on']):.1f} |",
             flush=True,
         )
     return 0

@@ -114,6 +114,11 @@ def summary_line(result, outdir) -> str:
             f"flagged, {collisions['repaired']} of {collisions['in_collision_before_repair']} repaired "
             f"(clearance {collisions['clearance_mm']:g} mm)"
         )
+        if collisions.get("transfers_in_collision"):
+            line += (
+                f"; transfers: {collisions['transfers_rerouted']} of {collisions['transfers_in_collision']} "
+                f"re-routed, {collisions['transfers_flagged']} flagged"
+            )
     if totals.get("floor_facing_left_out_mm2"):
         line += f"; surface facing the floor left out: {totals['floor_facing_left_out_mm2'] / 1e6:.4g} m2"
     if result.film is not None:
