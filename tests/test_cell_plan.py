@@ -65,12 +65,17 @@ def test_every_reached_waypoint_is_where_the_robot_puts_the_gun(planned):
             ok = s["reachable"]
             if not ok.any():
                 continue
-            arm = robot.robot(s["track_mm"])
             want = poses_at(s["tcp_mm"][ok], s["normals"][ok]) @ _rot_z(s["roll_deg"])
-            got = arm.fk(s["q_rad"][ok])
+            got = np.stack([robot.robot(t).fk(q[None])[0] for t, q in zip(s["track_mm"][ok], s["q_rad"][ok])])
+            arm = robot.robot(0.0)
             assert np.allclose(got[:, :3, 3], want[:, :3, 3], atol=1e-6)
             assert np.allclose(got[:, :3, :3], want[:, :3, :3], atol=1e-9)
             assert arm.within_limits(s["q_rad"][ok]).all()
+            if robot.track is not None:  # the track within its ends, moving with the gun
+                lo, hi = robot.track.range_mm
+                assert np.all((s["track_mm"] >= lo - 1e-9) & (s["track_mm"] <= hi + 1e-9))
+            else:
+                assert np.all(s["track_mm"] == 0.0)
             checked += int(ok.sum())
     assert checked > 1000
 
@@ -140,6 +145,7 @@ def test_waypoints_csv_reads_back_as_the_plan(planned):
                 assert (row["robot"], int(row["stroke"]), int(row["waypoint"])) == (work["name"], i, j)
                 assert np.allclose([float(row[c]) for c in ("x_mm", "y_mm", "z_mm")], s["tcp_mm"][j], atol=1e-4)
                 assert int(row["reachable"]) == int(s["reachable"][j])
+                assert float(row["track_mm"]) == pytest.approx(s["track_mm"][j], abs=1e-4)
                 if s["reachable"][j]:
                     q = [float(row[f"q{n + 1}"]) for n in range(6)]
                     assert np.allclose(q, s["q_rad"][j], atol=1e-8)
@@ -189,3 +195,14 @@ def test_a_robot_inside_the_part_is_exit_2_and_nothing_written(planned, tmp_path
     err = capsys.readouterr().err
     assert code == 2 and "inside.toml" in err and "inside the part" in err
     assert not out.exists()
+
+
+def test_the_pictures_are_written(planned):
+    """areas.png and film.png: images of the figure's size (a person looks at them; see docs/cells.md)."""
+    import matplotlib.image
+
+    for name in ("areas.png", "film.png"):
+        image = matplotlib.image.imread(planned["out"] / name)
+        assert image.shape[:2] == (540, 1260)
+        assert image[..., :3].std() > 0.05  # not a blank page
+

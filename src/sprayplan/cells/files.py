@@ -4,14 +4,16 @@
 ``cell_plan.json``
     ``format = "sprayplan-cell-plan"``, ``version = 1``; the cell (its robots, their base poses and tracks);
     the part's placement (``part2cell``); the areas (name, direction, surface, robot, the share it reaches,
-    split or not); per robot its strokes in order, each with its kind, area, track position, roll, and per
-    waypoint the gun tip, the normal, the time factor, the six joints (rad) and whether it is reached; and the
+    split or not); per robot its strokes in order, each with its kind, area, roll, and per waypoint the gun
+    tip, the normal, the time factor, the track position, the six joints (rad) and whether it is reached; and the
     report (film over the whole body, per area, per robot, per seam; cycle times). mm, rad, s.
 ``waypoints.csv``
     One row a waypoint of every robot: ``robot, stroke, waypoint, kind, area, x_mm, y_mm, z_mm, nx, ny, nz,
     dwell, track_mm, roll_deg, q1..q6, reachable``.
 ``areas.csv``
     One row a face of the painted surface: ``face, area, direction, robot, robot_index``.
+``areas.png``, ``film.png``
+    Pictures: the robot of each face, and the film (``cells.pictures``).
 ``thickness.ply``, ``thickness.csv``, ``coating.json``
     The whole body's film, as ``sprayplan plan`` writes them (``export.film``); ``coating.json`` is the film
     part of the report.
@@ -29,7 +31,10 @@ from sprayplan.export.files import atomic_output
 FORMAT = "sprayplan-cell-plan"
 VERSION = 1
 #: The files a cell plan writes into its folder.
-CELL_FILES = ("cell_plan.json", "waypoints.csv", "areas.csv", "thickness.ply", "thickness.csv", "coating.json")
+CELL_FILES = (
+    "cell_plan.json", "waypoints.csv", "areas.csv", "areas.png", "thickness.ply", "thickness.csv", "coating.json",
+    "film.png",
+)  # fmt: skip
 WAYPOINT_COLUMNS = [
     "robot", "stroke", "waypoint", "kind", "area", "x_mm", "y_mm", "z_mm", "nx", "ny", "nz", "dwell", "track_mm",
     "roll_deg", *(f"q{i + 1}" for i in range(6)), "reachable",
@@ -93,8 +98,8 @@ def cell_plan_dict(plan) -> dict:
                 {
                     "kind": s.kind,
                     "area": int(r.area[i]),
-                    "track_mm": float(r.track_mm[i]),
                     "roll_deg": float(r.roll_deg[i]),
+                    "track_mm": np.round(r.track_mm[at : at + n], 6),
                     "tcp_mm": np.round(s.tcp, 6),
                     "normals": np.round(s.normals, 9),
                     "points_mm": np.round(s.points, 6),
@@ -139,7 +144,7 @@ def write_cell_plan(outdir, plan, target_um: float = 50.0, tolerance_um: float =
                 q = r.q[at + j]
                 rows.append(
                     [r.name, i, j, s.kind, int(r.area[i]), *np.round(s.tcp[j], 4), *np.round(s.normals[j], 6),
-                     round(float(s.dwell[j]), 6), round(float(r.track_mm[i]), 3), float(r.roll_deg[i]),
+                     round(float(s.dwell[j]), 6), round(float(r.track_mm[at + j]), 4), float(r.roll_deg[i]),
                      *np.round(q, 9), int(r.reachable[at + j])]
                 )  # fmt: skip
             at += len(s)
@@ -155,7 +160,15 @@ def write_cell_plan(outdir, plan, target_um: float = 50.0, tolerance_um: float =
     path = os.path.join(outdir, "areas.csv")
     write_table(path, ["face", "area", "direction", "robot", "robot_index"], area_rows)
     written.append(path)
+    from sprayplan.cells.pictures import areas_picture, film_picture
+
+    path = os.path.join(outdir, "areas.png")
+    areas_picture(path, plan)
+    written.append(path)
     if plan.film is not None:
+        path = os.path.join(outdir, "film.png")
+        film_picture(path, plan, target_um, tolerance_um)
+        written.append(path)
         for name, write in (("thickness.ply", None), ("thickness.csv", write_thickness_csv)):
             path = os.path.join(outdir, name)
             if write is None:
@@ -173,7 +186,7 @@ def write_cell_plan(outdir, plan, target_um: float = 50.0, tolerance_um: float =
 
 def read_cell_plan(path) -> dict:
     """``cell_plan.json`` read back, with each stroke's arrays as numpy arrays (``tcp_mm``, ``normals``,
-    ``points_mm``, ``dwell``, ``q_rad``, ``reachable``) and the robots' ``base2cell`` as (4, 4).
+    ``points_mm``, ``dwell``, ``track_mm``, ``q_rad``, ``reachable``) and the robots' ``base2cell`` as (4, 4).
 
     Raises
     ------
@@ -194,6 +207,7 @@ def read_cell_plan(path) -> dict:
                 for key in ("tcp_mm", "normals", "points_mm"):
                     s[key] = np.array(s[key], dtype=float).reshape(-1, 3)
                 s["dwell"] = np.array(s["dwell"], dtype=float)
+                s["track_mm"] = np.array(s["track_mm"], dtype=float)
                 s["q_rad"] = np.array([[np.nan if v is None else v for v in row] for row in s["q_rad"]], float)
                 s["q_rad"] = s["q_rad"].reshape(-1, 6)
                 s["reachable"] = np.array(s["reachable"], dtype=bool)

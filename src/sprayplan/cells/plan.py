@@ -13,12 +13,15 @@ not):
 4. **paths**: each robot's share of each area sliced on its own (``paths.planner.plan_paths`` with the job's
    ``[paths]``; ``direction = "auto"`` slices each piece across its own longest axis, the direction the seed
    chose by hand per area), the pieces joined by spray-off transfers;
-5. **kinematics**: each stroke solved by its robot with the base at one track position for the whole stroke
-   (the track stands still while the arm sprays, as the seed's line robots do between moves): the position
-   nearest the stroke's middle, then 300 and 600 mm either side, each with the gun turned about its axis by 0,
-   90, 180 and 270 degrees; the try that reaches the most waypoints is kept (ties: the first). Along the
-   stroke the branch nearest the previous waypoint's joints is followed
-   (``robots.interface.follow_solutions``). Unreached waypoints are data (``reachable`` False);
+5. **kinematics**: each stroke solved by its robot, the track moving with the gun (a coordinated external
+   axis, as paint lines run their rail robots along a car): at every waypoint the base stands at the track
+   position of the gun tip's own position along the track, plus an offset, clipped to the track's ends. The
+   offsets tried are 0, then 300 and 600 mm either side, each with the gun turned about its axis by 0, 90,
+   180 and 270 degrees; the first try that reaches every waypoint is kept, else the first that reaches the
+   most. Along the stroke the branch nearest the previous waypoint's joints is followed
+   (``robots.interface.follow_solutions``). Unreached waypoints are data (``reachable`` False). A fixed track
+   per stroke was tried first and dropped: one base position does not reach both ends of a 4 m stroke along a
+   car's side;
 6. **film**: the strokes of all robots together over the whole body, their speeds tuned to the target by
    ``refine.tuning.tune_speeds`` (``[tuning] tune_speed``) in one least-squares problem, so the film where two
    robots' areas meet is tuned like any other; then reported over the whole body, per area, per robot and
@@ -53,7 +56,7 @@ from sprayplan.cells.reach import reach_matrix
 from sprayplan.cells.spec import Cell, place_part
 from sprayplan.config import JobConfig
 from sprayplan.errors import ConfigError, InputError
-from sprayplan.progress import Progress, no_progress
+from sprayplan.progress import Progress, no_progress, per_stage
 from sprayplan.surface.areas import AreaAssignment, Areas, assign_areas, face_adjacency, segment_areas
 from sprayplan.surface.poses import stroke_poses
 from sprayplan.types import Part, Paths, Stroke
@@ -82,8 +85,8 @@ class RobotWork:
         Spray strokes and transfers in execution order (cell frame).
     area : (s,) int
         The area of each stroke (-1 for transfers).
-    track_mm : (s,) float
-        The track position each stroke runs at (0 without a track).
+    track_mm : (n,) float
+        The track position at every waypoint of all strokes in order, mm (0 without a track).
     roll_deg : (s,) float
         The roll of the gun about its axis for the stroke.
     q : (n, 6) float
@@ -176,14 +179,17 @@ def _rot_z(angle_deg: float) -> np.ndarray:
 
 
 def _tries(cell_robot, stroke: Stroke) -> list[tuple[float, float]]:
-    """The (track position, roll) tries of a stroke, in the order they are preferred."""
-    origin = cell_robot.base2cell[:3, 3]
+    """The (track positions at the waypoints (n,) mm, roll deg) tries of a stroke, in the order they are
+    preferred; offsets that the track's ends make the same as an earlier one are left out."""
     if cell_robot.track is None:
-        tracks = [0.0]
-    else:
-        lo, hi = cell_robot.track.range_mm
-        centre = float(np.clip((stroke.tcp.mean(axis=0) - origin) @ cell_robot.track.axis, lo, hi))
-        tracks = list(dict.fromkeys(float(np.clip(centre + d, lo, hi)) for d in TRACK_TRIES_MM))
+        return [(np.zeros(len(stroke)), r) for r in ROLL_TRIES_DEG]
+    lo, hi = cell_robot.track.range_mm
+    along = (stroke.tcp - cell_robot.base2cell[:3, 3]) @ cell_robot.track.axis
+    tracks: list[np.ndarray] = []
+    for d in TRACK_TRIES_MM:
+        s = np.clip(along + d, lo, hi)
+        if not any(np.array_equal(s, t) for t in tracks):
+            tracks.append(s)
     return [(t, r) for t in tracks for r in ROLL_TRIES_DEG]
 
 
@@ -200,9 +206,9 @@ def _slice(sols, start: int, n: int):
 
 
 def solve_strokes(cell_robot, strokes) -> list[tuple[float, float, np.ndarray, np.ndarray]]:
-    """For each stroke, the first (track position, roll) try that reaches all its waypoints, else the first
-    that reaches the most, and the joints along it (module docstring, step 5): ``(track_mm, roll_deg, q (n,
-    6), reachable (n,))`` a stroke.
+    """For each stroke, the first (track positions, roll) try that reaches all its waypoints, else the first
+    that reaches the most, and the joints along it (module docstring, step 5): ``(track_mm (n,), roll_deg, q
+    (n, 6), reachable (n,))`` a stroke.
 
     The tries go in rounds: round ``k`` solves try ``k`` of every stroke not yet reached whole, all in one
     call of the IK with the base at track position 0 and the poses moved back along the track instead."""
@@ -222,7 +228,7 @@ def solve_strokes(cell_robot, strokes) -> list[tuple[float, float, np.ndarray, n
         for i in pending:
             track, roll = tries[i][k]
             moved = poses[i] @ _rot_z(roll)
-            moved[:, :3, 3] -= track * axis
+            moved[:, :3, 3] -= track[:, None] * axis
             blocks.append(moved)
         sols = arm.ik(np.concatenate(blocks))
         start, still = 0, []
@@ -287,7 +293,7 @@ def _robot_work(cell_robot, index: int, part: Part, areas: Areas, assignment: Ar
             model=cell_robot.model,
             strokes=tuple(strokes),
             area=np.array(area_of, dtype=np.int64),
-            track_mm=np.array(track, dtype=float),
+            track_mm=np.concatenate(track) if track else np.zeros(0),
             roll_deg=np.array(roll, dtype=float),
             q=np.concatenate(qs) if qs else np.zeros((0, 6)),
             reachable=np.concatenate(ok) if ok else np.zeros(0, bool),
@@ -385,28 +391,32 @@ def plan_cell(part: Part, cell: Cell, job: JobConfig, progress: Progress | None 
     if not part.is_mesh:
         raise ConfigError(f"{part.name}: a cell plan needs a mesh (areas are found on meshes)")
     timings: dict[str, float] = {}
-    clock = time.perf_counter()
+    running: list = [None, time.perf_counter()]
 
-    def lap(name: str) -> None:
-        nonlocal clock
+    def begin(name: str | None) -> None:
+        """The step before ``name`` ends (its wall time kept) and ``name`` starts (``progress(name, 0, 0)``)."""
         now = time.perf_counter()
-        timings[name] = round(now - clock, 3)
-        clock = now
-        progress(name, 0, 0)
+        if running[0] is not None:
+            timings[running[0]] = round(now - running[1], 3)
+        running[:] = [name, now]
+        if name is not None:
+            progress(name, 0, 0)
+
+    begin("place")
 
     placed = place_part(part, cell)
     painted = placed.part
     left_out = 0.0
     if job.collision.skip_floor_facing:
         painted, left_out = drop_floor_facing(painted, job.collision.floor_facing_deg)
-    lap("place")
+    begin("areas")
     job, chosen = meet_thickness(job)
     areas = segment_areas(painted)
     reach = reach_matrix(cell, painted, areas.face_normals, job.paths.standoff_mm)
     assignment = assign_areas(areas, painted.face_areas, reach)
-    lap("areas")
+    begin("paths and kinematics")
     robots = tuple(_robot_work(r, i, painted, areas, assignment, job) for i, r in enumerate(cell.robots))
-    lap("paths and kinematics")
+    begin("film")
     report = {"spray_radius_mm": job.paths.spray_radius_mm, "floor_facing_left_out_mm2": round(left_out, 1)}
     plan = CellPlan(cell, painted, placed.part2cell, areas, assignment, robots, None, report, timings)
     target = job.coating.thickness_um
@@ -422,7 +432,14 @@ def plan_cell(part: Part, cell: Cell, job: JobConfig, progress: Progress | None 
         from sprayplan.refine.tuning import tune_speeds, tuned_film
 
         tuning = tune_speeds(
-            painted, paths, process, target, job.coating.tolerance, config=tuning_settings(job.tuning), coating=coating
+            painted,
+            paths,
+            process,
+            target,
+            job.coating.tolerance,
+            config=tuning_settings(job.tuning),
+            coating=coating,
+            progress=per_stage(progress, "film"),
         )
         tuned = iter(tuning.paths.strokes)
         robots = tuple(dataclasses.replace(r, strokes=tuple(next(tuned) for _ in r.strokes)) for r in robots)
@@ -430,8 +447,8 @@ def plan_cell(part: Part, cell: Cell, job: JobConfig, progress: Progress | None 
     elif target is not None or job.output.simulate:
         from sprayplan.coating.thickness import simulate
 
-        film = simulate(painted, paths, process, config=coating)
-    lap("film")
+        film = simulate(painted, paths, process, config=coating, progress=per_stage(progress, "film"))
+    begin("report")
     speed = job.motion.gun_speed_mm_s
     transfer = job.motion.transfer_speed_mm_s
     cycle = {r.name: round(r.cycle_time_s(speed, transfer), 3) for r in robots}
@@ -457,5 +474,5 @@ def plan_cell(part: Part, cell: Cell, job: JobConfig, progress: Progress | None 
     plan = dataclasses.replace(plan, robots=robots, film=film, report=report)
     if film is not None and target is not None:
         report["film"] = film_report(plan, target, job.coating.tolerance, samples=job.output.samples or 420, seed=0)
-    lap("report")
+    begin(None)
     return dataclasses.replace(plan, report=report, timings_s=timings)

@@ -175,7 +175,15 @@ def cmd_plan_cell(args, job) -> int:
         part = load_part(args.part, units=job.load.units, up=job.load.up)
     if job.load.region is not None:
         raise ConfigError("--region: not available with --cell (the areas split the whole body)")
-    plan = plan_cell(part, cell, job)
+    from sprayplan.cli.common import ProgressDisplay
+
+    display = ProgressDisplay(quiet=getattr(args, "quiet", False))
+    try:
+        plan = plan_cell(part, cell, job, progress=display)
+    except BaseException:
+        display.close(finished=False)
+        raise
+    display.close()
     target = job.coating.thickness_um if job.coating.thickness_um is not None else 50.0
     with staged_folder(args.output, CELL_FILES) as folder:
         write_cell_plan(folder, plan, target, job.coating.tolerance_um)
