@@ -14,6 +14,7 @@ from sprayplan.cli import main
 from sprayplan.config import JobConfig
 from sprayplan.errors import ConfigError
 from sprayplan.export.stl import write_stl_binary
+from sprayplan.surface.normals import outward_face_normals
 from sprayplan.surface.poses import poses_at
 from tests.helpers import grid_box
 
@@ -203,6 +204,68 @@ def test_the_pictures_are_written(planned):
 
     for name in ("areas.png", "film.png"):
         image = matplotlib.image.imread(planned["out"] / name)
-        assert image.shape[:2] == (540, 1260)
+        assert image.shape[:2] == (585, 1440)
         assert image[..., :3].std() > 0.05  # not a blank page
 
+
+def test_the_film_is_made_only_by_reached_runs_and_their_tuning_goes_back():
+    from sprayplan.cells.plan import RobotWork, reached_strokes, with_tuned_dwell
+    from sprayplan.types import Stroke
+
+    n = 9
+    pts = np.column_stack([np.arange(n) * 10.0, np.zeros(n), np.zeros(n)])
+    normals = np.tile([0.0, 0.0, 1.0], (n, 1))
+    spray = Stroke(pts, normals, pts + [0, 0, 100])
+    transfer = Stroke(pts[:2], normals[:2], pts[:2] + [0, 0, 100], spray_on=False)
+    reach = np.array([1, 1, 0, 1, 1, 1, 0, 0, 1, 1, 1], bool)  # 9 spray waypoints, then the transfer's 2
+    work = RobotWork(
+        "r", "m", (spray, transfer), np.array([0, -1]), np.zeros(11), np.zeros(2), np.zeros((11, 6)), reach
+    )
+    strokes, owners = reached_strokes((work,))
+    assert owners == [(0, 0, 0, 2), (0, 0, 3, 6)]  # a lone reached waypoint sprays nothing; transfers never
+    assert np.array_equal(strokes[1].tcp, spray.tcp[3:6])
+    tuned = [s.with_dwell(np.full(len(s), 2.0 + k)) for k, s in enumerate(strokes)]
+    (back,) = with_tuned_dwell((work,), tuned, owners)
+    assert np.array_equal(back.strokes[0].dwell, [2, 2, 1, 3, 3, 3, 1, 1, 1])
+    assert np.array_equal(back.strokes[1].dwell, [1, 1])
+
+
+def test_spray_stops_where_the_surface_goes_on_as_another_piece_and_not_at_an_edge():
+    """feathered / SeamGuard: a lead-out over the neighbouring piece (the surface goes on) is cut; one past the
+    part's edge, or over a face turned 90 degrees (a corner), is kept."""
+    from sprayplan.cells.plan import SeamGuard, feathered
+    from sprayplan.types import Stroke
+
+    box = grid_box(n=8, size=(400.0, 200.0, 100.0))
+    _, normals = outward_face_normals(box.vertices, box.faces)
+    centres = box.triangles.mean(axis=1)
+    top = normals[:, 2] > 0.9
+    label = np.where(top & (centres[:, 0] < 0), 1, 2)  # the top's -x half is piece 1, everything else 2
+    guard = SeamGuard(box, label, normals, step_mm=20.0)
+    x = np.arange(-150.0, 260.0, 10.0)  # along the top at y = 0 from piece 1 over piece 2 and past the edge
+    pts = np.column_stack([x, np.zeros_like(x), np.full_like(x, 50.0)])
+    n = np.tile([0.0, 0.0, 1.0], (len(x), 1))
+    on = x < 0
+    stroke = Stroke(pts, n, pts + [0, 0, 100], on_part=on)
+    (kept,) = feathered([stroke], guard, 1)
+    assert np.allclose(kept.points[:, 0], x[x < 0])  # the lead-out stops where the top goes on as piece 2
+    # for piece 2, the same points lie on piece 1 before it: the lead-in is cut to what follows piece 1
+    reverse = Stroke(pts, n, pts + [0, 0, 100], on_part=x >= 0)
+    (back,) = feathered([reverse], guard, 2)
+    assert back.points[0, 0] >= -20.0 - 1e-9 and back.points[-1, 0] == x[-1]  # its lead-out past the edge stays
+    # an edge pass wholly past the part's edge (nothing faces up there): kept whole
+    past = x > 220.0
+    edge = Stroke(pts[past], n[past], pts[past] + [0, 0, 100], on_part=np.zeros(past.sum(), bool))
+    (alone,) = feathered([edge], guard, 1)
+    assert len(alone) == past.sum()
+    # a lead-out past the top's +y edge, beside the side face (normal +y, 90 degrees off): kept
+    y = np.arange(110.0, 160.0, 10.0)
+    side = np.column_stack([np.full_like(y, -100.0), y, np.full_like(y, 50.0)])
+    corner = Stroke(side, np.tile([0.0, 0.0, 1.0], (len(y), 1)), side + [0, 0, 100], on_part=np.zeros(len(y), bool))
+    assert len(feathered([corner], guard, 1)[0]) == len(y)
+
+
+def test_seams_without_a_cell_is_refused(planned, tmp_path, capsys):
+    out = tmp_path / "o"
+    assert main(["plan", str(planned["part"]), "--seams", "overlap", "-o", str(out)]) == 2
+    assert "--seams: only with --cell" in capsys.readouterr().err and not out.exists()

@@ -19,21 +19,22 @@ UNREACHED = "#b0b0b0"
 def _figure():
     from matplotlib.figure import Figure
 
-    return Figure(figsize=(14, 6), dpi=90)
+    return Figure(figsize=(16, 6.5), dpi=90)
 
 
 def _axes(fig, part, k: int):
     ax = fig.add_subplot(1, 2, k + 1, projection="3d")
     lo, hi = part.bounds
-    centre, half = (lo + hi) / 2.0, (hi - lo).max() / 2.0
-    ax.set_xlim(centre[0] - half, centre[0] + half)
-    ax.set_ylim(centre[1] - half, centre[1] + half)
-    ax.set_zlim(centre[2] - half, centre[2] + half)
-    ax.set_box_aspect((1, 1, 1))
+    ext = np.maximum(hi - lo, 1e-9)
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_zlim(lo[2], hi[2])
+    ax.set_box_aspect(tuple(ext / ext.max()), zoom=1.25)
     ax.view_init(*VIEWS[k])
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     ax.set_zlabel("z (mm)")
+    ax.tick_params(labelsize=7)
     return ax
 
 

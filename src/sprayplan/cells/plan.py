@@ -22,18 +22,24 @@ not):
    (``robots.interface.follow_solutions``). Unreached waypoints are data (``reachable`` False). A fixed track
    per stroke was tried first and dropped: one base position does not reach both ends of a 4 m stroke along a
    car's side;
-6. **film**: the strokes of all robots together over the whole body, their speeds tuned to the target by
+6. **film**: the strokes of all robots together over the whole body, cut to the runs of waypoints their
+   robot reaches (:func:`reached_strokes`: an unreached waypoint leaves its surface bare), their speeds tuned
+   to the target by
    ``refine.tuning.tune_speeds`` (``[tuning] tune_speed``) in one least-squares problem, so the film where two
    robots' areas meet is tuned like any other; then reported over the whole body, per area, per robot and
    along every seam, with seed 003's 420 measuring points (``[output] samples``).
 
-**The seam rule: overlap, tuned.** Each robot's strokes run past the edge of its share by the planner's lead-out
-(``[paths] edge_margin_mm``, by default one spray radius), so near a seam both robots' spray tails land on
-both sides; the whole-body speed tuning then sees the doubled film there and slows or speeds the strokes
-near the seam to bring it back to the target. The alternative, feathering (stopping each side's last stroke
-at the seam), leaves the seam under-painted by the half-profile each side loses unless the two tails are
-placed to the millimetre; the overlap needs no such placement and the tuning corrects what it adds.
-``docs/benchmarks.md`` ("Whole bodies in a cell") gives the film along every seam.
+**The seam rule: feather where the surface goes on, overlap at edges; then tune** (``seams = "feather"``, the
+default). The planner runs every stroke past the edge of its piece (its lead-in and lead-out,
+``[paths] edge_margin_mm``) and adds edge passes beyond edges that run with the strokes, so that the film does
+not thin out at a part's edge. At a seam the surface does not end: the neighbouring piece goes on, painted by
+its own strokes, and those extensions would paint it a second time. So a stroke's extension stops at its first
+waypoint that lies over another piece's surface facing the same way (:class:`SeamGuard`, :func:`feathered`),
+and an edge pass keeps only what is not over another piece; at a true edge of the body, or at a corner
+where the next face turns away (a roof's edge over a side), the extensions stay. Both sides then end at the
+seam, each leaving the tapered half of its spray there, and the whole-body tuning evens out the rest.
+``seams = "overlap"`` keeps every extension (each side paints over the seam by a lead-out, and the tuning
+has to take the doubled film back). ``docs/cells.md`` compares the two on the car body.
 
 Collisions and joint-limited timing of fixed-base arms are not checked yet: the cycle time of each robot is
 its path length over its speeds (spray strokes at their tuned speeds, transfers at ``[motion]
@@ -257,10 +263,96 @@ def solve_strokes(cell_robot, strokes) -> list[tuple[float, float, np.ndarray, n
     return out
 
 
-def _robot_work(cell_robot, index: int, part: Part, areas: Areas, assignment: AreaAssignment, job: JobConfig):
+class SeamGuard:
+    """Where a stroke's extension lies over the surface of another piece (module docstring, the seam rule).
+
+    The painted surface is sampled at most ``step_mm`` apart (a barycentric grid on every face), each sample
+    labelled with its face's piece (area and robot) and normal. A waypoint off its own piece (``on_part``
+    False: a lead-in or lead-out, an edge pass) is over another piece when a sample of another piece lies
+    within ``step_mm`` of its aim point and faces the same way (normals within :data:`SEAM_ANGLE_DEG`): the
+    surface goes on there, painted by its own strokes.
+    """
+
+    def __init__(self, part: Part, label: np.ndarray, normals: np.ndarray, step_mm: float):
+        tri = part.triangles
+        longest = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
+        k = np.maximum(1, np.ceil(longest / step_mm)).astype(int)
+        points, owner = [], []
+        for level in np.unique(k):
+            faces = np.flatnonzero(k == level)
+            i, j = np.meshgrid(np.arange(level + 1), np.arange(level + 1), indexing="ij")
+            keep = i + j <= level
+            w = np.stack([i[keep], j[keep]], axis=1) / level
+            bary = np.column_stack([1.0 - w.sum(axis=1), w])  # (p, 3)
+            points.append(np.einsum("pk,fkd->fpd", bary, tri[faces]).reshape(-1, 3))
+            owner.append(np.repeat(faces, len(bary)))
+        owner = np.concatenate(owner)
+        self.tree = cKDTree(np.concatenate(points))
+        self.label = label[owner]
+        self.normals = normals[owner]
+        self.step_mm = step_mm
+
+    def over_other(self, points: np.ndarray, normals: np.ndarray, label: int) -> np.ndarray:
+        """(n,) bool: the points lie over a piece other than ``label`` (class docstring)."""
+        if not len(points):
+            return np.zeros(0, bool)
+        near = self.tree.query_ball_point(points, self.step_mm)
+        cos = math.cos(math.radians(SEAM_ANGLE_DEG))
+        out = np.zeros(len(points), bool)
+        for i, hits in enumerate(near):
+            if hits:
+                hits = np.asarray(hits)
+                other = (self.label[hits] != label) & (self.normals[hits] @ normals[i] >= cos)
+                out[i] = bool(other.any())
+        return out
+
+
+#: The sampling of the painted surface for :class:`SeamGuard`, mm.
+SEAM_STEP_MM = 20.0
+#: A stroke's extension is over another piece only where that piece faces within this angle of the stroke.
+SEAM_ANGLE_DEG = 30.0
+
+
+def feathered(strokes, guard: SeamGuard | None, label: int) -> list:
+    """A piece's spray strokes with the spray taken off where they run on over another piece's surface
+    (:class:`SeamGuard`; the planner's transfers are left out, they are made again between the strokes that
+    remain).
+
+    A stroke on the piece keeps its on-piece waypoints; at each end its lead-in or lead-out stops at the first
+    waypoint over another piece, and nothing past it sprays. A stroke wholly off the piece (an edge pass)
+    keeps its runs that are not over another piece. A run shorter than two waypoints is dropped.
+    """
+    out = []
+    for s in strokes:
+        if not s.spray_on:
+            continue
+        if guard is None or s.on_part.all():
+            out.append(s)
+            continue
+        off = ~s.on_part
+        over = np.zeros(len(s), bool)
+        over[off] = guard.over_other(s.points[off], s.normals[off], label)
+        on = np.flatnonzero(s.on_part)
+        if len(on):
+            head = np.flatnonzero(over[: on[0]])
+            tail = np.flatnonzero(over[on[-1] + 1 :])
+            a = int(head[-1]) + 1 if len(head) else 0
+            b = int(on[-1]) + 1 + int(tail[0]) if len(tail) else len(s)
+            runs = [(a, b)]
+        else:
+            edges = np.flatnonzero(np.diff(np.r_[0, (~over).astype(np.int8), 0]))
+            runs = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
+        out.extend(_cut(s, a, b) if (a, b) != (0, len(s)) else s for a, b in runs if b - a >= 2)
+    return out
+
+
+def _robot_work(
+    cell_robot, index: int, part: Part, areas: Areas, assignment: AreaAssignment, job: JobConfig, guard=None
+):
     from sprayplan.paths.planner import plan_paths
 
     radius = job.paths.spray_radius_mm
+    labels = len(assignment.robot_area_mm2) + 1  # piece labels: area * labels + robot + 1 (SeamGuard)
     strokes, area_of = [], []
     for a in range(len(areas)):
         keep = (assignment.face_robot == index) & (areas.face_area == a)
@@ -274,12 +366,12 @@ def _robot_work(cell_robot, index: int, part: Part, areas: Areas, assignment: Ar
         except InputError:
             log.info("%s: no section to paint", piece.name)
             continue
-        for s in paths.strokes:
-            if strokes and s.spray_on and strokes[-1].spray_on:
+        for s in feathered(paths.strokes, guard, a * labels + index + 1):
+            if strokes:
                 strokes.append(_transfer(strokes[-1], s))
                 area_of.append(-1)
             strokes.append(s)
-            area_of.append(a if s.spray_on else -1)
+            area_of.append(a)
     track, roll, qs, ok = [], [], [], []
     for t, r, q, reach in solve_strokes(cell_robot, strokes):
         track.append(t)
@@ -309,6 +401,53 @@ def _robot_work(cell_robot, index: int, part: Part, areas: Areas, assignment: Ar
             np.zeros((0, 6)),
             np.zeros(0, bool),
         )
+    )
+
+
+def _cut(stroke: Stroke, a: int, b: int) -> Stroke:
+    """Waypoints ``a .. b - 1`` of a stroke."""
+    return Stroke(
+        stroke.points[a:b],
+        stroke.normals[a:b],
+        stroke.tcp[a:b],
+        stroke.spray_on,
+        stroke.on_part[a:b],
+        stroke.layer,
+        stroke.dwell[a:b],
+        stroke.kind,
+    )
+
+
+def reached_strokes(robots) -> tuple[list, list]:
+    """The spray the robots can make: every spray stroke cut to its runs of reached waypoints (a run of one
+    waypoint sprays nothing, so it is left out), all robots one after another. Returns the strokes and, for
+    each, ``(robot, stroke, first waypoint, end)`` where it came from. The film is predicted from these, so a
+    waypoint no robot reaches leaves its surface bare instead of painted in the model."""
+    out, owners = [], []
+    for r_i, r in enumerate(robots):
+        at = 0
+        for s_i, s in enumerate(r.strokes):
+            n = len(s)
+            if s.spray_on:
+                ok = r.reachable[at : at + n]
+                edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
+                for a, b in zip(edges[::2], edges[1::2]):
+                    if b - a >= 2:
+                        out.append(_cut(s, int(a), int(b)))
+                        owners.append((r_i, s_i, int(a), int(b)))
+            at += n
+    return out, owners
+
+
+def with_tuned_dwell(robots, tuned, owners) -> tuple:
+    """The robots' strokes with the time factors the tuning chose for their reached runs (unreached waypoints
+    keep theirs)."""
+    dwell = [[s.dwell.copy() for s in r.strokes] for r in robots]
+    for stroke, (r_i, s_i, a, b) in zip(tuned, owners):
+        dwell[r_i][s_i][a:b] = stroke.dwell
+    return tuple(
+        dataclasses.replace(r, strokes=tuple(s.with_dwell(d) for s, d in zip(r.strokes, dwell[i])))
+        for i, r in enumerate(robots)
     )
 
 
@@ -373,8 +512,14 @@ def _robot_name(plan: CellPlan, i: int) -> str:
     return plan.cell.robots[i].name if i >= 0 else ""
 
 
-def plan_cell(part: Part, cell: Cell, job: JobConfig, progress: Progress | None = None) -> CellPlan:
-    """Plan a whole body in a cell of fixed-base arms (module docstring).
+#: The seam rules :func:`plan_cell` takes (module docstring).
+SEAM_RULES = ("feather", "overlap")
+
+
+def plan_cell(
+    part: Part, cell: Cell, job: JobConfig, progress: Progress | None = None, seams: str = "feather"
+) -> CellPlan:
+    """Plan a whole body in a cell of fixed-base arms (module docstring); ``seams`` is the seam rule.
 
     Raises
     ------
@@ -386,6 +531,8 @@ def plan_cell(part: Part, cell: Cell, job: JobConfig, progress: Progress | None 
     from sprayplan.surface.region import drop_floor_facing
 
     progress = progress or no_progress
+    if seams not in SEAM_RULES:
+        raise ConfigError(f"seams: must be one of {', '.join(SEAM_RULES)}, got {seams!r}")
     if cell.is_gantry:
         raise ConfigError(f"cell {cell.name!r} is the gantry cell: `sprayplan plan` without --cell plans it")
     if not part.is_mesh:
@@ -415,13 +562,19 @@ def plan_cell(part: Part, cell: Cell, job: JobConfig, progress: Progress | None 
     reach = reach_matrix(cell, painted, areas.face_normals, job.paths.standoff_mm)
     assignment = assign_areas(areas, painted.face_areas, reach)
     begin("paths and kinematics")
-    robots = tuple(_robot_work(r, i, painted, areas, assignment, job) for i, r in enumerate(cell.robots))
+    guard = None
+    if seams == "feather":
+        labels = len(cell.robots) + 1
+        guard = SeamGuard(
+            painted, areas.face_area * labels + assignment.face_robot + 1, areas.face_normals, SEAM_STEP_MM
+        )
+    robots = tuple(_robot_work(r, i, painted, areas, assignment, job, guard) for i, r in enumerate(cell.robots))
     begin("film")
     report = {"spray_radius_mm": job.paths.spray_radius_mm, "floor_facing_left_out_mm2": round(left_out, 1)}
     plan = CellPlan(cell, painted, placed.part2cell, areas, assignment, robots, None, report, timings)
     target = job.coating.thickness_um
-    everything = [s for r in robots for s in r.strokes]
-    if not any(s.spray_on for s in everything):
+    everything, owners = reached_strokes(robots)
+    if not everything:
         raise InputError(f"{part.name}: no robot of cell {cell.name!r} has anything to paint")
     paths = Paths(tuple(everything), job.paths.standoff_mm, job.paths.spacing or 0.0, part.name)
     process = process_for(job)
@@ -441,8 +594,7 @@ def plan_cell(part: Part, cell: Cell, job: JobConfig, progress: Progress | None 
             coating=coating,
             progress=per_stage(progress, "film"),
         )
-        tuned = iter(tuning.paths.strokes)
-        robots = tuple(dataclasses.replace(r, strokes=tuple(next(tuned) for _ in r.strokes)) for r in robots)
+        robots = with_tuned_dwell(robots, tuning.paths.strokes, owners)
         film = tuned_film(tuning, process, coating)
     elif target is not None or job.output.simulate:
         from sprayplan.coating.thickness import simulate

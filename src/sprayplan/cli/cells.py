@@ -179,7 +179,7 @@ def cmd_plan_cell(args, job) -> int:
 
     display = ProgressDisplay(quiet=getattr(args, "quiet", False))
     try:
-        plan = plan_cell(part, cell, job, progress=display)
+        plan = plan_cell(part, cell, job, progress=display, seams=args.seams or "feather")
     except BaseException:
         display.close(finished=False)
         raise

@@ -454,6 +454,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="plan a whole body in a cell of several robots: line3, sides2 (`sprayplan cells`) or a cell .toml "
         "(docs/cells.md); writes cell_plan.json instead of plan.json",
     )
+    group.add_argument(
+        "--seams",
+        choices=["feather", "overlap"],
+        help="with --cell: strokes stop where the surface goes on as another robot's or area's (feather, the "
+        "default), or run on over it by their lead-out (overlap)",
+    )
     group.add_argument("--seed", type=int, help="random seed of the station cover and the tours (default 0)")
     group.add_argument(
         "--mode", choices=["paths", "points"], help="slicing strokes (default) or the seed's target points"

@@ -210,6 +210,8 @@ def cmd_plan(args) -> int:
         from sprayplan.cli.cells import cmd_plan_cell
 
         return cmd_plan_cell(args, job)
+    if getattr(args, "seams", None) is not None:
+        raise ConfigError("--seams: only with --cell (the seams between a cell's robots and areas)")
     inputs = [(args.part, "part"), (args.config, "-c"), (file_input(job.coating.process), "--process")]
     check_folder_outputs(args.output, JOB_FILES, "-o", inputs)
     if job.export.programs:
