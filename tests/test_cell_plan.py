@@ -269,3 +269,43 @@ def test_seams_without_a_cell_is_refused(planned, tmp_path, capsys):
     out = tmp_path / "o"
     assert main(["plan", str(planned["part"]), "--seams", "overlap", "-o", str(out)]) == 2
     assert "--seams: only with --cell" in capsys.readouterr().err and not out.exists()
+
+
+@pytest.mark.parametrize("robot, dof", [("ur5", 6), ("r5150", 5)])
+def test_plan_with_one_fixed_base_robot(tmp_path, robot, dof):
+    """`plan --robot ur5` / `--robot r5150`: the part file's frame is the robot's base frame; every reached
+    waypoint is where the arm puts the gun (the R5150 within its 5 degree axis tolerance), joints per axis."""
+    from sprayplan.cells.spec import single_robot_cell
+    from sprayplan.types import Part
+
+    plate = grid_box(n=4, size=(240.0, 160.0, 20.0))
+    part = tmp_path / "plate.stl"
+    part.write_bytes(write_stl_binary(Part(plate.vertices + [420.0, 0.0, 60.0], plate.faces).triangles))
+    out = tmp_path / "out"
+    assert main(["-q", "plan", str(part), "--robot", robot, "--spacing-mm", "40", "-o", str(out)]) == 0
+    data = read_cell_plan(out / "cell_plan.json")
+    arm = single_robot_cell(robot).robots[0].robot()
+    reached = 0
+    for s in data["robots"][0]["strokes"]:
+        assert s["q_rad"].shape == (len(s["tcp_mm"]), dof)
+        ok = s["reachable"]
+        if not ok.any():
+            continue
+        got = arm.fk(s["q_rad"][ok])
+        want = poses_at(s["tcp_mm"][ok], s["normals"][ok])
+        assert np.allclose(got[:, :3, 3], want[:, :3, 3], atol=1e-6)
+        cos = np.einsum("ij,ij->i", got[:, :3, 2], want[:, :3, 2])
+        assert np.all(cos >= np.cos(np.radians(5.0)) - 1e-12)
+        reached += int(ok.sum())
+    assert reached > 0
+    rows = list(csv.DictReader(open(out / "waypoints.csv")))
+    assert all((row["q6"] == "") == (dof == 5) for row in rows)
+
+
+def test_robot_and_cell_together_or_an_unknown_robot_are_refused(planned, tmp_path, capsys):
+    out = tmp_path / "o"
+    assert main(["plan", str(planned["part"]), "--robot", "ur5", "--cell", "line3", "-o", str(out)]) == 2
+    assert "--robot" in capsys.readouterr().err
+    assert main(["plan", str(planned["part"]), "--robot", "ur99", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "ur99" in err and len(err.strip().splitlines()) == 1 and not out.exists()

@@ -9,7 +9,7 @@
     report (film over the whole body, per area, per robot, per seam; cycle times). mm, rad, s.
 ``waypoints.csv``
     One row a waypoint of every robot: ``robot, stroke, waypoint, kind, area, x_mm, y_mm, z_mm, nx, ny, nz,
-    dwell, track_mm, roll_deg, q1..q6, reachable``.
+    dwell, track_mm, roll_deg, q1..q6, reachable`` (``q6`` empty for the five-axis R5150).
 ``areas.csv``
     One row a face of the painted surface: ``face, area, direction, robot, robot_index``.
 ``areas.png``, ``film.png``
@@ -141,11 +141,11 @@ def write_cell_plan(outdir, plan, target_um: float = 50.0, tolerance_um: float =
         at = 0
         for i, s in enumerate(r.strokes):
             for j in range(len(s)):
-                q = r.q[at + j]
+                q = [*np.round(r.q[at + j], 9), *([None] * (6 - r.q.shape[1]))]
                 rows.append(
                     [r.name, i, j, s.kind, int(r.area[i]), *np.round(s.tcp[j], 4), *np.round(s.normals[j], 6),
                      round(float(s.dwell[j]), 6), round(float(r.track_mm[at + j]), 4), float(r.roll_deg[i]),
-                     *np.round(q, 9), int(r.reachable[at + j])]
+                     *q, int(r.reachable[at + j])]
                 )  # fmt: skip
             at += len(s)
     path = os.path.join(outdir, "waypoints.csv")
@@ -209,7 +209,7 @@ def read_cell_plan(path) -> dict:
                 s["dwell"] = np.array(s["dwell"], dtype=float)
                 s["track_mm"] = np.array(s["track_mm"], dtype=float)
                 s["q_rad"] = np.array([[np.nan if v is None else v for v in row] for row in s["q_rad"]], float)
-                s["q_rad"] = s["q_rad"].reshape(-1, 6)
+                s["q_rad"] = s["q_rad"].reshape(len(s["tcp_mm"]), -1)
                 s["reachable"] = np.array(s["reachable"], dtype=bool)
     except (KeyError, TypeError, ValueError) as exc:
         raise PartFileError(path, f"not a readable cell plan ({exc})") from None

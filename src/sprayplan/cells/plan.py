@@ -73,8 +73,31 @@ log = logging.getLogger(__name__)
 TRACK_TRIES_MM = (0.0, -300.0, 300.0, -600.0, 600.0)
 #: Rolls of the gun about its own axis tried, degrees.
 ROLL_TRIES_DEG = (0.0, 90.0, 180.0, 270.0)
-#: The joints a robot starts from (rad): elbow up, wrist bent (ABB's zero is a straight, singular wrist).
+#: The joints a six-axis robot starts from (rad): the wrist bent (ABB's zero is a straight, singular wrist).
 START_JOINTS = np.radians([0.0, 0.0, 0.0, 0.0, 30.0, 0.0])
+
+
+def start_joints(dof: int) -> np.ndarray:
+    """:data:`START_JOINTS` for an arm of ``dof`` axes (the first ``dof``, zeros beyond six)."""
+    return np.r_[START_JOINTS, np.zeros(max(0, dof - 6))][:dof]
+
+
+def whole_area(part: Part) -> tuple[Areas, AreaAssignment]:
+    """One area, the whole painted surface, for the one robot of a single-robot cell (no split: the job's
+    ``[paths]`` slice it as a whole, in the direction they say)."""
+    from sprayplan.surface.normals import outward_face_normals
+
+    _, normals = outward_face_normals(part.vertices, part.faces)
+    area = part.face_areas
+    mean = (normals * area[:, None]).sum(axis=0)
+    norm = np.linalg.norm(mean)
+    m = len(part.faces)
+    areas = Areas(np.zeros(m, np.int64), ("all",), ("all",), np.array([area.sum()]),
+                  (mean / norm if norm > 0 else mean)[None, :], normals)  # fmt: skip
+    return areas, AreaAssignment(np.zeros(m, np.int64), np.zeros(1, np.int64), np.ones(1), np.zeros(1, bool),
+                                 np.array([area.sum()]), 0.0)  # fmt: skip
+
+
 #: A piece of an area under this many spray-circle areas is not sliced on its own: it is too small for a
 #: stroke and is painted by the spray of its neighbours.
 MIN_PIECE_CIRCLES = 1.0
@@ -95,8 +118,9 @@ class RobotWork:
         The track position at every waypoint of all strokes in order, mm (0 without a track).
     roll_deg : (s,) float
         The roll of the gun about its axis for the stroke.
-    q : (n, 6) float
-        The joints at every waypoint of all strokes in order, rad (0 where unreached).
+    q : (n, dof) float
+        The joints at every waypoint of all strokes in order, rad (0 where unreached); six for the industrial
+        and UR arms, five for the R5150.
     reachable : (n,) bool
     """
 
@@ -249,10 +273,10 @@ def solve_strokes(cell_robot, strokes) -> list[tuple[float, float, np.ndarray, n
                 still.append(i)
         pending = still
     out = []
-    seed = START_JOINTS
+    seed = start_joints(arm.dof)
     for i, s in enumerate(strokes):
         if best[i] is None:
-            out.append((tries[i][0][0], 0.0, np.zeros((len(s), 6)), np.zeros(len(s), bool)))
+            out.append((tries[i][0][0], 0.0, np.zeros((len(s), arm.dof)), np.zeros(len(s), bool)))
             continue
         _, k, mine = best[i]
         q, branch = follow_solutions(arm, mine, seed)
@@ -558,9 +582,12 @@ def plan_cell(
         painted, left_out = drop_floor_facing(painted, job.collision.floor_facing_deg)
     begin("areas")
     job, chosen = meet_thickness(job)
-    areas = segment_areas(painted)
-    reach = reach_matrix(cell, painted, areas.face_normals, job.paths.standoff_mm)
-    assignment = assign_areas(areas, painted.face_areas, reach)
+    if len(cell.robots) == 1:
+        areas, assignment = whole_area(painted)
+    else:
+        areas = segment_areas(painted)
+        reach = reach_matrix(cell, painted, areas.face_normals, job.paths.standoff_mm)
+        assignment = assign_areas(areas, painted.face_areas, reach)
     begin("paths and kinematics")
     guard = None
     if seams == "feather":

@@ -33,6 +33,7 @@ is unreached is data of the plan.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import tomllib
@@ -48,6 +49,9 @@ from sprayplan.types import Part
 
 #: Two robots' bases (over their tracks) closer than this are "at the same place", mm.
 MIN_BASE_GAP_MM = 300.0
+#: The gun axis error the five-axis R5150 is allowed in a cell (it cannot turn the gun out of its vertical
+#: plane), degrees: seed 000's axis tolerance, as the gantry job allows its SQP fallback.
+R5150_AXIS_TOL_DEG = 5.0
 #: Track positions sampled for the checks that walk a track.
 TRACK_SAMPLES = 33
 _AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
@@ -104,22 +108,25 @@ class CellRobot:
 
     def robot(self, track_mm: float = 0.0):
         """The :class:`~sprayplan.robots.interface.Robot` with its base at track position ``track_mm``."""
-        import dataclasses
-
         from sprayplan.robots.interface import robot_from_name
 
         arm = robot_from_name(self.model, None if self.is_gantry and self.tool == "wa101" else self.tool)
         if self.is_gantry:
             return arm
+        if self.model == "r5150":  # five axes reach a gun axis only within a tolerance (seed 000's 5 degrees)
+            arm = dataclasses.replace(arm, axis_tol_rad=math.radians(R5150_AXIS_TOL_DEG))
         base = self.base2cell.copy()
         if self.track is not None:
             base[:3, 3] += track_mm * self.track.axis
-        return dataclasses.replace(arm, base2world=base)
+        return at_base(arm, base)
 
 
 @dataclass(frozen=True)
 class Cell:
-    """A paint cell (module docstring): its robots, the floor, and how the part is placed."""
+    """A paint cell (module docstring): its robots, the floor, and how the part is placed.
+
+    ``place = "cell"`` places the part by the ``[part]`` rules; ``"file"`` keeps it where its file has it (the
+    file's frame is the cell's: :func:`single_robot_cell`)."""
 
     name: str
     robots: tuple
@@ -129,6 +136,7 @@ class Cell:
     lift_mm: float = 0.0
     yaw_deg: float = 0.0
     source: str = ""
+    place: str = "cell"
     description: str = field(default="", compare=False)
 
     @property
@@ -214,6 +222,13 @@ def _track(table, where: str) -> Track:
     return Track(vec, (float(lo), float(hi)), speed)
 
 
+def at_base(arm, base2world: np.ndarray):
+    """The arm with its base at ``base2world`` (the R5150 keeps its base in its D-H model)."""
+    if "base2world" in {f.name for f in dataclasses.fields(arm)}:
+        return dataclasses.replace(arm, base2world=base2world)
+    return dataclasses.replace(arm, model=dataclasses.replace(arm.model, base2world=base2world))
+
+
 def measured_reach_mm(robot, samples: int = 4096, seed: int = 0) -> float:
     """The flange's farthest distance from the base origin over ``samples`` random joint vectors within the
     limits (seeded), mm: a lower bound of the true reach, within a few mm of it at the default count."""
@@ -261,9 +276,7 @@ def _robot(table, where: str) -> CellRobot:
     if "reach_mm" in table:
         reach = _number(table["reach_mm"], f"{where}.reach_mm", positive=True)
     else:
-        import dataclasses
-
-        reach = measured_reach_mm(dataclasses.replace(arm, base2world=np.eye(4)))
+        reach = measured_reach_mm(at_base(arm, np.eye(4)))
     model_tool = "none" if model == "r5150" else tool
     return CellRobot(name, model, model_tool, base, reach, track)
 
@@ -353,6 +366,8 @@ def place_part(part: Part, cell: Cell) -> PlacedPart:
         A robot whose base (anywhere on its track) stands inside the part's bounding box, or a part no robot
         reaches at all (no vertex within any robot's reach of its base path). Both name the cell file.
     """
+    if cell.place == "file":
+        return _checked(part, np.eye(4), cell)
     v = np.asarray(part.vertices, dtype=float)
     turn = 0.0
     if cell.align == "length-x":
@@ -371,9 +386,12 @@ def place_part(part: Part, cell: Cell) -> PlacedPart:
         ]
     )
     part2cell[:3, 3] = shift
-    placed = Part(
-        turned + shift, part.faces, None if part.vertex_normals is None else part.vertex_normals @ rot.T, part.name
-    )
+    normals = None if part.vertex_normals is None else part.vertex_normals @ rot.T
+    return _checked(Part(turned + shift, part.faces, normals, part.name), part2cell, cell)
+
+
+def _checked(placed: Part, part2cell: np.ndarray, cell: Cell) -> PlacedPart:
+    """The placed part checked against the robots (:func:`place_part`'s errors)."""
     where = cell.source or f"cell {cell.name}"
     if cell.is_gantry:
         return PlacedPart(placed, part2cell, np.ones(1))
@@ -396,5 +414,19 @@ def place_part(part: Part, cell: Cell) -> PlacedPart:
         shares.append(near.mean())
     shares = np.array(shares)
     if not (shares > 0).any():
-        raise ConfigError(f"{where}: the part {part.name!r} is out of every robot's reach")
+        raise ConfigError(f"{where}: the part {placed.name!r} is out of every robot's reach")
     return PlacedPart(placed, part2cell, shares)
+
+
+def single_robot_cell(model: str, tool: str | None = None) -> Cell:
+    """A cell of one fixed-base robot (``sprayplan plan --robot ur5``): its base frame is the part file's frame
+    (the part stays where its file has it), no track; ``tool`` a gun preset (default ``wa101``; the R5150 takes
+    none). Raises :class:`ConfigError` for an unknown robot or a gantry, naming ``--robot``."""
+    tool = "none" if model == "r5150" else (tool or "wa101")
+    try:
+        robot = _robot({"name": model, "model": model, "tool": tool}, "--robot")
+    except ConfigError as exc:
+        raise ConfigError(f"--robot {model!r}: {str(exc).split(': ', 1)[-1]}") from None
+    if robot.is_gantry:
+        raise ConfigError(f"--robot {model!r}: a gantry is planned without a cell")
+    return Cell(name=model, robots=(robot,), align="as-is", source=f"--robot {model}", place="file")

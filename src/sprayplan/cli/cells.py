@@ -146,9 +146,24 @@ def add_parsers(sub, common, add_load_options) -> None:
 GANTRY_ONLY = ("robot", "mode", "tour", "program", "collisions", "strict")
 
 
-def cmd_plan_cell(args, job) -> int:
+def cmd_plan_robot(args, job_config) -> int:
+    """``sprayplan plan PART --robot ur5 -o OUT``: a part painted by one fixed-base arm (``ur5``, ``ur5e``,
+    ``r5150``, an industrial arm or a robot .toml) whose base frame is the part file's frame: a cell of one
+    robot (:func:`sprayplan.cells.spec.single_robot_cell`), planned and written as ``plan --cell``."""
+    from sprayplan.cells.spec import single_robot_cell
+    from sprayplan.errors import ConfigError
+
+    if getattr(args, "cell", None) is not None:
+        raise ConfigError("--robot: give either --robot (one fixed-base arm) or --cell, not both")
+    cell = single_robot_cell(args.robot)
+    args.robot = None
+    return cmd_plan_cell(args, job_config(args), cell)
+
+
+def cmd_plan_cell(args, job, cell=None) -> int:
     """``sprayplan plan PART --cell NAME -o OUT``: a whole body painted by the robots of a cell
-    (:func:`sprayplan.cells.plan.plan_cell`), written all or nothing into OUT (``cells.files``)."""
+    (:func:`sprayplan.cells.plan.plan_cell`), written all or nothing into OUT (``cells.files``); ``cell`` one
+    given already (``--robot``)."""
     import os
 
     from sprayplan.cells import load_cell
@@ -163,13 +178,13 @@ def cmd_plan_cell(args, job) -> int:
         value = getattr(args, name, None)
         if value not in (None, False, []):
             raise ConfigError(f"--{name.replace('_', '-')}: not available with --cell (a cell of arms is planned)")
-    cell = load_cell(args.cell)
+    cell = load_cell(args.cell) if cell is None else cell
     if cell.is_gantry:
         args.cell = None
         from sprayplan.cli.plan import cmd_plan
 
         return cmd_plan(args)
-    inputs = [(args.part, "part"), (args.config, "-c"), (file_input(args.cell), "--cell")]
+    inputs = [(args.part, "part"), (args.config, "-c"), (file_input(getattr(args, "cell", None)), "--cell")]
     check_folder_outputs(args.output, CELL_FILES, "-o", inputs)
     with _stage("load"):
         part = load_part(args.part, units=job.load.units, up=job.load.up)

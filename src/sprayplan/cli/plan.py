@@ -205,6 +205,11 @@ def cmd_plan(args) -> int:
 
     check_outputs([(args.output, "-o")], [], folder=True)
     _check_samples(args.samples)
+    robot = getattr(args, "robot", None)
+    if robot is not None and not robot.startswith("gantry-"):
+        from sprayplan.cli.cells import cmd_plan_robot
+
+        return cmd_plan_robot(args, _job_config)
     job = _job_config(args)
     if getattr(args, "cell", None) is not None:
         from sprayplan.cli.cells import cmd_plan_cell

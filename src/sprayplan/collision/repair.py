@@ -40,6 +40,7 @@ import numpy as np
 
 from sprayplan.collision.cell import CellCollision
 from sprayplan.collision.proof import end_slacks, motion_hits
+from sprayplan.collision.transfers import Router, route_stroke
 from sprayplan.config import CollisionConfig, JobConfig, KinematicsConfig
 from sprayplan.errors import InputError
 from sprayplan.progress import Progress, counted
@@ -48,7 +49,6 @@ from sprayplan.robots.model import TAU
 from sprayplan.robots.stage import HOME_JOINTS
 from sprayplan.robots.ur_ik import ur_ik
 from sprayplan.surface.poses import stroke_poses
-from sprayplan.collision.transfers import Router, route_stroke
 from sprayplan.types import TRANSFER_REPAIRS, WAYPOINT_REPAIRS, Plan, StationPlan
 
 log = logging.getLogger(__name__)
