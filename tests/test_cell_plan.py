@@ -309,3 +309,13 @@ def test_robot_and_cell_together_or_an_unknown_robot_are_refused(planned, tmp_pa
     assert main(["plan", str(planned["part"]), "--robot", "ur99", "-o", str(out)]) == 2
     err = capsys.readouterr().err
     assert "ur99" in err and len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+def test_touch_ups_are_counted_and_carried_like_any_stroke(planned):
+    plan = planned["plan"]
+    kinds = [s["kind"] for r in plan["robots"] for s in r["strokes"]]
+    assert kinds.count("touch-up") == plan["report"]["touch_up_strokes"]
+    for r in plan["robots"]:
+        for s in r["strokes"]:
+            n = len(s["tcp_mm"])
+            assert len(s["q_rad"]) == len(s["track_mm"]) == len(s["reachable"]) == len(s["dwell"]) == n

@@ -26,8 +26,11 @@ not):
    robot reaches (:func:`reached_strokes`: an unreached waypoint leaves its surface bare), their speeds tuned
    to the target by
    ``refine.tuning.tune_speeds`` (``[tuning] tune_speed``) in one least-squares problem, so the film where two
-   robots' areas meet is tuned like any other; then reported over the whole body, per area, per robot and
-   along every seam, with seed 003's 420 measuring points (``[output] samples``).
+   robots' areas meet is tuned like any other; then, for ``[tuning] touch_up_rounds`` rounds, touch-up strokes
+   aimed at the patches still under-painted (``refine.touchup.touch_up_strokes``), each given to the robot
+   that reaches most of it (:func:`with_touch_ups`), and all speeds tuned again; then reported over the whole
+   body, per area, per robot and along every seam, with seed 003's 420 measuring points (``[output]
+   samples``).
 
 **The seam rule: feather where the surface goes on, overlap at edges; then tune** (``seams = "feather"``, the
 default). The planner runs every stroke past the edge of its piece (its lead-in and lead-out,
@@ -475,6 +478,62 @@ def with_tuned_dwell(robots, tuned, owners) -> tuple:
     )
 
 
+def with_touch_ups(cell: Cell, robots: tuple, extra: list):
+    """The robots with touch-up strokes (``refine.touchup``) added, each to the robot whose inverse kinematics
+    reaches most of its waypoints (at least two), after a spray-off transfer from that robot's last stroke;
+    ``(robots, how many were added)``, or None when no robot reaches any of them."""
+    if not extra:
+        return None
+    solved = [solve_strokes(cr, extra) for cr in cell.robots]
+    counts = np.array([[int(r[3].sum()) for r in per_robot] for per_robot in solved])  # (robots, strokes)
+    best = np.argmax(counts, axis=0)
+    grown = [list(r.strokes) for r in robots]
+    arrays = [
+        {"area": [r.area], "track": [r.track_mm], "roll": [r.roll_deg], "q": [r.q], "ok": [r.reachable]} for r in robots
+    ]
+    added = 0
+    for k, stroke in enumerate(extra):
+        r = int(best[k])
+        if counts[r, k] < 2:
+            continue
+        track, roll, q, ok = solved[r][k]
+        pieces = [stroke]
+        if grown[r]:
+            transfer = _transfer(grown[r][-1], stroke)
+            pieces.insert(0, transfer)
+            ((t_track, t_roll, t_q, t_ok),) = solve_strokes(cell.robots[r], [transfer])
+            a = arrays[r]
+            a["area"].append([-1])
+            a["track"].append(t_track)
+            a["roll"].append([t_roll])
+            a["q"].append(t_q)
+            a["ok"].append(t_ok)
+        grown[r].extend(pieces)
+        a = arrays[r]
+        a["area"].append([-1])
+        a["track"].append(track)
+        a["roll"].append([roll])
+        a["q"].append(q)
+        a["ok"].append(ok)
+        added += 1
+    if not added:
+        return None
+    out = []
+    for r, a, strokes in zip(robots, arrays, grown):
+        out.append(
+            dataclasses.replace(
+                r,
+                strokes=tuple(strokes),
+                area=np.concatenate([np.asarray(x, np.int64) for x in a["area"]]),
+                track_mm=np.concatenate([np.asarray(x, float) for x in a["track"]]),
+                roll_deg=np.concatenate([np.asarray(x, float) for x in a["roll"]]),
+                q=np.concatenate([np.asarray(x, float).reshape(-1, r.q.shape[1]) for x in a["q"]]),
+                reachable=np.concatenate([np.asarray(x, bool) for x in a["ok"]]),
+            )
+        )
+    return tuple(out), added
+
+
 def _stats(um: np.ndarray, area: np.ndarray, target: float, tol: float) -> dict:
     from sprayplan.coating.report import weighted_stats
 
@@ -600,7 +659,7 @@ def plan_cell(
     report = {"spray_radius_mm": job.paths.spray_radius_mm, "floor_facing_left_out_mm2": round(left_out, 1)}
     plan = CellPlan(cell, painted, placed.part2cell, areas, assignment, robots, None, report, timings)
     target = job.coating.thickness_um
-    everything, owners = reached_strokes(robots)
+    everything, _ = reached_strokes(robots)
     if not everything:
         raise InputError(f"{part.name}: no robot of cell {cell.name!r} has anything to paint")
     paths = Paths(tuple(everything), job.paths.standoff_mm, job.paths.spacing or 0.0, part.name)
@@ -609,19 +668,50 @@ def plan_cell(
     film = None
     if target is not None and job.tuning.tune_speed:
         from sprayplan.refine.stage import tuning_settings
+        from sprayplan.refine.touchup import TOUCH_UP_MIN_DWELL, touch_up_strokes
         from sprayplan.refine.tuning import tune_speeds, tuned_film
 
-        tuning = tune_speeds(
-            painted,
-            paths,
-            process,
-            target,
-            job.coating.tolerance,
-            config=tuning_settings(job.tuning),
-            coating=coating,
-            progress=per_stage(progress, "film"),
-        )
-        robots = with_tuned_dwell(robots, tuning.paths.strokes, owners)
+        def tuned(robots_):
+            strokes, owners_ = reached_strokes(robots_)
+            lower = np.concatenate(
+                [np.full(len(s), TOUCH_UP_MIN_DWELL if s.kind == "touch-up" else job.tuning.min_dwell) for s in strokes]
+            )
+            paths_ = Paths(tuple(strokes), job.paths.standoff_mm, job.paths.spacing or 0.0, part.name)
+            tuning_ = tune_speeds(
+                painted,
+                paths_,
+                process,
+                target,
+                job.coating.tolerance,
+                config=tuning_settings(job.tuning),
+                coating=coating,
+                lower=lower,
+                progress=per_stage(progress, "film"),
+            )
+            return tuning_, with_tuned_dwell(robots_, tuning_.paths.strokes, owners_)
+
+        tuning, robots = tuned(robots)
+        added = 0
+        for _ in range(job.tuning.touch_up_rounds):
+            radius = job.paths.spray_radius_mm
+            extra = touch_up_strokes(
+                tuning.samples,
+                tuning.after_um,
+                tuning.tuned,
+                target,
+                job.coating.tolerance,
+                standoff_mm=job.paths.standoff_mm,
+                step_mm=job.paths.step_mm,
+                lead_mm=radius,
+                min_area_mm2=radius * radius / 4.0,
+            )
+            grown = with_touch_ups(cell, robots, extra)
+            if grown is None:
+                break
+            robots, count = grown
+            added += count
+            tuning, robots = tuned(robots)
+        report["touch_up_strokes"] = added
         film = tuned_film(tuning, process, coating)
     elif target is not None or job.output.simulate:
         from sprayplan.coating.thickness import simulate
