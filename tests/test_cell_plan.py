@@ -319,3 +319,36 @@ def test_touch_ups_are_counted_and_carried_like_any_stroke(planned):
         for s in r["strokes"]:
             n = len(s["tcp_mm"])
             assert len(s["q_rad"]) == len(s["track_mm"]) == len(s["reachable"]) == len(s["dwell"]) == n
+
+
+def test_seed_001_table_4_in_one_command(tmp_path):
+    """`plan --ruled case1_table4_r5150.toml --robot r5150`: the ten points of seed 001's table 4 with its
+    joints theta1..theta4 (theta5, the roll about the vertical tool axis, moves nothing and is free)."""
+    from pathlib import Path
+
+    from sprayplan.robots.r5150 import table4_joints, table4_points
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "ruled" / "case1_table4_r5150.toml"
+    out = tmp_path / "t4"
+    assert main(["-q", "plan", "--ruled", str(example), "--robot", "r5150", "-o", str(out)]) == 0
+    rows = [r for r in csv.DictReader(open(out / "waypoints.csv")) if r["kind"] == "spray"]
+    points = np.array([[float(r[c]) for c in ("x_mm", "y_mm", "z_mm")] for r in rows])
+    q = np.degrees([[float(r[f"q{i}"]) for i in range(1, 6)] for r in rows])
+    assert np.allclose(points, table4_points(), atol=1e-6)
+    assert all(r["reachable"] == "1" and r["q6"] == "" for r in rows)
+    assert np.allclose(q[:, :4], table4_joints()[:, :4], atol=0.01)  # the table prints 4 decimals
+
+
+@pytest.mark.parametrize("axis", [[0, 0, 0], [0, 0], [0, float("nan"), 1]])
+def test_a_bad_gun_axis_names_the_file(axis):
+    from sprayplan.errors import InputError
+    from sprayplan.paths.ruled_toml import ruled_job_from_dict
+
+    data = {
+        "curve_a": {"type": "line", "start": [0, 0, 0], "end": [100, 0, 0]},
+        "curve_b": {"type": "line", "start": [0, 100, 0], "end": [100, 100, 0]},
+        "path": {"passes": 2, "gun_axis": axis},
+    }
+    with pytest.raises(InputError, match="gun_axis") as err:
+        ruled_job_from_dict(data, source="s.toml")
+    assert "s.toml" in str(err.value)

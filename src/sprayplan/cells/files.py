@@ -78,17 +78,21 @@ def cell_plan_dict(plan) -> dict:
             }
         robots.append(entry)
     a = plan.areas
-    areas = [
-        {
-            "name": a.names[k],
-            "direction": a.direction[k],
-            "area_mm2": round(float(a.area_mm2[k]), 3),
-            "robot": cell.robots[r].name if (r := int(plan.assignment.area_robot[k])) >= 0 else None,
-            "share_reached": round(float(plan.assignment.area_share[k]), 6),
-            "split": bool(plan.assignment.split[k]),
-        }
-        for k in range(len(a))
-    ]
+    areas = (
+        []
+        if a is None
+        else [
+            {
+                "name": a.names[k],
+                "direction": a.direction[k],
+                "area_mm2": round(float(a.area_mm2[k]), 3),
+                "robot": cell.robots[r].name if (r := int(plan.assignment.area_robot[k])) >= 0 else None,
+                "share_reached": round(float(plan.assignment.area_share[k]), 6),
+                "split": bool(plan.assignment.split[k]),
+            }
+            for k in range(len(a or ()))
+        ]
+    )
     work = []
     for r in plan.robots:
         strokes, at = [], 0
@@ -115,7 +119,7 @@ def cell_plan_dict(plan) -> dict:
             "format": FORMAT,
             "version": VERSION,
             "cell": {"name": cell.name, "source": cell.source, "floor_z_mm": cell.floor_z_mm, "robots": robots},
-            "part": {"name": plan.part.name, "part2cell": plan.part2cell},
+            "part": {"name": plan.part.name if plan.part is not None else plan.name, "part2cell": plan.part2cell},
             "areas": areas,
             "robots": work,
             "report": plan.report,
@@ -151,21 +155,24 @@ def write_cell_plan(outdir, plan, target_um: float = 50.0, tolerance_um: float =
     path = os.path.join(outdir, "waypoints.csv")
     write_table(path, WAYPOINT_COLUMNS, rows)
     written.append(path)
-    names = [cr.name for cr in plan.cell.robots]
-    fr = plan.assignment.face_robot
-    area_rows = [
-        [f, plan.areas.names[k], plan.areas.direction[k], names[fr[f]] if fr[f] >= 0 else "", int(fr[f])]
-        for f, k in enumerate(plan.areas.face_area.tolist())
-    ]
-    path = os.path.join(outdir, "areas.csv")
-    write_table(path, ["face", "area", "direction", "robot", "robot_index"], area_rows)
-    written.append(path)
-    from sprayplan.cells.pictures import areas_picture, film_picture
+    if plan.areas is not None:
+        names = [cr.name for cr in plan.cell.robots]
+        fr = plan.assignment.face_robot
+        area_rows = [
+            [f, plan.areas.names[k], plan.areas.direction[k], names[fr[f]] if fr[f] >= 0 else "", int(fr[f])]
+            for f, k in enumerate(plan.areas.face_area.tolist())
+        ]
+        path = os.path.join(outdir, "areas.csv")
+        write_table(path, ["face", "area", "direction", "robot", "robot_index"], area_rows)
+        written.append(path)
+        from sprayplan.cells.pictures import areas_picture
 
-    path = os.path.join(outdir, "areas.png")
-    areas_picture(path, plan)
-    written.append(path)
+        path = os.path.join(outdir, "areas.png")
+        areas_picture(path, plan)
+        written.append(path)
     if plan.film is not None:
+        from sprayplan.cells.pictures import film_picture
+
         path = os.path.join(outdir, "film.png")
         film_picture(path, plan, target_um, tolerance_um)
         written.append(path)

@@ -161,8 +161,9 @@ class CellPlan:
     Attributes
     ----------
     cell : Cell
-    part : Part
-        The painted surface in the cell frame (floor-facing surface left out).
+    part : Part or None
+        The painted surface in the cell frame (floor-facing surface left out); None for given strokes
+        (:func:`plan_strokes`), as are ``areas`` and ``assignment``.
     part2cell : (4, 4) float
     areas : Areas
     assignment : AreaAssignment
@@ -172,6 +173,8 @@ class CellPlan:
         The film over the whole body, per area, per robot and per seam; cycle times; counts.
     timings_s : dict
         Wall seconds of each step.
+    name : str
+        What was planned (the part's name when there is a part).
     """
 
     cell: Cell
@@ -183,6 +186,7 @@ class CellPlan:
     film: object = None
     report: dict = field(default_factory=dict)
     timings_s: dict = field(default_factory=dict)
+    name: str = ""
 
 
 def _sub_part(part: Part, keep: np.ndarray, name: str) -> Part:
@@ -399,36 +403,48 @@ def _robot_work(
                 area_of.append(-1)
             strokes.append(s)
             area_of.append(a)
+    return solved_work(cell_robot, strokes, area_of)
+
+
+def solved_work(cell_robot, strokes, area_of) -> RobotWork:
+    """A robot's strokes (with the area of each, -1 for transfers) solved by its inverse kinematics
+    (:func:`solve_strokes`)."""
     track, roll, qs, ok = [], [], [], []
     for t, r, q, reach in solve_strokes(cell_robot, strokes):
         track.append(t)
         roll.append(r)
         qs.append(q)
         ok.append(reach)
-    n = sum(len(s) for s in strokes)
-    return (
-        RobotWork(
-            name=cell_robot.name,
-            model=cell_robot.model,
-            strokes=tuple(strokes),
-            area=np.array(area_of, dtype=np.int64),
-            track_mm=np.concatenate(track) if track else np.zeros(0),
-            roll_deg=np.array(roll, dtype=float),
-            q=np.concatenate(qs) if qs else np.zeros((0, 6)),
-            reachable=np.concatenate(ok) if ok else np.zeros(0, bool),
-        )
-        if n
-        else RobotWork(
-            cell_robot.name,
-            cell_robot.model,
-            (),
-            np.zeros(0, np.int64),
-            np.zeros(0),
-            np.zeros(0),
-            np.zeros((0, 6)),
-            np.zeros(0, bool),
-        )
+    if not strokes:
+        empty = np.zeros(0)
+        return RobotWork(cell_robot.name, cell_robot.model, (), np.zeros(0, np.int64), empty, empty,
+                         np.zeros((0, 6)), np.zeros(0, bool))  # fmt: skip
+    return RobotWork(
+        name=cell_robot.name,
+        model=cell_robot.model,
+        strokes=tuple(strokes),
+        area=np.array(area_of, dtype=np.int64),
+        track_mm=np.concatenate(track),
+        roll_deg=np.array(roll, dtype=float),
+        q=np.concatenate(qs),
+        reachable=np.concatenate(ok),
     )
+
+
+def plan_strokes(strokes, cell: Cell, name: str = "") -> CellPlan:
+    """Given strokes (a ruled surface's passes, ``paths.ruled``) solved by the one robot of ``cell``: joints at
+    every waypoint, no part, no areas, no film (seed 001's joint tables in one command)."""
+    if len(cell.robots) != 1 or cell.is_gantry:
+        raise ConfigError("given strokes are planned for one fixed-base robot (--robot), not a cell of several")
+    start = time.perf_counter()
+    work = solved_work(cell.robots[0], list(strokes), [-1 if not s.spray_on else 0 for s in strokes])
+    report = {
+        "robots": {work.name: {"strokes": sum(1 for s in strokes if s.spray_on), "waypoints": work.waypoints,
+                               "unreached_waypoints": int((~work.reachable).sum())}},
+        "areas": 0,
+    }  # fmt: skip
+    return CellPlan(cell, None, np.eye(4), None, None, (work,), None, report,
+                    {"kinematics": round(time.perf_counter() - start, 3)}, name)  # fmt: skip
 
 
 def _cut(stroke: Stroke, a: int, b: int) -> Stroke:

@@ -157,7 +157,40 @@ def cmd_plan_robot(args, job_config) -> int:
         raise ConfigError("--robot: give either --robot (one fixed-base arm) or --cell, not both")
     cell = single_robot_cell(args.robot)
     args.robot = None
+    if getattr(args, "ruled", None) is not None:
+        return _plan_ruled(args, cell)
     return cmd_plan_cell(args, job_config(args), cell)
+
+
+def _plan_ruled(args, cell) -> int:
+    """``plan --ruled SURFACE.toml --robot NAME``: the ruled surface's passes (``paths.ruled``) solved by the
+    robot; cell_plan.json and waypoints.csv (joints at every waypoint: seed 001's tables 4 and 5)."""
+    import os
+
+    from sprayplan.cells.files import CELL_FILES, write_cell_plan
+    from sprayplan.cells.plan import plan_strokes
+    from sprayplan.cli.common import check_folder_outputs
+    from sprayplan.errors import ConfigError, PartFileError
+    from sprayplan.export.files import staged_folder
+    from sprayplan.paths.ruled import ruled_paths
+    from sprayplan.paths.ruled_toml import load_ruled
+
+    check_folder_outputs(args.output, CELL_FILES, "-o", [(args.ruled, "--ruled"), (args.config, "-c")])
+    job = load_ruled(args.ruled)
+    try:
+        paths = ruled_paths(job)
+    except ConfigError as exc:
+        raise PartFileError(args.ruled, str(exc)) from None
+    plan = plan_strokes(paths.strokes, cell, job.name)
+    with staged_folder(args.output, CELL_FILES) as folder:
+        write_cell_plan(folder, plan)
+    (work,) = plan.robots
+    reached = int(work.reachable.sum())
+    print(
+        f"{job.name}: {sum(1 for s in work.strokes if s.spray_on)} passes, {work.waypoints} waypoints, {reached} "
+        f"reached by {work.name} -> {os.path.join(args.output, 'waypoints.csv')}"
+    )
+    return 0
 
 
 def cmd_plan_cell(args, job, cell=None) -> int:

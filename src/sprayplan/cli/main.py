@@ -440,7 +440,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Plan a whole spray program: load -> region -> paths (or target points) -> stations -> "
         "ordering -> kinematics. Settings: defaults, then -c FILE.toml (see examples/process.toml), then flags.",
     )
-    plan_cmd.add_argument("part", help="mesh or point cloud file")
+    plan_cmd.add_argument("part", nargs="?", help="mesh or point cloud file")
     plan_cmd.add_argument("-o", "--output", required=True, help="output folder (plan.json, waypoints.csv)")
     plan_cmd.add_argument("-c", "--config", help="process TOML file")
     group = plan_cmd.add_argument_group("part")
@@ -453,6 +453,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--cell",
         help="plan a whole body in a cell of several robots: line3, sides2 (`sprayplan cells`) or a cell .toml "
         "(docs/cells.md); writes cell_plan.json instead of plan.json",
+    )
+    group.add_argument(
+        "--ruled",
+        metavar="SURFACE.toml",
+        help="instead of a part: the passes over a ruled surface (seed 001; examples/ruled/), with --robot",
     )
     group.add_argument(
         "--seams",

@@ -206,6 +206,13 @@ def cmd_plan(args) -> int:
     check_outputs([(args.output, "-o")], [], folder=True)
     _check_samples(args.samples)
     robot = getattr(args, "robot", None)
+    ruled = getattr(args, "ruled", None)
+    if ruled is not None and args.part is not None:
+        raise ConfigError("give either a PART or --ruled SURFACE.toml, not both")
+    if ruled is None and args.part is None:
+        raise ConfigError("give a PART file (or --ruled SURFACE.toml with --robot)")
+    if ruled is not None and (robot is None or robot.startswith("gantry-")):
+        raise ConfigError("--ruled: give the fixed-base robot that paints it with --robot (r5150, ur5, ...)")
     if robot is not None and not robot.startswith("gantry-"):
         from sprayplan.cli.cells import cmd_plan_robot
 

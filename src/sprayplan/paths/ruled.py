@@ -107,6 +107,11 @@ class RuledPathConfig:
         Distance between the points of a pass; None: rulings: the two ends; across: the pass spacing.
     zigzag : bool
         Adjacent passes in opposite directions (True) or all the same way.
+    gun_axis : (3,) float or None
+        The gun held along this direction at every waypoint (seed 001's tables hold it straight down,
+        ``(0, 0, -1)``, on a tilted surface); the strokes' ``normals`` are then ``-gun_axis`` (the gun's z is
+        ``-normal``) and the gun tip stands ``standoff_mm`` back along it. None: the gun along each point's
+        ``-normal``.
     """
 
     spot_diameter_mm: float | None = None
@@ -116,8 +121,14 @@ class RuledPathConfig:
     direction: str = "rulings"
     step_mm: float | None = None
     zigzag: bool = True
+    gun_axis: tuple | None = None
 
     def __post_init__(self):
+        if self.gun_axis is not None:
+            axis = np.asarray(self.gun_axis, dtype=float).reshape(-1)
+            if axis.shape != (3,) or not np.isfinite(axis).all() or not np.linalg.norm(axis) > 0:
+                raise ConfigError(f"gun_axis must be three finite numbers, not all 0, got {self.gun_axis!r}")
+            object.__setattr__(self, "gun_axis", tuple(float(v) for v in axis / np.linalg.norm(axis)))
         if self.spot_diameter_mm is None and self.passes is None:
             raise ConfigError("give spot_diameter_mm (with overlap) or passes")
         for name in ("spot_diameter_mm", "step_mm"):
@@ -201,11 +212,15 @@ def _polyline_length(points: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
 
 
-def _stroke(surface: RuledSurface, u, v, standoff: float, spray_on: bool, layer: int, counts: list) -> Stroke:
+def _stroke(
+    surface: RuledSurface, u, v, standoff: float, spray_on: bool, layer: int, counts: list, gun_axis=None
+) -> Stroke:
     points = surface.evaluate(u, v)
     normals, no_normal, undecided = surface._normals(u, v)
     counts[0] += no_normal
     counts[1] += undecided
+    if gun_axis is not None:
+        normals = np.tile(-np.asarray(gun_axis, dtype=float), (len(points), 1))
     on_part = np.full(len(points), spray_on)
     return Stroke(points, normals, points + standoff * normals, spray_on, on_part, layer)
 
@@ -270,9 +285,18 @@ def ruled_paths(job: RuledJob) -> Paths:
             if u1 != u0:
                 t = _with_breaks(t, (breaks - u0) / (u1 - u0))
             strokes.append(
-                _stroke(surface, u0 + t * (u1 - u0), v0 + t * (v1 - v0), config.standoff_mm, False, -1, counts)
+                _stroke(
+                    surface,
+                    u0 + t * (u1 - u0),
+                    v0 + t * (v1 - v0),
+                    config.standoff_mm,
+                    False,
+                    -1,
+                    counts,
+                    config.gun_axis,
+                )
             )
-        strokes.append(_stroke(surface, u, v, config.standoff_mm, True, k, counts))
+        strokes.append(_stroke(surface, u, v, config.standoff_mm, True, k, counts, config.gun_axis))
     _warn_normals(*counts)
     log.info("ruled %s: %d passes (%s), spacing %.3f mm", job.name, len(params), config.direction, spacing)
     return Paths(tuple(strokes), config.standoff_mm, spacing, job.name)

@@ -23,6 +23,8 @@ TOML schema (lengths in mm, angles in degrees in the file, radians inside)::
     step_mm = 10.0                  # default: rulings: only the two ends; across: the pass spacing
     zigzag = true                   # false: every pass runs the same way (A -> B, or u = 0 -> 1)
     gun_side = [0, 0, 1]            # or outward_from = [x, y, z] (not both)
+    gun_axis = [0, 0, -1]           # optional: the gun held along this axis at every waypoint, whatever the
+                                    # surface's normal (seed 001 holds it straight down); default -normal
 
 Angles of an arc or circle are measured counter-clockwise about ``normal`` from the projection of world x onto
 the curve's plane (world y when the normal is parallel to x).
@@ -176,6 +178,7 @@ def ruled_job_from_dict(data: dict, source: str | os.PathLike = "<dict>", name: 
             "zigzag",
             "gun_side",
             "outward_from",
+            "gun_axis",
         )
     )
     if "passes" in p.table and "overlap" in p.table:
@@ -190,6 +193,7 @@ def ruled_job_from_dict(data: dict, source: str | os.PathLike = "<dict>", name: 
         "direction": p.get("direction", "string", RuledPathConfig.direction),
         "step_mm": p.get("step_mm", "number", optional=True),
         "zigzag": p.get("zigzag", "bool", RuledPathConfig.zigzag),
+        "gun_axis": p.get("gun_axis", "vector", optional=True),
     }
     try:
         config = RuledPathConfig(**settings)
