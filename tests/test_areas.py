@@ -306,3 +306,24 @@ def test_a_broken_cell_file_is_one_line(testdata, tmp_path, capsys):
     out = tmp_path / "a.csv"
     code, _, err = _run(["areas", testdata / "meshes" / "gazebo_suv_body_m.ply", "--cell", bad, "-o", out], capsys)
     assert code == 2 and not out.exists()
+
+
+def test_a_split_areas_seam_moves_to_where_both_robots_reach_well():
+    box = grid_box()
+    areas = segment_areas(box, min_share=0.0)
+    centres = box.triangles.mean(axis=1)
+    top = areas.direction.index("top")
+    on_top = areas.face_area == top
+    x = centres[:, 0]
+    reach = np.zeros((2, len(box.faces)))
+    reach[0, x < 150.0] = 1.0  # robot 0 reaches most of the top, weakly near its far end
+    reach[0, (x > 50.0) & (x < 150.0)] = 0.25
+    reach[1, x > 0.0] = 1.0  # robot 1 reaches the +x half well
+    got = assign_areas(areas, box.face_areas, reach)
+    assert got.area_robot[top] == 0 and got.split[top]
+    weak = on_top & (x > 50.0) & (x < 150.0)
+    assert np.all(got.face_robot[weak] == 1)  # robot 0's weak band goes to the robot that reaches it well
+    assert np.all(got.face_robot[on_top & (x < 0.0)] == 0)
+    # without the rule (robust 0) the band stays with robot 0, the seam at the edge of its reach
+    edge = assign_areas(areas, box.face_areas, reach, robust=0.0)
+    assert np.all(edge.face_robot[weak] == 0)

@@ -18,7 +18,9 @@ steps, both over the mesh itself:
    inverse kinematics, a score in [0, 1] a face), each area goes to the robot that reaches the largest
    share of its surface (ties: the higher mean score, then the lower robot index). An area no single robot
    reaches whole is split along the seam where the reach changes: its faces the chosen robot does not reach
-   go to the robot that reaches them best; faces no robot reaches are left out (``-1``) and reported as
+   go to the robot that reaches them best, and so do its faces the chosen robot reaches only at the edge of
+   its reach (a score under :data:`ROBUST`) where another robot scores more, so that the seam lies where both
+   reach well, not where one of them stretches; faces no robot reaches are left out (``-1``) and reported as
    data (:attr:`AreaAssignment.unreached_mm2`), never an exception.
 
 Every step is deterministic: no random numbers are drawn.
@@ -279,7 +281,12 @@ def segment_areas(part: Part, min_share: float = MIN_SHARE, directions: dict | N
     )
 
 
-def assign_areas(areas: Areas, face_area_mm2: np.ndarray, reach: np.ndarray) -> AreaAssignment:
+#: In an area split between robots, a face stays with the area's robot only where it scores at least this, or
+#: no other robot scores more (:func:`assign_areas`).
+ROBUST = 0.5
+
+
+def assign_areas(areas: Areas, face_area_mm2: np.ndarray, reach: np.ndarray, robust: float = ROBUST) -> AreaAssignment:
     """Each area given to the robot that reaches it best, split where none reaches it whole (module
     docstring, step 2).
 
@@ -321,6 +328,11 @@ def assign_areas(areas: Areas, face_area_mm2: np.ndarray, reach: np.ndarray) -> 
         area_robot[a], share[a] = best, covered[best]
         faces = np.flatnonzero(mine)
         own = reached[best, faces]
+        if covered[best] < 1.0 and r > 1:
+            # a split area: its seam moves in from the edge of the robot's reach to where it reaches well,
+            # wherever another robot reaches better
+            others = np.delete(reach[:, faces], best, axis=0).max(axis=0)
+            own &= (reach[best, faces] >= robust) | (others <= reach[best, faces])
         face_robot[faces[own]] = best
         rest = faces[~own]
         if len(rest):
