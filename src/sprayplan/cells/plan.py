@@ -494,6 +494,15 @@ def with_tuned_dwell(robots, tuned, owners) -> tuple:
     )
 
 
+def _append(arrays: dict, track, roll, q, ok) -> None:
+    """One more stroke (not of an area) on a robot's arrays, as :func:`solve_strokes` gives it."""
+    arrays["area"].append([-1])
+    arrays["track"].append(track)
+    arrays["roll"].append([roll])
+    arrays["q"].append(q)
+    arrays["ok"].append(ok)
+
+
 def with_touch_ups(cell: Cell, robots: tuple, extra: list):
     """The robots with touch-up strokes (``refine.touchup``) added, each to the robot whose inverse kinematics
     reaches most of its waypoints (at least two), after a spray-off transfer from that robot's last stroke;
@@ -517,20 +526,10 @@ def with_touch_ups(cell: Cell, robots: tuple, extra: list):
         if grown[r]:
             transfer = _transfer(grown[r][-1], stroke)
             pieces.insert(0, transfer)
-            ((t_track, t_roll, t_q, t_ok),) = solve_strokes(cell.robots[r], [transfer])
-            a = arrays[r]
-            a["area"].append([-1])
-            a["track"].append(t_track)
-            a["roll"].append([t_roll])
-            a["q"].append(t_q)
-            a["ok"].append(t_ok)
+            (solved_transfer,) = solve_strokes(cell.robots[r], [transfer])
+            _append(arrays[r], *solved_transfer)
         grown[r].extend(pieces)
-        a = arrays[r]
-        a["area"].append([-1])
-        a["track"].append(track)
-        a["roll"].append([roll])
-        a["q"].append(q)
-        a["ok"].append(ok)
+        _append(arrays[r], track, roll, q, ok)
         added += 1
     if not added:
         return None
