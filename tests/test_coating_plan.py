@@ -201,7 +201,7 @@ def test_the_tuned_plans_film_is_the_simulated_one(testdata):
 
     part = select_region(load_part(testdata / "meshes" / "reach_curved_part.ply", units="m"), "x > -300")
     job, _ = meet_thickness(JobConfig().replace(coating={"thickness_um": 50.0}))
-    tuned, summary, film = tune_plan(part, plan(part, job), job)
+    tuned, summary, film, _ = tune_plan(part, plan(part, job), job)
     assert summary["touch_up_strokes"] > 0  # the film comes from the extended matrix too
     simulated = simulate_plan(part, tuned, job)
     np.testing.assert_array_equal(film.points, simulated.points)

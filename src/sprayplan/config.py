@@ -656,6 +656,10 @@ class RefineConfig(Section):
     touch_up_stations : int
         At most this many gantry stations added for touch-ups no planned station reaches (a lip facing
         sideways or down, sprayed from beside the part), in all rounds together; 0: none.
+    limit_rounds : int
+        With timing: rounds of tuning the speeds again within the speeds the robot makes (each waypoint's
+        timed speed becomes its speed's upper bound, then the plan is timed again; ``refine.limits``);
+        0: the tuning ignores the robot's limits.
     """
 
     SECTION = "tuning"
@@ -670,9 +674,11 @@ class RefineConfig(Section):
     touch_up_rounds: int = 2
     touch_up_aim: bool = True
     touch_up_stations: int = 4
+    limit_rounds: int = 3
 
     def _check(self):
         check_dwell_bounds(self.min_dwell, self.max_dwell, "tuning")
+        _within(RefineConfig, "limit_rounds", self.limit_rounds, 0, 10)
         if not 0 <= self.band < 1:
             raise _fail(RefineConfig, "band", "a number in [0, 1)", self.band)
         _at_least(RefineConfig, "smoothing", self.smoothing, 0)
