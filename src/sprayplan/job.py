@@ -285,9 +285,18 @@ def _programs(state: JobState, progress: Progress) -> JobState:
         return state
     from sprayplan.programs.stage import build
 
-    return dataclasses.replace(
-        state, programs=tuple(build(state.plan, state.job, f) for f in state.job.export.programs)
-    )
+    plan = program_plan(state)
+    return dataclasses.replace(state, programs=tuple(build(plan, state.job, f) for f in state.job.export.programs))
+
+
+def program_plan(state: JobState) -> Plan:
+    """The plan the robot programs carry: with timing, at the speeds the robot makes (each waypoint's timed
+    time factor, ``timing.stage.real_plan``: the planned speed where the robot keeps it, lower where not)."""
+    if state.timing is None:
+        return state.plan
+    from sprayplan.timing.stage import real_plan
+
+    return real_plan(state.plan, state.timing)
 
 
 def write_outputs(outdir, state: JobState, progress=None, part_file=None, placed=None) -> None:
@@ -304,7 +313,7 @@ def write_outputs(outdir, state: JobState, progress=None, part_file=None, placed
         from sprayplan.programs.stage import default_folder, write_built
 
         plan_file = os.path.abspath(os.path.join(outdir if placed is None else placed, "plan.json"))
-        write_built(default_folder(outdir), list(state.programs), state.plan, state.job, plan_file)
+        write_built(default_folder(outdir), list(state.programs), program_plan(state), state.job, plan_file)
 
 
 @dataclass(frozen=True)

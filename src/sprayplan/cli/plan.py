@@ -40,7 +40,10 @@ def _job_config(args):
         "load": given("units", "up", "region"),
         "paths": paths,
         "ordering": given("tour"),
-        "kinematics": {"robot": args.robot} if args.robot is not None else {},
+        "kinematics": {
+            **({"robot": args.robot} if args.robot is not None else {}),
+            **({"robot_file": args.robot_file} if getattr(args, "robot_file", None) is not None else {}),
+        },
         "motion": given("speed_along"),
         "coating": given("process", "thickness_um", "tolerance_um"),
         "tuning": {"tune_speed": False} if getattr(args, "no_tune_speed", False) else {},
