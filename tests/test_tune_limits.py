@@ -91,7 +91,7 @@ def test_what_the_limits_make_impossible_is_said_and_nothing_else_changes(tuned)
     assert over["area_mm2"] > 0 and over["max_um"] > 55.0 and over["max_excess_um"] == pytest.approx(over["max_um"] - 55.0)
     places = summary["places"]
     assert places and all(0 < p["speed_share"] < 1 for p in places if p["speed_share"] is not None)
-    assert sum(p["over_spec_area_mm2"] for p in places) <= over["area_mm2"] + 1e-3
+    assert sum(p["over_spec_area_mm2"] for p in places) <= over["area_mm2"] + 1e-3 * len(places)  # rounded each
     for p in places:
         stroke = state.plan.stations[p["station"]].strokes[p["stroke"]]
         assert stroke.spray_on and p["capped_waypoints"] <= len(stroke)
