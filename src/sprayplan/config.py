@@ -824,8 +824,9 @@ class TimingConfig(Section):
         branch change, an SQP solution far from its neighbours): the arm makes a joint move there instead.
     film_at_timed_speeds : bool
         Predict the film at the timed speeds (the speeds the robot makes under its limits) instead of the
-        planned ones. Off by default: the speed tuning does not yet work within the robot's limits, so with
-        the default (conservative) accelerations a film tuned to a target comes out far above it when timed.
+        plan's own (tuned) speeds. Off by default: with the default (conservative) accelerations the arm makes
+        a small share of the planned spray speed, so a film target comes out far above spec when timed, even
+        with the speeds tuned within the limits (``[tuning] limit_rounds``; docs/benchmarks.md).
     """
 
     SECTION = "timing"

@@ -12,12 +12,17 @@ timed speeds is not the film the tuning aimed at. Here the two are brought toget
 2. tune again with those bounds (``tune_speeds(lower=..., upper=...)``, a bounded least squares on the same
    deposit matrix, started from the last factors), so the tuning spends the other waypoints' speeds on the
    film the capped ones make;
-3. time again; repeat up to ``[tuning] limit_rounds`` times, or until no waypoint is slower than tuned.
+3. time again; repeat up to ``[tuning] limit_rounds`` times, until no waypoint is slower than tuned, or until
+   the film at the timed speeds is the tuning's prediction (within a tenth of the tolerance) on all but 1 % of
+   the tuned area.
 
-A waypoint where a stretch starts or ends at rest is always slower than any planned speed (the robot
-accelerates there), so a few such waypoints stay "slower than tuned" at the ends: the plan's leads are where
-the arm accelerates, and the film they leave on the part is what :func:`tune_within_limits` reports as the
-difference between the tuned and the timed film.
+Where a waypoint's bound is active, the timing is asked for the speed the first (unbounded) tuning wanted
+there, so the robot makes what it can, as in the timing the bound came from: asked for the bound itself, its
+speed would drop further wherever it accelerates (a segment's speed bound is flat, the robot's speed on a ramp
+is not), round after round. Where a stretch starts or ends at rest the robot is slower than any planned speed;
+after the last round the plan's factors are raised to the timed ones wherever the robot is still slower, so
+the plan never asks for more than the robot makes, and what those ends add to the film is the difference
+between the tuning's prediction and the film at the timed speeds that the summary reports.
 
 Where the caps make the target impossible (the gun cannot go fast enough, so a patch gets too much paint
 whatever the other speeds do), nothing else is changed to hide it (flow, spacing and the path stay as
@@ -46,6 +51,10 @@ log = logging.getLogger(__name__)
 
 #: A spray waypoint whose timed time factor exceeds its tuned one by more than this share is capped.
 CAP_SLACK = 1e-3
+#: The rounds stop once less than SETTLED_SHARE of the tuned area has a film at the timed speeds more than
+#: SETTLED_TOLERANCES tolerances off the tuning's prediction.
+SETTLED_SHARE = 0.01
+SETTLED_TOLERANCES = 0.1
 #: At most this many strokes are named in ``places``.
 MAX_PLACES = 20
 
@@ -166,7 +175,16 @@ def tune_within_limits(
         rounds += 1
         if progress is not None:
             progress(rounds, settings.limit_rounds)
-        log.info("speeds tuned within the limits, round %d: %d waypoints capped", rounds, int((lower > base_lower).sum()))
+        off = _off_share(tuning, dwell, np.concatenate(timing.dwell or (np.zeros(0),)), SETTLED_TOLERANCES * tol)
+        log.info(
+            "speeds tuned within the limits, round %d: %d waypoints capped, %.2f %% of the tuned area off the "
+            "prediction at the timed speeds",
+            rounds,
+            int((lower > base_lower).sum()),
+            100 * off,
+        )
+        if off < SETTLED_SHARE:
+            break
     # where the robot is still slower than tuned after the last round (a stretch's ends, where it accelerates
     # from rest), the tuned factor is raised to the timed one: the plan's speeds never exceed what it makes
     dwell, timed = plan_dwell(plan), np.concatenate(timing.dwell or (np.zeros(0),))
@@ -208,6 +226,17 @@ def film_of(tuning: Tuning, plan: Plan, timing, job) -> CoatingResult:
     at = dataclasses.replace(tuning, paths=Paths(strokes, paths.standoff_mm, paths.spacing_mm, paths.name))
     film = tuned_film(at, process_for(job), job.coating.simulation(job.motion))
     return dataclasses.replace(film, name=plan.name)
+
+
+def _off_share(tuning: Tuning, dwell: np.ndarray, timed: np.ndarray, by_um: float) -> float:
+    """The share of the tuned area whose film at the time factors ``timed`` differs from the film at ``dwell``
+    by more than ``by_um``."""
+    rows = tuning.tuned
+    area = tuning.area_mm2[rows]
+    if area.sum() <= 0:
+        return 0.0
+    diff = np.abs(np.asarray(tuning.deposit_mm @ (timed - dwell)).ravel()[rows]) * 1000.0
+    return float(area[diff > by_um].sum() / area.sum())
 
 
 def _stats(film_um: np.ndarray, area: np.ndarray, target: float, tol: float) -> dict:
