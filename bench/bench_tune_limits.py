@@ -65,9 +65,11 @@ def main() -> int:
     parser.add_argument("--runs", type=int, default=1)
     parser.add_argument("--accel-deg-s2", type=float, default=None)
     args = parser.parse_args()
-    print("| part | arm acceleration | tuning at planned speeds: film predicted | before: film at timed speeds | "
-          "before: cycle timed | after: film predicted | after: film at timed speeds | after: cycle timed | "
-          "rounds | capped waypoints | over spec (area share, max um) | within-limits wall (median) |")
+    print(
+        "| part | arm acceleration | tuning at planned speeds: film predicted | before: film at timed speeds | "
+        "before: cycle timed | after: film predicted | after: film at timed speeds | after: cycle timed | "
+        "rounds | capped waypoints | over spec (area share, max um) | within-limits wall (median) |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for key in args.parts.split(","):
         label, source, job = parts()[key]
@@ -80,7 +82,9 @@ def main() -> int:
         walls, done = [], None
         for _ in range(args.runs):
             began = time.perf_counter()
-            done = tune_within_limits(state.part, state.plan, state.tuned, job, lambda p: time_plan(p, job, gantry))
+            done = tune_within_limits(
+                state.part, state.plan, state.tuned, job, lambda p, j=job, g=gantry: time_plan(p, j, g)
+            )
             walls.append(time.perf_counter() - began)
         s = done.summary
         accel = "80.2 deg/s^2" if args.accel_deg_s2 is None else f"{args.accel_deg_s2:g} deg/s^2"

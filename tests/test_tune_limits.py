@@ -68,8 +68,8 @@ def test_tuned_speeds_never_exceed_the_achievable_ones(tuned):
     assert checked > 1000
 
 
-def test_the_film_at_timed_speeds_is_the_one_the_tuning_predicted(tuned, testdata):
-    job, state = tuned
+def test_the_film_at_timed_speeds_is_the_one_the_tuning_predicted(tuned):
+    _, state = tuned
     summary = state.tuning["within_limits"]
     predicted, timed = summary["predicted"], summary["timed"]
     assert timed["mean_um"] == pytest.approx(predicted["mean_um"], rel=0.01)
@@ -88,7 +88,9 @@ def test_what_the_limits_make_impossible_is_said_and_nothing_else_changes(tuned)
     summary = state.tuning["within_limits"]
     over = summary["over_spec"]
     # the arm cannot go fast enough on some strokes: too much paint there, said with where and how much
-    assert over["area_mm2"] > 0 and over["max_um"] > 55.0 and over["max_excess_um"] == pytest.approx(over["max_um"] - 55.0)
+    assert (
+        over["area_mm2"] > 0 and over["max_um"] > 55.0 and over["max_excess_um"] == pytest.approx(over["max_um"] - 55.0)
+    )
     places = summary["places"]
     assert places and all(0 < p["speed_share"] < 1 for p in places if p["speed_share"] is not None)
     assert sum(p["over_spec_area_mm2"] for p in places) <= over["area_mm2"] + 1e-3 * len(places)  # rounded each
@@ -115,7 +117,12 @@ def programmed(testdata, tmp_path_factory):
     """The reach part planned and timed with every program format (UR's default limits: slowed strokes)."""
     out = tmp_path_factory.mktemp("timed") / "plan"
     argv = ["-q", "plan", str(testdata / "meshes" / PART), "--units", "m", "--region", REACH["region"], "-o", str(out)]
-    assert main([*argv, "--no-viewer", "--no-report", *(a for f in ("urscript", "rapid", "krl") for a in ("--program", f))]) == 0
+    assert (
+        main(
+            [*argv, "--no-viewer", "--no-report", *(a for f in ("urscript", "rapid", "krl") for a in ("--program", f))]
+        )
+        == 0
+    )
     return out
 
 

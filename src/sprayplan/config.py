@@ -552,7 +552,9 @@ class KinematicsConfig(Section):
             check_ur_model(model)
         except (ConfigError, _PartFileError) as exc:
             text = str(exc)
-            raise ConfigError(f"{where}: {text}" if self.robot_file in text else f"{where} {self.robot_file}: {text}") from None
+            raise ConfigError(
+                f"{where}: {text}" if self.robot_file in text else f"{where} {self.robot_file}: {text}"
+            ) from None
         if not (np.allclose(model.base2world, np.eye(4)) and np.allclose(model.tool2flange, np.eye(4))):
             raise ConfigError(
                 f"{where} {self.robot_file}: base_* and tool_* keys are not taken on the gantry (its carriage is the "

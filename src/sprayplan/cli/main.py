@@ -449,7 +449,7 @@ def build_parser() -> argparse.ArgumentParser:
     group.add_argument("--robot", help="gantry-ur5 (default) or gantry-ur5e: seed 000's gantry and its arm")
     group.add_argument(
         "--robot-file",
-        help="a robot TOML for the arm on the gantry ([kinematics] robot_file: e.g. preset = \"ur5\" and its "
+        help='a robot TOML for the arm on the gantry ([kinematics] robot_file: e.g. preset = "ur5" and its '
         "joint limits max_velocity_deg_s, max_acceleration_deg_s2)",
     )
     group.add_argument("--seed", type=int, help="random seed of the station cover and the tours (default 0)")

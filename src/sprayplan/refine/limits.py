@@ -142,7 +142,6 @@ def tune_within_limits(
     lower = base_lower.copy()
     wanted = plan_dwell(plan)  # what the tuning asks for with no bound of the robot's
     timing = time_plan(plan)
-    asked = plan
     rounds = 0
     for _ in range(settings.limit_rounds):
         dwell, timed = plan_dwell(plan), np.concatenate(timing.dwell or (np.zeros(0),))
@@ -200,19 +199,6 @@ def tune_within_limits(
         **_over_spec(plan, tuning, film, timed, capped, wanted, lower, target, tol),
     }
     return WithinLimits(plan, timing, tuning, film, summary)
-
-
-def required_dwell(timing, dwell: np.ndarray) -> np.ndarray:
-    """(waypoints,) the least time factor each spray waypoint can have for the robot to make its speed: its
-    factor times its planned tip speed (``PlanTiming.planned_speed_mm_s``) over the speed the robot makes there
-    (``PlanTiming.speed_mm_s``) where that is below it; the factor itself elsewhere, and where the robot is at
-    rest (a stretch's ends: no speed bound would let it go faster there)."""
-    speed = np.concatenate(timing.speed_mm_s or (np.zeros(0),))
-    bound = np.concatenate(timing.planned_speed_mm_s or (np.zeros(0),))
-    out = np.array(dwell, float)
-    slow = np.isfinite(speed) & np.isfinite(bound) & (speed > 0) & (speed < bound)
-    out[slow] = dwell[slow] * bound[slow] / speed[slow]
-    return out
 
 
 def film_of(tuning: Tuning, plan: Plan, timing, job) -> CoatingResult:
@@ -303,7 +289,7 @@ def _over_spec(plan, tuning, film, timed, capped, wanted, lower, target, tol) ->
                 "station": place,
                 "stroke": index,
                 "kind": tuning.paths.strokes[k].kind,
-                "capped_waypoints": int(len(cols)),
+                "capped_waypoints": len(cols),
                 # the share of the speed the unbounded tuning wanted that the robot makes (the least one)
                 "speed_share": round(float((wanted[cols] / lower[cols]).min()), 4) if len(cols) else None,
                 "over_spec_area_mm2": round(float(area[mine].sum()), 3),
