@@ -59,6 +59,10 @@ def _stats(film, tuned) -> str:
     return f"{mean:.1f} um, cv {cv:.3f}, {100 * inside:.1f} % in spec"
 
 
+def _summary(stats: dict) -> str:
+    return f"{stats['mean_um']:.1f} um, cv {stats['cv']:.3f}, {100 * stats['share_in_spec']:.1f} % in spec"
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--parts", default="roof,reach,suv")
@@ -91,7 +95,7 @@ def main() -> int:
         over = s["over_spec"]
         print(
             f"| {label} | {accel} | {_stats(state.film, state.tuned)} | {_stats(film_before, state.tuned)} | "
-            f"{before.cycle_time_s:.1f} s | {_stats(film_of(done.tuning, done.plan, None, job), done.tuning)} | "
+            f"{before.cycle_time_s:.1f} s | {_summary(s['predicted'])} | "
             f"{_stats(done.film, done.tuning)} | {done.timing.cycle_time_s:.1f} s | {s['rounds']} | "
             f"{s['capped_waypoints']} | {over['share']:.3f}, {over['max_um']} | {statistics.median(walls):.1f} s "
             f"({', '.join(f'{w:.1f}' for w in walls)}) |",
