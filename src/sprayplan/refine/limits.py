@@ -20,9 +20,10 @@ Where a waypoint's bound is active, the timing is asked for the speed the first 
 there, so the robot makes what it can, as in the timing the bound came from: asked for the bound itself, its
 speed would drop further wherever it accelerates (a segment's speed bound is flat, the robot's speed on a ramp
 is not), round after round. Where a stretch starts or ends at rest the robot is slower than any planned speed;
-after the last round the plan's factors are raised to the timed ones wherever the robot is still slower, so
-the plan never asks for more than the robot makes, and what those ends add to the film is the difference
-between the tuning's prediction and the film at the timed speeds that the summary reports.
+after the last round the plan's factors are raised to the timed ones wherever the robot is still slower (and
+set to them where a bound is active), so the plan never asks for more than the robot makes, and what those
+ends add to the film is the difference between the tuning's prediction and the film at the timed speeds that
+the summary reports.
 
 Where the caps make the target impossible (the gun cannot go fast enough, so a patch gets too much paint
 whatever the other speeds do), nothing else is changed to hide it (flow, spacing and the path stay as
@@ -185,10 +186,13 @@ def tune_within_limits(
         if off < SETTLED_SHARE:
             break
     # where the robot is still slower than tuned after the last round (a stretch's ends, where it accelerates
-    # from rest), the tuned factor is raised to the timed one: the plan's speeds never exceed what it makes
+    # from rest), the tuned factor is raised to the timed one, so the plan's speeds never exceed what the robot
+    # makes; where the bound is active the plan takes the timed factor too (the robot was asked for more there,
+    # and the plan's speed is then the one it makes, which the programs carry)
     dwell, timed = plan_dwell(plan), np.concatenate(timing.dwell or (np.zeros(0),))
     slower = spray & (timed > dwell)
-    plan = with_dwell(plan, np.where(slower, timed, dwell))
+    active = spray & (lower > base_lower * (1.0 + CAP_SLACK)) & (dwell <= lower * (1.0 + CAP_SLACK))
+    plan = with_dwell(plan, np.where(slower | active, timed, dwell))
     film = film_of(tuning, plan, timing, job)
     capped = spray & (lower > base_lower * (1.0 + CAP_SLACK))
     summary = {
