@@ -5,12 +5,14 @@ bad robot files are one-line errors."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
 import pytest
 
 from sprayplan.cli import main
+from sprayplan.cli.plan import summary_line
 from sprayplan.coating.stage import meet_thickness, simulate_plan
 from sprayplan.config import JobConfig
 from sprayplan.export.plan_json import tip_speeds
@@ -42,7 +44,7 @@ def tuned(testdata):
         tuning={"touch_up_rounds": 0, "limit_rounds": 2},
         timing={**FAST_ARM, "film_at_timed_speeds": True},
     )
-    return job, run_job(testdata / "meshes" / PART, job, until="film")
+    return job, run_job(testdata / "meshes" / PART, job, until="totals")
 
 
 def _spray(plan) -> np.ndarray:
@@ -99,6 +101,10 @@ def test_what_the_limits_make_impossible_is_said_and_nothing_else_changes(tuned)
         assert stroke.spray_on and p["capped_waypoints"] <= len(stroke)
     # flow, spacing and speed are the film target's choice, untouched
     assert state.job == meet_thickness(job)[0]
+    # and the command line's summary says it
+    shown = dataclasses.replace(state, totals={**state.totals, "planning_time_s": 1.0})
+    line = summary_line(shown, "out").splitlines()[-1]
+    assert line.startswith("speeds within the joints' limits: ") and f"{100 * over['share']:.1f}%" in line
 
 
 def test_without_the_rounds_the_timed_film_is_not_the_predicted_one(testdata):
