@@ -226,7 +226,7 @@ def section_plan_film(repeat: int = 3) -> None:
     ):
         job, _ = meet_thickness(JobConfig().replace(coating={"thickness_um": 50.0}))
         result = plan(part, job)
-        tuning_wall, _, (tuned, info, _film) = timed(lambda p=part, r=result, j=job: tune_plan(p, r, j), repeat)
+        tuning_wall, _, (tuned, info, _film, _) = timed(lambda p=part, r=result, j=job: tune_plan(p, r, j), repeat)
         for label, version, wall, factors in (
             ("planned", result, "-", "1"),
             ("tuned", tuned, f"{tuning_wall:.1f}", f"{info['dwell_min']:.2f}-{info['dwell_max']:.2f}"),
@@ -305,7 +305,7 @@ def section_touch_ups() -> None:
         for label, changes in variants:
             job = base.replace(tuning=changes)
             start = time.perf_counter()
-            tuned, info, film = tune_plan(part, result, job)
+            tuned, info, film, _ = tune_plan(part, result, job)
             wall = time.perf_counter() - start
             report = coating_report(film, edge_band_mm=50.0)["painted"]
             totals = plan_totals(tuned, job)

@@ -318,7 +318,7 @@ def test_tune_plan_keeps_to_its_budget_of_new_stations(testdata):
             )
         )
         planned = plan(part, job)
-        tuned, summary, _ = tune_plan(part, planned, job)
+        tuned, summary, _, _ = tune_plan(part, planned, job)
         assert summary["touch_up_strokes"] > 0
         assert len(planned.stations) <= len(tuned.stations) <= len(planned.stations) + budget
         assert len({st.index for st in tuned.stations}) == len(tuned.stations)

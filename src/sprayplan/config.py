@@ -494,6 +494,12 @@ class KinematicsConfig(Section):
     ----------
     robot : {"gantry-ur5", "gantry-ur5e"}
         Seed 000's three-axis gantry carrying a UR5 (or a UR5e).
+    robot_file : str or None
+        A robot TOML file (``robots.model.load_robot``'s keys, e.g. ``preset = "ur5"`` and the joints' speed
+        and acceleration limits ``max_velocity_deg_s``, ``max_acceleration_deg_s2``) for the arm on the gantry,
+        in place of ``robot``'s preset (``plan --robot-file``); a UR-type six-axis arm (the gantry's inverse
+        kinematics is UR's), whose base and tool are the gantry's and the gun's, so the file sets neither.
+        A path relative to the working folder.
     tool : str
         Gun preset (``wa101``).
     position_tol_mm, axis_tol_deg : float
@@ -508,9 +514,12 @@ class KinematicsConfig(Section):
     position_tol_mm: float = 5.0
     axis_tol_deg: float = 5.0
     k_d: float = 0.1
+    robot_file: str | None = None
 
     def _check(self):
         _choice(KinematicsConfig, "robot", self.robot, ROBOTS)
+        if self.robot_file is not None:
+            self.arm_model()  # a missing or broken file, or a bad value in it, is an error now
         _choice(KinematicsConfig, "tool", self.tool, ("wa101",))
         _at_least(KinematicsConfig, "position_tol_mm", self.position_tol_mm, 0, strict=True)
         _within(KinematicsConfig, "axis_tol_deg", self.axis_tol_deg, 1e-9, 90.0)
@@ -520,6 +529,38 @@ class KinematicsConfig(Section):
     def arm(self) -> str:
         """The arm on the gantry: ``ur5`` or ``ur5e``."""
         return self.robot.removeprefix("gantry-")
+
+    def arm_model(self):
+        """The arm on the gantry (a ``robots.model.RobotModel``): ``robot_file``'s, else ``robot``'s preset.
+
+        Raises
+        ------
+        ConfigError
+            ``robot_file`` missing, broken, with a bad value (a limit of zero, NaN, negative), not a UR-type
+            six-axis arm, or setting the base or the tool; the message names the setting and the file.
+        """
+        import numpy as np
+
+        from sprayplan.robots.model import load_robot
+        from sprayplan.robots.ur_ik import check_ur_model
+
+        if self.robot_file is None:
+            return load_robot(self.arm)
+        where = f"{KinematicsConfig.SECTION}.robot_file"
+        try:
+            model = load_robot(self.robot_file, where)
+            check_ur_model(model)
+        except (ConfigError, _PartFileError) as exc:
+            text = str(exc)
+            raise ConfigError(
+                f"{where}: {text}" if self.robot_file in text else f"{where} {self.robot_file}: {text}"
+            ) from None
+        if not (np.allclose(model.base2world, np.eye(4)) and np.allclose(model.tool2flange, np.eye(4))):
+            raise ConfigError(
+                f"{where} {self.robot_file}: base_* and tool_* keys are not taken on the gantry (its carriage is the "
+                "base, [kinematics] tool the gun)"
+            )
+        return model
 
 
 @dataclass(frozen=True)
@@ -656,6 +697,10 @@ class RefineConfig(Section):
     touch_up_stations : int
         At most this many gantry stations added for touch-ups no planned station reaches (a lip facing
         sideways or down, sprayed from beside the part), in all rounds together; 0: none.
+    limit_rounds : int
+        With timing: rounds of tuning the speeds again within the speeds the robot makes (each waypoint's
+        timed speed becomes its speed's upper bound, then the plan is timed again; ``refine.limits``);
+        0: the tuning ignores the robot's limits.
     """
 
     SECTION = "tuning"
@@ -670,9 +715,11 @@ class RefineConfig(Section):
     touch_up_rounds: int = 2
     touch_up_aim: bool = True
     touch_up_stations: int = 4
+    limit_rounds: int = 3
 
     def _check(self):
         check_dwell_bounds(self.min_dwell, self.max_dwell, "tuning")
+        _within(RefineConfig, "limit_rounds", self.limit_rounds, 0, 10)
         if not 0 <= self.band < 1:
             raise _fail(RefineConfig, "band", "a number in [0, 1)", self.band)
         _at_least(RefineConfig, "smoothing", self.smoothing, 0)
@@ -809,8 +856,9 @@ class TimingConfig(Section):
         branch change, an SQP solution far from its neighbours): the arm makes a joint move there instead.
     film_at_timed_speeds : bool
         Predict the film at the timed speeds (the speeds the robot makes under its limits) instead of the
-        planned ones. Off by default: the speed tuning does not yet work within the robot's limits, so with
-        the default (conservative) accelerations a film tuned to a target comes out far above it when timed.
+        plan's own (tuned) speeds. Off by default: with the default (conservative) accelerations the arm makes
+        a small share of the planned spray speed, so a film target comes out far above spec when timed, even
+        with the speeds tuned within the limits (``[tuning] limit_rounds``; docs/benchmarks.md).
     """
 
     SECTION = "timing"

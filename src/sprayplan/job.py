@@ -73,7 +73,10 @@ class JobState:
         ``ordering.stage.OrderedStations``).
     plan : Plan or None
     tuning : dict
-        The refine stage's summary ({} when it did not run).
+        The refine stage's summary ({} when it did not run); with timing, its ``within_limits`` entry
+        (``refine.limits``).
+    tuned : refine.tuning.Tuning or None
+        The last speed tuning (its samples and deposit matrix), when the speeds were tuned.
     collisions : dict
         The collision stage's summary ({} when it did not run).
     timing : timing.stage.PlanTiming or None
@@ -97,6 +100,7 @@ class JobState:
     ordered: object = None
     plan: Plan | None = None
     tuning: dict = field(default_factory=dict)
+    tuned: object = None
     collisions: dict = field(default_factory=dict)
     timing: object = None
     film: object = None
@@ -200,8 +204,8 @@ def _kinematics(state: JobState, progress: Progress) -> JobState:
 def _refine(state: JobState, progress: Progress) -> JobState:
     from sprayplan.refine.stage import tune_plan
 
-    plan, summary, film = tune_plan(state.part, state.plan, state.job, progress)
-    return dataclasses.replace(state, plan=plan, tuning=summary, film=film)
+    plan, summary, film, tuned = tune_plan(state.part, state.plan, state.job, progress)
+    return dataclasses.replace(state, plan=plan, tuning=summary, film=film, tuned=tuned)
 
 
 def _collision(state: JobState, progress: Progress) -> JobState:
@@ -224,7 +228,18 @@ def _timing(state: JobState, progress: Progress) -> JobState:
         return state
     from sprayplan.timing.stage import time_plan
 
-    return dataclasses.replace(state, timing=time_plan(state.plan, state.job, state.gantry(), progress))
+    job, gantry = state.job, state.gantry()
+    if state.tuned is None or job.tuning.limit_rounds == 0:
+        return dataclasses.replace(state, timing=time_plan(state.plan, job, gantry, progress))
+    # the speed tuning again within the speeds the robot makes, timed after each round
+    from sprayplan.refine.limits import tune_within_limits
+
+    done = tune_within_limits(
+        state.part, state.plan, state.tuned, job, lambda plan: time_plan(plan, job, gantry, progress),
+        per_stage(progress, "timing"),
+    )  # fmt: skip
+    tuning = {**state.tuning, "within_limits": done.summary}
+    return dataclasses.replace(state, plan=done.plan, timing=done.timing, tuned=done.tuning, tuning=tuning)
 
 
 def _film(state: JobState, progress: Progress) -> JobState:
@@ -232,6 +247,10 @@ def _film(state: JobState, progress: Progress) -> JobState:
     if not (job.output.simulate or job.film_target):
         return state
     timed = state.timing is not None and job.timing.film_at_timed_speeds
+    if state.tuned is not None:  # the tuning's deposit matrix gives the film, at the tuned or the timed speeds
+        from sprayplan.refine.limits import film_of
+
+        return dataclasses.replace(state, film=film_of(state.tuned, state.plan, state.timing if timed else None, job))
     if state.film is not None and not timed:
         return state  # a tuned plan's film is known already (the tuning's deposit matrix)
     from sprayplan.coating.stage import simulate_plan
@@ -266,9 +285,18 @@ def _programs(state: JobState, progress: Progress) -> JobState:
         return state
     from sprayplan.programs.stage import build
 
-    return dataclasses.replace(
-        state, programs=tuple(build(state.plan, state.job, f) for f in state.job.export.programs)
-    )
+    plan = program_plan(state)
+    return dataclasses.replace(state, programs=tuple(build(plan, state.job, f) for f in state.job.export.programs))
+
+
+def program_plan(state: JobState) -> Plan:
+    """The plan the robot programs carry: with timing, at the speeds the robot makes (each waypoint's timed
+    time factor, ``timing.stage.real_plan``: the planned speed where the robot keeps it, lower where not)."""
+    if state.timing is None:
+        return state.plan
+    from sprayplan.timing.stage import real_plan
+
+    return real_plan(state.plan, state.timing)
 
 
 def write_outputs(outdir, state: JobState, progress=None, part_file=None, placed=None) -> None:
@@ -285,7 +313,7 @@ def write_outputs(outdir, state: JobState, progress=None, part_file=None, placed
         from sprayplan.programs.stage import default_folder, write_built
 
         plan_file = os.path.abspath(os.path.join(outdir if placed is None else placed, "plan.json"))
-        write_built(default_folder(outdir), list(state.programs), state.plan, state.job, plan_file)
+        write_built(default_folder(outdir), list(state.programs), program_plan(state), state.job, plan_file)
 
 
 @dataclass(frozen=True)

@@ -74,8 +74,13 @@ def cmd_export(args) -> int:
         job = job.replace(export=job_from_toml(args.config).export)
     if args.strict:
         job = job.replace(export={"strict": True})
+    plan = read.plan
+    if read.timing is not None:  # the programs carry the speeds the robot makes, as `plan --program` writes them
+        from sprayplan.timing.stage import real_plan
+
+        plan = real_plan(plan, read.timing, read.job)
     with stage("export"):
-        builts, summaries = export_plan(read.plan, job, formats, folder, os.path.abspath(plan_file))
+        builts, summaries = export_plan(plan, job, formats, folder, os.path.abspath(plan_file))
     for built in builts:
         for line in warnings_of(built):
             print(f"sprayplan: warning: {line}", file=sys.stderr)

@@ -465,6 +465,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --cell: strokes stop where the surface goes on as another robot's or area's (feather, the "
         "default), or run on over it by their lead-out (overlap)",
     )
+    group.add_argument(
+        "--robot-file",
+        help='a robot TOML for the arm on the gantry ([kinematics] robot_file: e.g. preset = "ur5" and its '
+        "joint limits max_velocity_deg_s, max_acceleration_deg_s2)",
+    )
     group.add_argument("--seed", type=int, help="random seed of the station cover and the tours (default 0)")
     group.add_argument(
         "--mode", choices=["paths", "points"], help="slicing strokes (default) or the seed's target points"

@@ -40,7 +40,10 @@ def _job_config(args):
         "load": given("units", "up", "region"),
         "paths": paths,
         "ordering": given("tour"),
-        "kinematics": {"robot": args.robot} if args.robot is not None else {},
+        "kinematics": {
+            **({"robot": args.robot} if args.robot is not None else {}),
+            **({"robot_file": args.robot_file} if getattr(args, "robot_file", None) is not None else {}),
+        },
         "motion": given("speed_along"),
         "coating": given("process", "thickness_um", "tolerance_um"),
         "tuning": {"tune_speed": False} if getattr(args, "no_tune_speed", False) else {},
@@ -126,6 +129,12 @@ def summary_line(result, outdir) -> str:
 
         report = film_report(result.film, result.job, result.job.output.samples, result.chosen)
         line += "\n" + _coating_line(report, outdir)
+    over = totals.get("speed_tuning", {}).get("within_limits", {}).get("over_spec", {})
+    if over.get("area_mm2"):
+        line += (
+            f"\nspeeds within the joints' limits: {100 * over['share']:.1f}% of the tuned area above spec where the "
+            f"gun cannot go fast enough (up to {over['max_um']:.1f} um; speed_tuning.within_limits in plan.json)"
+        )
     return line
 
 

@@ -24,7 +24,9 @@ sprayed with the plan's arm joints, the TCP off the plan's pose by the gantry's 
 
 Speeds keep the plan's timing: the move into waypoint i takes the time the plan gives its segment (the gun
 tip's ``tcp_speed_mm_s``), so its TCP speed is the TCP's path length over that time (the contact point's
-speed, ``gun_speed_mm_s`` over the tuned time factor, when the standoff is the gun's spray distance).
+speed, ``gun_speed_mm_s`` over the tuned time factor, when the standoff is the gun's spray distance). The main
+job and ``sprayplan export`` give the plan at its timed speeds (``timing.stage.real_plan``: the time factors the
+robot makes within its joints' limits), so the programs carry those.
 """
 
 from __future__ import annotations

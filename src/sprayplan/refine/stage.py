@@ -32,17 +32,28 @@ def tuning_settings(settings: RefineConfig) -> TuningConfig:
     return TuningConfig(**{f.name: getattr(settings, f.name) for f in dataclasses.fields(TuningConfig)})
 
 
-def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None) -> tuple[Plan, dict, object]:
+def lower_dwell(paths: Paths, settings: RefineConfig) -> np.ndarray:
+    """(waypoints,) the tuning's lower bounds of the time factors over ``paths.strokes`` one after another:
+    ``min_dwell``, and ``TOUCH_UP_MIN_DWELL`` on touch-up strokes."""
+    return np.concatenate(
+        [np.full(len(s), TOUCH_UP_MIN_DWELL if s.kind == "touch-up" else settings.min_dwell) for s in paths.strokes]
+        or [np.zeros(0)]
+    )
+
+
+def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None) -> tuple[Plan, dict, object, object]:
     """With a film target and ``tune_speed``: the plan with a time factor at every waypoint chosen from the
     simulated film (``coating.tune_speeds``), and, for ``touch_up_rounds`` rounds, touch-up strokes aimed at
     the patches still under-painted (``coating.touchup``), run from the nearest station, after which all
     speeds are tuned again. Returns the plan and a summary (the film predicted before and after, the
-    factors' range, the touch-up strokes added) and the tuned plan's film (a ``CoatingResult``, what
-    :func:`simulate_plan` gives for it, taken from the tuning's deposit matrix). The plan's own strokes keep
-    their geometry and joints. Without a target or with ``tune_speed`` off: the plan unchanged, {} and None."""
+    factors' range, the touch-up strokes added), the tuned plan's film (a ``CoatingResult``, what
+    :func:`simulate_plan` gives for it, taken from the tuning's deposit matrix) and the last
+    ``tuning.Tuning`` (its samples and deposit matrix, for tuning again within the robot's limits,
+    ``refine.limits``). The plan's own strokes keep their geometry and joints. Without a target or with
+    ``tune_speed`` off: the plan unchanged, {}, None and None."""
     settings = job.tuning
     if job.coating.thickness_um is None or not settings.tune_speed or not plan.stations:
-        return plan, {}, None
+        return plan, {}, None, None
     target = job.coating.thickness_um
     tolerance = job.coating.tolerance
     process = process_for(job)
@@ -53,9 +64,7 @@ def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None
 
     def tuned(plan_, earlier=None):
         paths = plan_paths_in_order(plan_, job.paths.standoff_mm, job.paths.spacing or 0.0)
-        lower = np.concatenate(
-            [np.full(len(s), TOUCH_UP_MIN_DWELL if s.kind == "touch-up" else settings.min_dwell) for s in paths.strokes]
-        )
+        lower = lower_dwell(paths, settings)
         deposit = None if earlier is None else extended_deposit(part, plan_, *earlier, process, coating)
         return tune_speeds(
             part,
@@ -113,7 +122,7 @@ def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None
     summary["before"] = first["before"]
     summary["touch_up_strokes"] = sum(1 for s in tuning.paths.strokes if s.kind == "touch-up")
     film = dataclasses.replace(tuned_film(tuning, process, coating), name=plan.name)
-    return dataclasses.replace(plan, stations=stations), summary, film
+    return dataclasses.replace(plan, stations=stations), summary, film, tuning
 
 
 def _reach_from(plan: Plan, job: JobConfig, new_stations: bool):

@@ -157,6 +157,8 @@ def tune_speeds(
     config: TuningConfig | None = None,
     coating: CoatingConfig | None = None,
     lower: np.ndarray | None = None,
+    upper: np.ndarray | None = None,
+    initial: np.ndarray | None = None,
     deposit: tuple[SurfaceSamples, sparse.csr_matrix] | None = None,
     progress=None,
 ) -> Tuning:
@@ -176,7 +178,12 @@ def tune_speeds(
         The film model's settings (as for ``simulate``).
     lower : (waypoints,) float, optional
         Per-waypoint lower bounds of the factors, over all of ``paths.strokes`` one after another, in place of
-        ``config.min_dwell`` (touch-up strokes may go lower than the plan's own).
+        ``config.min_dwell`` (touch-up strokes may go lower than the plan's own; where the robot cannot make
+        the planned speed, :mod:`sprayplan.refine.limits` raises them to the time factor it can make).
+    upper : (waypoints,) float, optional
+        Per-waypoint upper bounds in place of ``config.max_dwell``, each at least its lower bound.
+    initial : (waypoints,) float, optional
+        The factors the solver starts from (clipped to the bounds); default 1 everywhere.
     deposit : (SurfaceSamples, csr_matrix), optional
         The samples and deposit matrix of these paths when already known (``deposit_matrix``'s result, mm);
         otherwise computed.
@@ -204,12 +211,19 @@ def tune_speeds(
     before = np.asarray(matrix @ np.ones(matrix.shape[1])).ravel()
     tuned = (samples.area_mm2 > 0) & (before >= config.painted_fraction * target_um)
     dwell = np.ones(matrix.shape[1])
-    low = np.full(matrix.shape[1], config.min_dwell) if lower is None else np.asarray(lower, float)
-    if low.shape != (matrix.shape[1],) or not (low > 0).all() or (low > 1.0).any():
-        raise ConfigError(f"lower must hold one bound in (0, 1] per waypoint ({matrix.shape[1]})")
+    n = matrix.shape[1]
+    low = np.full(n, config.min_dwell) if lower is None else np.asarray(lower, float)
+    high = np.full(n, config.max_dwell) if upper is None else np.asarray(upper, float)
+    if low.shape != (n,) or not (np.isfinite(low) & (low > 0)).all():
+        raise ConfigError(f"lower must hold one finite bound > 0 per waypoint ({n})")
+    if high.shape != (n,) or not (np.isfinite(high) & (high >= low)).all():
+        raise ConfigError(f"upper must hold one finite bound per waypoint ({n}), each at least its lower bound")
+    first = np.ones(n) if initial is None else np.asarray(initial, float)
+    if first.shape != (n,) or not np.isfinite(first).all():
+        raise ConfigError(f"initial must hold one finite factor per waypoint ({n})")
     if tuned.any() and free.any():
         dwell[free] = _solve(
-            matrix, samples.area_mm2, tuned, free, starts, target_um, tolerance_um, config, low, progress
+            matrix, samples.area_mm2, tuned, free, starts, target_um, tolerance_um, config, low, high, first, progress
         )
     after = np.asarray(matrix @ dwell).ravel()
     strokes = tuple(s.with_dwell(dwell[a : a + len(s)]) for s, a in zip(paths.strokes, starts))
@@ -259,7 +273,7 @@ def tuned_film(tuning: Tuning, process: Process, coating: CoatingConfig | None =
 
 
 def _solve(
-    matrix, area, tuned, free, starts, target, tol, config: TuningConfig, low: np.ndarray, progress=None
+    matrix, area, tuned, free, starts, target, tol, config: TuningConfig, low, high, first, progress=None
 ) -> np.ndarray:
     rows = np.flatnonzero(tuned)
     cols = np.flatnonzero(free)
@@ -282,9 +296,11 @@ def _solve(
     )
     system = sparse.vstack([fit, smooth]).tocsr()
     target_vec = np.r_[np.full(len(rows), target / tol), np.zeros(len(pairs))]
-    low = low[cols]
-    if (config.max_dwell - low < 1e-12).all():
-        return np.full(len(cols), config.max_dwell)
+    low, high = low[cols], high[cols]
+    if (high - low < 1e-12).all():
+        return high.copy()
+    # least_squares wants each lower bound strictly below its upper one: a fixed factor gets a sliver of room
+    low_solver = np.minimum(low, high - 1e-9)
     n_fit = len(rows)
     huber = config.loss == "huber"
 
@@ -319,15 +335,15 @@ def _solve(
     with threadpool_limits(limits=1, user_api="blas"):
         result = least_squares(
             residual,
-            np.ones(len(cols)),
+            np.clip(first[cols], low_solver, high),
             jac=jacobian,
-            bounds=(np.minimum(low, config.max_dwell - 1e-9), config.max_dwell),
+            bounds=(low_solver, high),
             method="trf",
             tr_solver="lsmr",
             loss=loss,
             max_nfev=int(config.iterations),
         )
-    return np.clip(result.x, low, config.max_dwell)
+    return np.clip(result.x, low, high)
 
 
 def _residuals(system: sparse.csr_matrix, target_vec: np.ndarray, n_fit: int, band: float):

@@ -14,7 +14,7 @@ import numpy as np
 from sprayplan.config import JobConfig, KinematicsConfig
 from sprayplan.ordering.stage import OrderedStations
 from sprayplan.progress import Progress, counted
-from sprayplan.robots.gantry import Gantry, GantryPath, build_gantry, solve_gantry_path
+from sprayplan.robots.gantry import Gantry, GantryPath, build_gantry, load_gun, solve_gantry_path
 from sprayplan.surface.poses import stroke_poses
 from sprayplan.types import Plan, StationPlan
 
@@ -23,8 +23,11 @@ HOME_JOINTS = np.array([0.0, -math.pi / 2, 0.0, -math.pi / 2, 0.0, 0.0])
 
 
 def gantry_for(config: KinematicsConfig) -> Gantry:
-    """The job's robot: the gantry carrying the configured arm, with the configured gun."""
-    return build_gantry(config.arm, config.tool)
+    """The job's robot: the gantry carrying the configured arm (``robot_file``'s, else the preset), with the
+    configured gun."""
+    if config.robot_file is None:
+        return build_gantry(config.arm, config.tool)
+    return Gantry(robot=config.arm_model(), gun=load_gun(config.tool))
 
 
 def solve_strokes(gantry: Gantry, strokes, platform_mm, config: KinematicsConfig, start_q=None) -> GantryPath:
