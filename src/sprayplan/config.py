@@ -700,7 +700,11 @@ class RefineConfig(Section):
     limit_rounds : int
         With timing: rounds of tuning the speeds again within the speeds the robot makes (each waypoint's
         timed speed becomes its speed's upper bound, then the plan is timed again; ``refine.limits``);
-        0: the tuning ignores the robot's limits.
+        0 (the default): the tuning ignores the robot's limits. Off by default because the arms' joint
+        accelerations are not published (the UR models carry URScript's ``movej`` default, 80 deg/s^2): at
+        those, the arm makes about a tenth of the spray speed on the demo roof, the tuned film comes out near
+        three times the target, and the rounds take minutes. Turn them on with your arm's real limits
+        (``[kinematics] robot_file``).
     """
 
     SECTION = "tuning"
@@ -715,7 +719,7 @@ class RefineConfig(Section):
     touch_up_rounds: int = 2
     touch_up_aim: bool = True
     touch_up_stations: int = 4
-    limit_rounds: int = 3
+    limit_rounds: int = 0
 
     def _check(self):
         check_dwell_bounds(self.min_dwell, self.max_dwell, "tuning")

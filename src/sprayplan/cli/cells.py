@@ -143,7 +143,7 @@ def add_parsers(sub, common, add_load_options) -> None:
 
 
 #: ``plan --cell`` options that belong to the gantry's plan and have no meaning in a cell of arms.
-GANTRY_ONLY = ("robot", "mode", "tour", "program", "collisions", "strict")
+GANTRY_ONLY = ("robot", "robot_file", "mode", "tour", "program", "collisions", "strict")
 
 
 def cmd_plan_robot(args, job_config) -> int:

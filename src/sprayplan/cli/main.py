@@ -448,7 +448,11 @@ def build_parser() -> argparse.ArgumentParser:
     group.add_argument("--up", choices=["z", "y", "x"])
     group.add_argument("--region")
     group = plan_cmd.add_argument_group("plan")
-    group.add_argument("--robot", help="gantry-ur5 (default) or gantry-ur5e: seed 000's gantry and its arm")
+    group.add_argument(
+        "--robot",
+        help="gantry-ur5 (default) or gantry-ur5e: seed 000's gantry and its arm; or one fixed-base arm (ur5, "
+        "ur5e, r5150, an industrial arm of `sprayplan robots`, a robot .toml) with the part in its base frame",
+    )
     group.add_argument(
         "--cell",
         help="plan a whole body in a cell of several robots: line3, sides2 (`sprayplan cells`) or a cell .toml "
