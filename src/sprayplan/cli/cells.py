@@ -213,10 +213,7 @@ def cmd_plan_cell(args, job, cell=None) -> int:
             raise ConfigError(f"--{name.replace('_', '-')}: not available with --cell (a cell of arms is planned)")
     cell = load_cell(args.cell) if cell is None else cell
     if cell.is_gantry:
-        args.cell = None
-        from sprayplan.cli.plan import cmd_plan
-
-        return cmd_plan(args)
+        raise ConfigError(f"--cell {cell.name}: the gantry cell is planned without --cell")
     inputs = [(args.part, "part"), (args.config, "-c"), (file_input(getattr(args, "cell", None)), "--cell")]
     check_folder_outputs(args.output, CELL_FILES, "-o", inputs)
     with _stage("load"):

@@ -228,9 +228,13 @@ def cmd_plan(args) -> int:
         return cmd_plan_robot(args, _job_config)
     job = _job_config(args)
     if getattr(args, "cell", None) is not None:
-        from sprayplan.cli.cells import cmd_plan_cell
+        from sprayplan.cells import load_cell
 
-        return cmd_plan_cell(args, job)
+        cell = load_cell(args.cell)
+        if not cell.is_gantry:  # the gantry cell is this job, as without --cell
+            from sprayplan.cli.cells import cmd_plan_cell
+
+            return cmd_plan_cell(args, job, cell)
     if getattr(args, "seams", None) is not None:
         raise ConfigError("--seams: only with --cell (the seams between a cell's robots and areas)")
     inputs = [(args.part, "part"), (args.config, "-c"), (file_input(job.coating.process), "--process")]
