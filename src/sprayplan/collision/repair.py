@@ -221,8 +221,12 @@ class Repairer:
 
     def candidates(self, base: np.ndarray, platform: np.ndarray, start: np.ndarray, rows: np.ndarray):
         """(repair, q9 (len(rows), 9)) for a stroke's reached waypoints ``rows``, in the order tried."""
+        radii = self.cell.reach_radii_mm
         for repair, poses in self._poses(base):
-            for q in self._branches(poses[rows], platform, start):
+            branches = self._branches(poses[rows], platform, start)
+            # nearest first: the stroke then starts where the arm is, not across a branch change
+            branches.sort(key=lambda q: float(np.abs(q[0] - start) @ radii))
+            for q in branches:
                 yield repair, np.column_stack([q, np.broadcast_to(platform, (len(q), 3))])
 
     def best(self, base, platform, start, rows, colliding):
