@@ -261,6 +261,13 @@ def test_a_stroke_whose_only_problem_is_a_motion_is_repaired_within_the_seed_tol
     assert summary["motions_repaired"] >= 1
     assert summary["motions_repaired"] == sum(summary["motions_repaired_by"].values())
     assert not fixed.motion_collision[rows[1:]].any()
+    # the motions checked again after the repair (those with a moved end) and called free are free
+    moved = np.flatnonzero((fixed.q9 != q9).any(axis=1))
+    legs = np.unique(np.concatenate([moved - 1, moved]))
+    legs = legs[(legs >= 0) & (legs + 1 < len(q9))]
+    legs = legs[~fixed.motion_collision[legs + 1]]
+    assert len(moved) and len(legs) >= len(moved)
+    assert min(dense_slack(cell, fixed.q9[[k, k + 1]]) for k in legs) >= 0
     assert not motion_hits(cell, fixed.q9[rows[:-1]], fixed.q9[rows[1:]]).any()
     assert not cell.check(fixed.q9[rows]).in_collision.any()
     assert set(fixed.repair[rows][fixed.repair[rows] != ""]) <= {"branch", "roll", "tilt"}

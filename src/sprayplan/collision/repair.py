@@ -388,13 +388,14 @@ def repair_motions(repairer: Repairer, st: StationPlan, work: _Station, motion: 
             previous = work.q9[sl][reached[-1], :6]
     return freed
 
-def flag_motions(cell: CellCollision, stations: list[_Station]) -> tuple[list[np.ndarray], int, int]:
+def flag_motions(cell: CellCollision, stations: list[_Station], known=None) -> tuple[list[np.ndarray], int, int]:
     """Per station, the waypoints whose incoming motion is in collision (module docstring); and how many
     motions were checked and how many were in collision.
 
     The motions join consecutive reachable waypoints, across stations too (the station move), and are proven
     or checked by :func:`sprayplan.collision.proof.motion_hits`. A motion that ends at a waypoint in
-    collision is in collision.
+    collision is in collision. ``known``: ``(flags, moved)``, the flags found before and per station the
+    waypoints moved since; only the motions with an end moved are checked again.
     """
     flags = [np.zeros(len(w.q9), bool) for w in stations]
     rows = [(i, j) for i, w in enumerate(stations) for j in np.flatnonzero(w.reachable)]
@@ -402,10 +403,20 @@ def flag_motions(cell: CellCollision, stations: list[_Station]) -> tuple[list[np
         return flags, 0, 0
     q9 = np.array([stations[i].q9[j] for i, j in rows])
     hit_at = np.array([stations[i].collision[j] for i, j in rows])
-    slack = end_slacks(cell, q9)
     m = len(q9) - 1
     in_collision = hit_at[:-1] | hit_at[1:]
-    index = np.flatnonzero(~in_collision)
+    todo = ~in_collision
+    if known is not None:
+        before, moved = known
+        in_collision = np.array([before[i][j] for i, j in rows[1:]])
+        at = np.array([moved[i][j] for i, j in rows])
+        todo = at[:-1] | at[1:]
+        in_collision[todo] = (hit_at[:-1] | hit_at[1:])[todo]
+        todo &= ~in_collision
+    index = np.flatnonzero(todo)
+    ends = np.unique(np.concatenate([index, index + 1]))
+    slack = np.zeros(len(q9))
+    slack[ends] = end_slacks(cell, q9[ends])
     in_collision[index] = motion_hits(cell, q9[index], q9[index + 1], slack[index], slack[index + 1])
     for k in np.flatnonzero(in_collision):
         i, j = rows[k + 1]
@@ -497,13 +508,15 @@ def collision_stage(plan: Plan, whole, job: JobConfig, gantry: Gantry, progress:
     motion_flags, _, motion_hits_before = flag_motions(cell, works)
     motions_freed = dict.fromkeys(MOTION_REPAIRS, 0)
     if config.repair:
+        was = [w.q9.copy() for w in works]
         for st, work, flags in zip(plan.stations, works, motion_flags):
             for name, count in repair_motions(repairer, st, work, flags).items():
                 motions_freed[name] += count
         if any(motions_freed.values()):
             for st, work in zip(plan.stations, works):
                 repairer.errors(work, st)
-            motion_flags, _, _ = flag_motions(cell, works)
+            moved = [(w.q9 != q).any(axis=1) for w, q in zip(works, was)]
+            motion_flags, _, _ = flag_motions(cell, works, (motion_flags, moved))
     strokes = [st.strokes for st in plan.stations]
     transfers = {"in_collision": 0, "rerouted_by": dict.fromkeys(TRANSFER_REPAIRS, 0), "flagged": 0, "end_in_collision": 0}
     if config.repair:
