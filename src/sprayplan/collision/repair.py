@@ -23,10 +23,11 @@ position and axis tolerances against the *original* poses (``[kinematics] positi
 
 Motions (:func:`flag_motions`): every motion between consecutive reached waypoints proven free in bulk or
 checked on a grid (:func:`sprayplan.collision.proof.motion_hits`). A motion in collision flags the waypoint it
-arrives at (``StationPlan.motion_collision``). Then the transfers in collision are re-routed
+arrives at (``StationPlan.motion_collision``). A spray stroke whose waypoints are all free but a motion between
+two of them is not gets the same repairs (:func:`repair_motions`). Then the transfers in collision are re-routed
 (:mod:`sprayplan.collision.transfers`: a longer retract, via poses at a safe height, a joint-space detour); a
-transfer no route frees stays flagged. Motions inside a spray stroke cannot be re-routed (the path is fixed)
-and stay flagged.
+transfer no route frees stays flagged. Motions inside a spray stroke cannot be re-routed (the path is fixed):
+what the repairs do not free stays flagged.
 """
 
 from __future__ import annotations

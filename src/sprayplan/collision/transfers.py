@@ -21,7 +21,13 @@ routes, in the order tried (:data:`~sprayplan.types.TRANSFER_REPAIRS`):
 
 A node is solved by the closed-form IK nearest the joints before it; a route is *free* when every node is
 free (``CellCollision.check``) and every leg is proven free (:func:`~sprayplan.collision.proof.motion_hits`:
-every pair at or above its gap everywhere along it). What no route frees stays as planned, flagged.
+every pair at or above its gap everywhere along it). What no route frees stays as planned, flagged. A
+transfer whose end is itself in collision cannot be freed by any route: none is tried. Each configuration
+and each leg is checked once per transfer (:class:`Checked`).
+
+The routes join ``q_a`` and ``q_b`` as they are, so where the two lie on different IK branches or whole turns
+apart (the kinematics stage or a waypoint repair chose them stroke by stroke) the retract and via routes'
+middle leg is that long joint move too, and only the search can free it.
 
 Why our own RRT-Connect: ``ompl`` 2.0.1 installs here from a 4.6 MB BSD-3 wheel (17 MB installed), but its
 Python bindings have no way to seed one search: the seed of its random numbers is global to the process and
