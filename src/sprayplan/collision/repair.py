@@ -339,7 +339,7 @@ def _raised(repairer: Repairer, st: StationPlan, work: _Station, config: Collisi
 
 
 
-def repair_motions(repairer: Repairer, st: StationPlan, work: _Station, motion: np.ndarray) -> dict:
+def repair_motions(repairer: Repairer, st: StationPlan, work: _Station, motion: np.ndarray, q_prev=None, next_move=None) -> dict:
     """The waypoint repairs for the spray strokes of a station whose waypoints are all free but a motion
     between two of them is in collision (``motion``: the station's motion flags, :func:`flag_motions`);
     ``work`` changed in place. Returns how many such motions were freed, by repair.
@@ -347,7 +347,8 @@ def repair_motions(repairer: Repairer, st: StationPlan, work: _Station, motion: 
     A candidate (another branch, a roll, a tilt: the stroke's poses within the seed's tolerances, as
     :meth:`Repairer.repair_stroke` keeps them) is kept when its waypoints are free, every motion between them
     is proven free, and the motions into and out of the stroke (from the last reached waypoint before it, to
-    the first after it) flag fewer motions in all than before. The waypoints the freed motions arrive at take
+    the first after it; across the station moves, ``q_prev`` the last reached joints of the station before and
+    ``next_move`` the first of the one after with its motion flag) flag fewer motions in all than before. The waypoints the freed motions arrive at take
     the repair's name (``StationPlan.repair``), marked as motion repairs (``_Station.motion_repaired``) where
     they had none; the stroke's waypoints a branch, roll or tilt freed before take the new one's name."""
     freed = dict.fromkeys(MOTION_REPAIRS, 0)
@@ -360,9 +361,9 @@ def repair_motions(repairer: Repairer, st: StationPlan, work: _Station, motion: 
         if stroke.spray_on and len(inner) and not work.collision[index].any():
             before = rows[rows < index[0]]
             after = rows[rows > index[-1]]
-            q_in = work.q9[before[-1]] if len(before) else None
-            q_out = work.q9[after[0]] if len(after) else None
-            flagged = len(inner) + int(q_in is not None and motion[index[0]]) + int(q_out is not None and motion[after[0]])
+            q_in = work.q9[before[-1]] if len(before) else q_prev
+            q_out, out_flag = (work.q9[after[0]], motion[after[0]]) if len(after) else (next_move or (None, False))
+            flagged = len(inner) + int(q_in is not None and motion[index[0]]) + int(q_out is not None and out_flag)
 
             def keep(q9, checks, q_in=q_in, q_out=q_out, flagged=flagged):
                 if motion_hits(repairer.cell, q9[:-1], q9[1:], checks.slack_mm[:-1], checks.slack_mm[1:]).any():
@@ -510,8 +511,12 @@ def collision_stage(plan: Plan, whole, job: JobConfig, gantry: Gantry, progress:
     motions_freed = dict.fromkeys(MOTION_REPAIRS, 0)
     if config.repair:
         was = [w.q9.copy() for w in works]
-        for st, work, flags in zip(plan.stations, works, motion_flags):
-            for name, count in repair_motions(repairer, st, work, flags).items():
+        firsts = [np.flatnonzero(w.reachable)[:1] for w in works]
+        for i, (st, work, flags) in enumerate(zip(plan.stations, works, motion_flags)):
+            earlier = [w.q9[np.flatnonzero(w.reachable)[-1]] for w in works[:i] if w.reachable.any()]
+            later = [(w.q9[f[0]], bool(m[f[0]])) for w, f, m in zip(works[i + 1 :], firsts[i + 1 :], motion_flags[i + 1 :]) if len(f)]
+            found = repair_motions(repairer, st, work, flags, earlier[-1] if earlier else None, later[0] if later else None)
+            for name, count in found.items():
                 motions_freed[name] += count
         if any(motions_freed.values()):
             for st, work in zip(plan.stations, works):
