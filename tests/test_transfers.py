@@ -97,7 +97,9 @@ def run(plan, gantry, height_mm, x_mm=0.0, **collision):
     return whole, job, after, summary
 
 
-@pytest.mark.parametrize("height_mm, settings, kind", [(150.0, {}, "retract"), (260.0, {"retract_mm": [50.0], "via_height_mm": 20.0}, "via")])
+@pytest.mark.parametrize(
+    "height_mm, settings, kind", [(150.0, {}, "retract"), (260.0, {"retract_mm": [50.0], "via_height_mm": 20.0}, "via")]
+)
 def test_a_colliding_transfer_is_rerouted_and_its_route_is_free_when_checked_densely(
     plan, gantry, height_mm, settings, kind
 ):
@@ -216,7 +218,7 @@ def test_a_rerouted_transfer_leaves_the_rest_of_its_station_as_it_was(gantry):
     a, b = line_stroke(-250.0, -150.0), line_stroke(150.0, 250.0).with_dwell(np.linspace(1.0, 2.0, 11))
     c = line_stroke(250.0, 150.0, y=120.0)
     plan = one_station(gantry, (a, transfer(a, b, job.paths), b, transfer(b, c, job.paths), c))
-    whole, job, after, summary = run(plan, gantry, 150.0)
+    _, _, after, summary = run(plan, gantry, 150.0)
     before, st = plan.stations[0], after.stations[0]
     assert summary["transfers_rerouted"] == 1 and summary["transfers_in_collision"] == 1
     assert st.strokes[0] is before.strokes[0] and all(x is y for x, y in zip(st.strokes[2:], before.strokes[2:]))
@@ -246,12 +248,12 @@ def test_a_stroke_whose_only_problem_is_a_motion_is_repaired_within_the_seed_tol
     rows = np.arange(len(st) - len(b), len(st))
     q9 = np.array(st.q9)
     repairer = Repairer(cell, gantry, job.kinematics, job.collision)
-    others = [q for kind, q in repairer.candidates(stroke_poses(b), st.platform_mm, q9[rows[0], :6], np.arange(len(b)))
-              if kind == "branch"]
-    switch = next(
-        q for q in others
-        if not cell.check(q).in_collision.any() and motion_hits(cell, q9[rows[5]], q[6])[0]
-    )
+    others = [
+        q
+        for kind, q in repairer.candidates(stroke_poses(b), st.platform_mm, q9[rows[0], :6], np.arange(len(b)))
+        if kind == "branch"
+    ]
+    switch = next(q for q in others if not cell.check(q).in_collision.any() and motion_hits(cell, q9[rows[5]], q[6])[0])
     q9[rows[6:]] = switch[6:]
     broken = Plan((dataclasses.replace(st, q9=q9),), plan.home_mm, plan.unassigned)
     assert not cell.check(q9[rows]).in_collision.any()

@@ -41,6 +41,7 @@ import numpy as np
 
 from sprayplan.collision.cell import CellCollision
 from sprayplan.collision.proof import MOTION_MARGIN_MM, end_slacks, motion_hits
+from sprayplan.collision.transfers import Router, route_stroke
 from sprayplan.config import CollisionConfig, JobConfig, KinematicsConfig
 from sprayplan.errors import InputError
 from sprayplan.progress import Progress, counted
@@ -49,7 +50,6 @@ from sprayplan.robots.model import TAU
 from sprayplan.robots.stage import HOME_JOINTS
 from sprayplan.robots.ur_ik import ur_ik
 from sprayplan.surface.poses import stroke_poses
-from sprayplan.collision.transfers import Router, route_stroke
 from sprayplan.types import TRANSFER_REPAIRS, WAYPOINT_REPAIRS, Plan, StationPlan
 
 log = logging.getLogger(__name__)
@@ -149,7 +149,9 @@ class _Station:
     def spliced(self, sl: slice, rows: _Station) -> _Station:
         """This station's arrays with the rows ``sl`` replaced by ``rows``'s (the platform kept)."""
         out = {
-            f.name: np.concatenate([getattr(self, f.name)[: sl.start], getattr(rows, f.name), getattr(self, f.name)[sl.stop :]])
+            f.name: np.concatenate(
+                [getattr(self, f.name)[: sl.start], getattr(rows, f.name), getattr(self, f.name)[sl.stop :]]
+            )
             for f in dataclasses.fields(self)
             if f.name != "platform"
         }
@@ -338,8 +340,9 @@ def _raised(repairer: Repairer, st: StationPlan, work: _Station, config: Collisi
     return best
 
 
-
-def repair_motions(repairer: Repairer, st: StationPlan, work: _Station, motion: np.ndarray, q_prev=None, next_move=None) -> dict:
+def repair_motions(
+    repairer: Repairer, st: StationPlan, work: _Station, motion: np.ndarray, q_prev=None, next_move=None
+) -> dict:
     """The waypoint repairs for the spray strokes of a station whose waypoints are all free but a motion
     between two of them is in collision (``motion``: the station's motion flags, :func:`flag_motions`);
     ``work`` changed in place. Returns how many such motions were freed, by repair.
@@ -390,6 +393,7 @@ def repair_motions(repairer: Repairer, st: StationPlan, work: _Station, motion: 
             previous = work.q9[sl][reached[-1], :6]
     return freed
 
+
 def flag_motions(cell: CellCollision, stations: list[_Station], known=None) -> tuple[list[np.ndarray], int, int]:
     """Per station, the waypoints whose incoming motion is in collision (module docstring); and how many
     motions were checked and how many were in collision.
@@ -426,7 +430,9 @@ def flag_motions(cell: CellCollision, stations: list[_Station], known=None) -> t
     return flags, m, int(in_collision.sum())
 
 
-def _reroute(router: Router, repairer: Repairer, st: StationPlan, work: _Station, motion: np.ndarray, job, place, counts):
+def _reroute(
+    router: Router, repairer: Repairer, st: StationPlan, work: _Station, motion: np.ndarray, job, place, counts
+):
     """A station's transfers in collision re-routed (``collision.transfers``): returns its strokes, its
     arrays and its motion flags with every route found in place of its transfer; ``counts`` updated.
 
@@ -514,8 +520,14 @@ def collision_stage(plan: Plan, whole, job: JobConfig, gantry: Gantry, progress:
         firsts = [np.flatnonzero(w.reachable)[:1] for w in works]
         for i, (st, work, flags) in enumerate(zip(plan.stations, works, motion_flags)):
             earlier = [w.q9[np.flatnonzero(w.reachable)[-1]] for w in works[:i] if w.reachable.any()]
-            later = [(w.q9[f[0]], bool(m[f[0]])) for w, f, m in zip(works[i + 1 :], firsts[i + 1 :], motion_flags[i + 1 :]) if len(f)]
-            found = repair_motions(repairer, st, work, flags, earlier[-1] if earlier else None, later[0] if later else None)
+            later = [
+                (w.q9[f[0]], bool(m[f[0]]))
+                for w, f, m in zip(works[i + 1 :], firsts[i + 1 :], motion_flags[i + 1 :])
+                if len(f)
+            ]
+            found = repair_motions(
+                repairer, st, work, flags, earlier[-1] if earlier else None, later[0] if later else None
+            )
             for name, count in found.items():
                 motions_freed[name] += count
         if any(motions_freed.values()):
@@ -524,7 +536,12 @@ def collision_stage(plan: Plan, whole, job: JobConfig, gantry: Gantry, progress:
             moved = [(w.q9 != q).any(axis=1) for w, q in zip(works, was)]
             motion_flags, _, _ = flag_motions(cell, works, (motion_flags, moved))
     strokes = [st.strokes for st in plan.stations]
-    transfers = {"in_collision": 0, "rerouted_by": dict.fromkeys(TRANSFER_REPAIRS, 0), "flagged": 0, "end_in_collision": 0}
+    transfers = {
+        "in_collision": 0,
+        "rerouted_by": dict.fromkeys(TRANSFER_REPAIRS, 0),
+        "flagged": 0,
+        "end_in_collision": 0,
+    }
     if config.repair:
         router = Router(cell, whole)
         for place, st in enumerate(plan.stations):

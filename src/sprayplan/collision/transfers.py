@@ -381,4 +381,3 @@ def route_stroke(gantry, q_a: np.ndarray, nodes: np.ndarray, q_b: np.ndarray, st
 def is_route(repair: np.ndarray) -> bool:
     """A transfer's waypoints (their ``StationPlan.repair``) are a route the collision stage made."""
     return bool(np.isin(np.asarray(repair, dtype=object), TRANSFER_REPAIRS).any())
-
