@@ -179,7 +179,7 @@ def test_what_no_route_frees_stays_flagged(plan, gantry):
     # a post up to the gantry; the waypoint repairs' raised station, the vias (tried and found in collision
     # in test_the_first_free_route_is_kept_in_order) and the search kept short (time)
     settings = {"platform_raise_mm": 0.0, "retract_mm": [200.0], "via_height_mm": None, "detour_iterations": 5}
-    whole, job, after, summary = run(plan, gantry, 2000.0, **settings)
+    _, _, after, summary = run(plan, gantry, 2000.0, **settings)
     st = after.stations[0]
     assert summary["transfers_in_collision"] == 1 and summary["transfers_flagged"] == 1
     assert summary["transfers_rerouted"] == 0
