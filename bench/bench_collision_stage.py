@@ -3,7 +3,8 @@ repaired and left flagged; the transfers in collision, re-routed by kind and lef
 flagged before and after the transfers were re-routed (docs/benchmarks.md, "The collision stage").
 
 With ``--transfers`` each plan is also run with the transfer routes off (``retract_mm = []``,
-``via_height_mm`` none, ``detour`` false), so that the routes' cost is the difference of the two medians.
+``via_height_mm`` none, ``detour`` false), so that the routes' cost is the difference of the two medians;
+"motions flagged before" counts them after the waypoint repairs, before the motion repairs and the routes.
 
 Each part is planned to the ``refine`` stage once (no film target, so no tuning), then the collision stage is
 timed ``--runs`` times on that plan (median). Parts: the demo roof (``z > 1000``), the reach part
@@ -76,10 +77,11 @@ def main(argv=None) -> int:
 def transfer_table(args) -> int:
     off = {"retract_mm": [], "via_height_mm": None, "detour": False}
     print(
-        "| part | transfers in collision | re-routed (retract/via/detour) | transfers flagged | motions flagged "
-        "before / after | stage s, routes off | stage s, routes on (median) |"
+        "| part | transfers in collision | of them with an end in collision | re-routed (retract/via/detour) | "
+        "transfers flagged | motions flagged before / after | motions repaired in strokes | stage s, routes off | "
+        "stage s, routes on (median) |"
     )
-    print("|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|")
     for name, source, job in cases(args.large):
         if args.only and not name.startswith(args.only):
             continue
@@ -94,9 +96,10 @@ def transfer_table(args) -> int:
                 times[label].append(time.perf_counter() - began)
         by = summary["transfers_rerouted_by"]
         print(
-            f"| {name} | {summary['transfers_in_collision']} | {summary['transfers_rerouted']} "
-            f"({by['retract']}/{by['via']}/{by['detour']}) | {summary['transfers_flagged']} | "
-            f"{summary['flagged_motions_before_reroute']} / {summary['flagged_motions']} | "
+            f"| {name} | {summary['transfers_in_collision']} | {summary['transfers_end_in_collision']} | "
+            f"{summary['transfers_rerouted']} ({by['retract']}/{by['via']}/{by['detour']}) | "
+            f"{summary['transfers_flagged']} | {summary['flagged_motions_before_reroute']} / "
+            f"{summary['flagged_motions']} | {summary['motions_repaired']} | "
             f"{statistics.median(times['off']):.1f} | {statistics.median(times['on']):.1f} |",
             flush=True,
         )

@@ -3,19 +3,27 @@ cell where the straight transfer between two spray strokes runs through a post s
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 pytest.importorskip("coal")
 
+from sprayplan.collision import transfers
 from sprayplan.collision.cell import CellCollision
-from sprayplan.collision.repair import collision_stage
+from sprayplan.collision.proof import motion_hits
+from sprayplan.collision.repair import Repairer, collision_stage
 from sprayplan.collision.transfers import Router, rrt_connect
 from sprayplan.config import JobConfig
 from sprayplan.paths.planner import transfer
 from sprayplan.robots.gantry import build_gantry
 from sprayplan.robots.stage import solve_strokes, station_plan
+from sprayplan.surface.poses import stroke_poses
 from sprayplan.types import TRANSFER_REPAIRS, Part, Plan, Stroke
+
+#: The transfer routes off (the waypoint repairs alone).
+NO_ROUTES = {"retract_mm": [], "via_height_mm": None, "detour": False}
 
 #: The gantry raised above the height the stations stage would give, so that the arm has room over the plate.
 RAISE_MM = 450.0
@@ -30,14 +38,15 @@ def box(lo, hi):
     return v, BOX_FACES
 
 
-def plate_with_post(height_mm: float) -> Part:
-    """An 800 x 500 mm plate (top at z = 0) with a 30 x 60 mm post of the given height at its centre."""
-    (v1, f1), (v2, f2) = box([-400, -250, -20], [400, 250, 0]), box([-15, -30, 0], [15, 30, height_mm])
+def plate_with_post(height_mm: float, x_mm: float = 0.0) -> Part:
+    """An 800 x 500 mm plate (top at z = 0) with a 30 x 60 mm post of the given height at ``(x_mm, 0)``."""
+    (v1, f1) = box([-400, -250, -20], [400, 250, 0])
+    (v2, f2) = box([x_mm - 15, -30, 0], [x_mm + 15, 30, height_mm])
     return Part(np.vstack([v1, v2]), np.vstack([f1, f2 + 8]), name=f"plate, post {height_mm:g} mm")
 
 
-def line_stroke(x0: float, x1: float) -> Stroke:
-    points = np.column_stack([np.linspace(x0, x1, 11), np.zeros(11), np.zeros(11)])
+def line_stroke(x0: float, x1: float, y: float = 0.0) -> Stroke:
+    points = np.column_stack([np.linspace(x0, x1, 11), np.full(11, y), np.zeros(11)])
     normals = np.tile([0.0, 0.0, 1.0], (11, 1))
     return Stroke(points, normals, points + 113.0 * normals, True, np.ones(11, bool), 0)
 
@@ -47,16 +56,19 @@ def gantry():
     return build_gantry("ur5")
 
 
-@pytest.fixture(scope="module")
-def plan(gantry):
-    """One station: a stroke left of the post, the straight transfer over the plate, a stroke right of it."""
+def one_station(gantry, strokes) -> Plan:
     job = JobConfig()
-    a, b = line_stroke(-250.0, -150.0), line_stroke(150.0, 250.0)
-    strokes = (a, transfer(a, b, job.paths), b)
     platform = gantry.platform_for(np.vstack([s.points for s in strokes])) + [0.0, 0.0, RAISE_MM]
     st = station_plan(0, platform, strokes, solve_strokes(gantry, strokes, platform, job.kinematics))
     assert st.reachable.all()
     return Plan((st,), platform, np.zeros((0, 3)))
+
+
+@pytest.fixture(scope="module")
+def plan(gantry):
+    """One station: a stroke left of the post, the straight transfer over the plate, a stroke right of it."""
+    a, b = line_stroke(-250.0, -150.0), line_stroke(150.0, 250.0)
+    return one_station(gantry, (a, transfer(a, b, JobConfig().paths), b))
 
 
 def dense_slack(cell: CellCollision, chain: np.ndarray, spacing_mm: float = 2.0) -> float:
@@ -78,14 +90,16 @@ def ends(st):
     return st.q9[len(st.strokes[0]) - 1], st.q9[len(st) - len(st.strokes[-1])]
 
 
-def run(plan, gantry, height_mm, **collision):
-    whole = plate_with_post(height_mm)
+def run(plan, gantry, height_mm, x_mm=0.0, **collision):
+    whole = plate_with_post(height_mm, x_mm)
     job = JobConfig().replace(collision=collision) if collision else JobConfig()
     after, summary = collision_stage(plan, whole, job, gantry)
     return whole, job, after, summary
 
 
-@pytest.mark.parametrize("height_mm, settings, kind", [(150.0, {}, "retract"), (260.0, {"retract_mm": [50.0], "via_height_mm": 20.0}, "via")])
+@pytest.mark.parametrize(
+    "height_mm, settings, kind", [(150.0, {}, "retract"), (260.0, {"retract_mm": [50.0], "via_height_mm": 20.0}, "via")]
+)
 def test_a_colliding_transfer_is_rerouted_and_its_route_is_free_when_checked_densely(
     plan, gantry, height_mm, settings, kind
 ):
@@ -162,9 +176,10 @@ def test_the_stage_with_a_detour_repeats(plan, gantry, detoured):
 
 
 def test_what_no_route_frees_stays_flagged(plan, gantry):
-    # a post up to the gantry; the waypoint repairs' raised station and the search kept short (time)
-    settings = {"platform_raise_mm": 0.0, "retract_mm": [200.0], "detour_iterations": 5}
-    whole, job, after, summary = run(plan, gantry, 2000.0, **settings)
+    # a post up to the gantry; the waypoint repairs' raised station, the vias (tried and found in collision
+    # in test_the_first_free_route_is_kept_in_order) and the search kept short (time)
+    settings = {"platform_raise_mm": 0.0, "retract_mm": [200.0], "via_height_mm": None, "detour_iterations": 5}
+    _, _, after, summary = run(plan, gantry, 2000.0, **settings)
     st = after.stations[0]
     assert summary["transfers_in_collision"] == 1 and summary["transfers_flagged"] == 1
     assert summary["transfers_rerouted"] == 0
@@ -172,3 +187,93 @@ def test_what_no_route_frees_stays_flagged(plan, gantry):
     assert not set(st.repair) & set(TRANSFER_REPAIRS)
     assert (st.collision | st.motion_collision)[transfer_rows(st)].any()
     assert summary["flagged_motions"] == int(st.motion_collision.sum()) > 0
+
+
+def test_a_transfer_whose_end_is_in_collision_is_flagged_without_a_search(gantry, monkeypatch):
+    # a post under the end of the first stroke: its last waypoints stay in collision, so no route can help
+    a, b = line_stroke(-250.0, -150.0), line_stroke(150.0, 250.0)
+    plan = one_station(gantry, (a, transfer(a, b, JobConfig().paths), b))
+
+    def no_search(*args, **kwargs):
+        raise AssertionError("searched for a detour from a waypoint in collision")
+
+    monkeypatch.setattr(transfers, "rrt_connect", no_search)
+    settings = {"platform_raise_mm": 0.0, "retract_mm": [50.0], "via_height_mm": None}
+    whole, job, after, summary = run(plan, gantry, 300.0, **settings, x_mm=-150.0)
+    st = after.stations[0]
+    assert st.collision[len(a) - 1]
+    assert summary["transfers_in_collision"] == 1 and summary["transfers_end_in_collision"] == 1
+    assert summary["transfers_flagged"] == 1 and summary["transfers_rerouted"] == 0
+    assert [len(s) for s in st.strokes] == [len(s) for s in plan.stations[0].strokes]
+    # the router itself gives up at once on an end in collision
+    cell = CellCollision(gantry, whole, job.collision)
+    q_a, q_b = ends(st)
+    assert cell.check(q_a).in_collision[0]
+    assert Router(cell, whole).route(q_a, q_b) is None
+
+
+def test_a_rerouted_transfer_leaves_the_rest_of_its_station_as_it_was(gantry):
+    # a, a transfer over the post (re-routed), b, a transfer clear of it, c; b's speeds tuned (dwell)
+    job = JobConfig()
+    a, b = line_stroke(-250.0, -150.0), line_stroke(150.0, 250.0).with_dwell(np.linspace(1.0, 2.0, 11))
+    c = line_stroke(250.0, 150.0, y=120.0)
+    plan = one_station(gantry, (a, transfer(a, b, job.paths), b, transfer(b, c, job.paths), c))
+    _, _, after, summary = run(plan, gantry, 150.0)
+    before, st = plan.stations[0], after.stations[0]
+    assert summary["transfers_rerouted"] == 1 and summary["transfers_in_collision"] == 1
+    assert st.strokes[0] is before.strokes[0] and all(x is y for x, y in zip(st.strokes[2:], before.strokes[2:]))
+    assert np.array_equal(st.strokes[2].dwell, b.dwell)
+    # rows after the route: shifted by its change of length, otherwise as planned unless a waypoint repair
+    # changed them (their pose errors then measured again, against the same poses)
+    shift = len(st.strokes[1]) - len(before.strokes[1])
+    start = len(a) + len(before.strokes[1])
+    old, new = np.arange(len(a)), np.arange(len(a))
+    old, new = np.r_[old, np.arange(start, len(before))], np.r_[new, np.arange(start, len(before)) + shift]
+    assert len(st) == len(before) + shift
+    kept = st.repair[new] == ""
+    assert kept.sum() >= len(c) + len(before.strokes[3])
+    for name in ("q9", "position_error_mm", "axis_error_deg", "reachable", "method", "branch_change"):
+        assert np.array_equal(getattr(st, name)[new][kept], getattr(before, name)[old][kept]), name
+    assert np.isfinite(st.position_error_mm[st.reachable]).all()
+
+
+def test_a_stroke_whose_only_problem_is_a_motion_is_repaired_within_the_seed_tolerance(plan, gantry):
+    # the last stroke's waypoints all free, but its second half on another branch: the switch between two
+    # waypoints sweeps the arm through the cell
+    job = JobConfig().replace(collision=NO_ROUTES)
+    whole = plate_with_post(150.0)
+    cell = CellCollision(gantry, whole, job.collision)
+    st = plan.stations[0]
+    b = st.strokes[2]
+    rows = np.arange(len(st) - len(b), len(st))
+    q9 = np.array(st.q9)
+    repairer = Repairer(cell, gantry, job.kinematics, job.collision)
+    others = [
+        q
+        for kind, q in repairer.candidates(stroke_poses(b), st.platform_mm, q9[rows[0], :6], np.arange(len(b)))
+        if kind == "branch"
+    ]
+    switch = next(q for q in others if not cell.check(q).in_collision.any() and motion_hits(cell, q9[rows[5]], q[6])[0])
+    q9[rows[6:]] = switch[6:]
+    broken = Plan((dataclasses.replace(st, q9=q9),), plan.home_mm, plan.unassigned)
+    assert not cell.check(q9[rows]).in_collision.any()
+    after, summary = collision_stage(broken, whole, job, gantry)
+    fixed = after.stations[0]
+    assert summary["flagged_motions_before_reroute"] >= 1
+    assert summary["motions_repaired"] >= 1
+    assert summary["motions_repaired"] == sum(summary["motions_repaired_by"].values())
+    assert not fixed.motion_collision[rows[1:]].any()
+    # the motions checked again after the repair (those with a moved end) and called free are free
+    moved = np.flatnonzero((fixed.q9 != q9).any(axis=1))
+    legs = np.unique(np.concatenate([moved - 1, moved]))
+    legs = legs[(legs >= 0) & (legs + 1 < len(q9))]
+    legs = legs[~fixed.motion_collision[legs + 1]]
+    assert len(moved) and len(legs) >= len(moved)
+    assert min(dense_slack(cell, fixed.q9[[k, k + 1]]) for k in legs) >= 0
+    assert not motion_hits(cell, fixed.q9[rows[:-1]], fixed.q9[rows[1:]]).any()
+    assert not cell.check(fixed.q9[rows]).in_collision.any()
+    assert set(fixed.repair[rows][fixed.repair[rows] != ""]) <= {"branch", "roll", "tilt"}
+    assert fixed.repair[rows[6]] != ""
+    # the stroke's poses still within the seed's tolerances
+    assert (fixed.position_error_mm[rows] <= job.kinematics.position_tol_mm).all()
+    assert (fixed.axis_error_deg[rows] <= job.kinematics.axis_tol_deg).all()

@@ -780,7 +780,9 @@ class CollisionConfig(Section):
     detour : bool
         Then a joint-space detour: the straight joint move, then a seeded RRT-Connect search.
     detour_iterations : int
-        The RRT-Connect search's iterations per transfer (each grows one tree once and tries to join the other).
+        The RRT-Connect search's iterations per transfer (each grows one tree once and tries to join the other):
+        the cap on its cost, about 30 ms an iteration on the reach part under load (docs/benchmarks.md, "Transfers
+        re-routed"). No search is made for a transfer whose end is in collision.
     seed : int
         Random seed of the RRT-Connect search.
     """

@@ -349,8 +349,8 @@ class StationPlan:
     collision_with : (n,) str
         That pair, ``"elbow/part"``; empty where not checked.
     repair : (n,) str
-        How a waypoint found in collision was freed: ``branch``, ``roll``, ``tilt`` or ``platform``
-        (:data:`WAYPOINT_REPAIRS`); on a transfer the collision stage re-routed, the route's kind on each of its
+        How a waypoint found in collision, or the motion into it inside a spray stroke, was freed: ``branch``,
+        ``roll``, ``tilt`` or ``platform`` (:data:`WAYPOINT_REPAIRS`); on a transfer the collision stage re-routed, the route's kind on each of its
         waypoints: ``retract``, ``via`` or ``detour`` (:data:`TRANSFER_REPAIRS`); empty where nothing was
         repaired.
     """

@@ -117,6 +117,8 @@ def summary_line(result, outdir) -> str:
             f"flagged, {collisions['repaired']} of {collisions['in_collision_before_repair']} repaired "
             f"(clearance {collisions['clearance_mm']:g} mm)"
         )
+        if collisions.get("motions_repaired"):
+            line += f"; {collisions['motions_repaired']} motions in strokes repaired"
         if collisions.get("transfers_in_collision"):
             line += (
                 f"; transfers: {collisions['transfers_rerouted']} of {collisions['transfers_in_collision']} "

@@ -19,6 +19,10 @@ from sprayplan.collision.motion import motion_bound_mm
 MOTION_MARGIN_MM = 100.0
 #: Bisections of the motions not proven at once, before the rest are walked on a grid.
 BISECTIONS = 4
+#: When the grid of every motion still open has at most this many configurations, it is checked at once instead
+#: of bisected further: a check costs about as much for one configuration as for a few dozen (docs/benchmarks.md,
+#: "Transfers re-routed").
+GRID_AT_ONCE = 64
 
 
 def end_slacks(cell, q9) -> np.ndarray:
@@ -31,8 +35,9 @@ def motion_hits(cell, q_a, q_b, slack_a=None, slack_b=None) -> np.ndarray:
     """(m,) bool: which of the joint-interpolated motions ``q_a[i] -> q_b[i]`` (each (m, 9)) are in collision.
 
     A motion is proven free when ``(S_a + S_b - B) / 2 >= 0``; the rest are split at their middle (the halves'
-    bounds are ``B / 2``) up to :data:`BISECTIONS` times, all midpoints of a level checked in one call; what is
-    still unproven is checked on a grid of ``ceil(B / motion_step_mm)`` steps (``collision.motion``'s fixed
+    bounds are ``B / 2``) up to :data:`BISECTIONS` times (or until the grid below would have at most
+    :data:`GRID_AT_ONCE` configurations), all midpoints of a level checked in one call; what is still unproven
+    is checked on a grid of ``ceil(B / motion_step_mm)`` steps (``collision.motion``'s fixed
     grid: a configuration between two checks is within half a step of one, so each check must keep half a
     step over its gaps), all in one call. A motion free by this keeps every pair at or above its gap
     everywhere. An end in collision makes the motion in collision. ``slack_a``, ``slack_b``: the ends'
@@ -51,10 +56,13 @@ def motion_hits(cell, q_a, q_b, slack_a=None, slack_b=None) -> np.ndarray:
     a_slack, b_slack = slack_a[index], slack_b[index]
     total = motion_bound_mm(q_a[index], q_b[index], cell.reach_radii_mm) if len(index) else np.zeros(0)
     open_ = np.zeros(len(index), bool)
+    step = cell.config.motion_step_mm
     for level in range(BISECTIONS + 1):
         bound = total * (s1 - s0)
         open_ = (a_slack + b_slack - bound) / 2.0 < 0
         if not open_.any() or level == BISECTIONS:
+            break
+        if np.maximum(1, np.ceil(bound[open_] / step - 1e-12)).sum() + open_.sum() <= GRID_AT_ONCE:
             break
         index, s0, s1, a_slack, b_slack, total = (v[open_] for v in (index, s0, s1, a_slack, b_slack, total))
         mid = (s0 + s1) / 2.0
@@ -67,7 +75,6 @@ def motion_hits(cell, q_a, q_b, slack_a=None, slack_b=None) -> np.ndarray:
     # what is still open: every piece checked on a grid at most motion_step_mm of bound apart, all at once,
     # each check against its gaps plus half a step (every configuration between is within half a step of one)
     index, s0, s1, total = index[open_], s0[open_], s1[open_], total[open_]
-    step = cell.config.motion_step_mm
     counts = np.maximum(1, np.ceil(total * (s1 - s0) / step - 1e-12)).astype(int)
     owner = np.repeat(np.arange(len(index)), counts + 1)
     within = np.arange(len(owner)) - np.repeat(np.cumsum(counts + 1) - (counts + 1), counts + 1)

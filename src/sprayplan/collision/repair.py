@@ -23,10 +23,11 @@ position and axis tolerances against the *original* poses (``[kinematics] positi
 
 Motions (:func:`flag_motions`): every motion between consecutive reached waypoints proven free in bulk or
 checked on a grid (:func:`sprayplan.collision.proof.motion_hits`). A motion in collision flags the waypoint it
-arrives at (``StationPlan.motion_collision``). Then the transfers in collision are re-routed
+arrives at (``StationPlan.motion_collision``). A spray stroke whose waypoints are all free but a motion between
+two of them is not gets the same repairs (:func:`repair_motions`). Then the transfers in collision are re-routed
 (:mod:`sprayplan.collision.transfers`: a longer retract, via poses at a safe height, a joint-space detour); a
-transfer no route frees stays flagged. Motions inside a spray stroke cannot be re-routed (the path is fixed)
-and stay flagged.
+transfer no route frees stays flagged. Motions inside a spray stroke cannot be re-routed (the path is fixed):
+what the repairs do not free stays flagged.
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from sprayplan.collision.cell import CellCollision
-from sprayplan.collision.proof import end_slacks, motion_hits
+from sprayplan.collision.proof import MOTION_MARGIN_MM, end_slacks, motion_hits
 from sprayplan.collision.transfers import Router, route_stroke
 from sprayplan.config import CollisionConfig, JobConfig, KinematicsConfig
 from sprayplan.errors import InputError
@@ -56,6 +57,9 @@ log = logging.getLogger(__name__)
 #: The waypoint repairs, in the order they are tried (``types.WAYPOINT_REPAIRS``; transfers are re-routed
 #: after them, ``collision.transfers``).
 REPAIRS = WAYPOINT_REPAIRS
+#: The repairs of a stroke in place, also tried for a spray stroke whose only problem is a motion
+#: (:func:`repair_motions`).
+MOTION_REPAIRS = ("branch", "roll", "tilt")
 #: The rolls about the gun axis tried, degrees.
 ROLLS_DEG = (90.0, -90.0, 180.0, 45.0, -45.0, 135.0, -135.0)
 #: How many of a stroke's colliding waypoints a candidate is checked at before the whole stroke.
@@ -102,6 +106,7 @@ class _Station:
     slack: np.ndarray
     repair: np.ndarray
     changed: np.ndarray
+    motion_repaired: np.ndarray
 
     @classmethod
     def of(cls, st: StationPlan) -> _Station:
@@ -119,6 +124,7 @@ class _Station:
             np.full(n, "", dtype=object),
             np.full(n, np.inf),
             np.full(n, "", dtype=object),
+            np.zeros(n, bool),
             np.zeros(n, bool),
         )
 
@@ -143,7 +149,9 @@ class _Station:
     def spliced(self, sl: slice, rows: _Station) -> _Station:
         """This station's arrays with the rows ``sl`` replaced by ``rows``'s (the platform kept)."""
         out = {
-            f.name: np.concatenate([getattr(self, f.name)[: sl.start], getattr(rows, f.name), getattr(self, f.name)[sl.stop :]])
+            f.name: np.concatenate(
+                [getattr(self, f.name)[: sl.start], getattr(rows, f.name), getattr(self, f.name)[sl.stop :]]
+            )
             for f in dataclasses.fields(self)
             if f.name != "platform"
         }
@@ -221,16 +229,22 @@ class Repairer:
 
     def candidates(self, base: np.ndarray, platform: np.ndarray, start: np.ndarray, rows: np.ndarray):
         """(repair, q9 (len(rows), 9)) for a stroke's reached waypoints ``rows``, in the order tried."""
+        radii = self.cell.reach_radii_mm
         for repair, poses in self._poses(base):
-            for q in self._branches(poses[rows], platform, start):
+            branches = self._branches(poses[rows], platform, start)
+            # nearest first: the stroke then starts where the arm is, not across a branch change
+            branches.sort(key=lambda q: float(np.abs(q[0] - start) @ radii))
+            for q in branches:
                 yield repair, np.column_stack([q, np.broadcast_to(platform, (len(q), 3))])
 
-    def best(self, base, platform, start, rows, colliding):
+    def best(self, base, platform, start, rows, colliding, keep=None):
         """The first candidate free at every row, as ``(repair, q9, checks)``; else None.
 
         All candidates are checked together at a few of the ``colliding`` rows (indices into ``rows``), the
         survivors together at :data:`SPREAD` rows spread along the stroke, and only those left at every row, in
-        the order tried, until one is free."""
+        the order tried, until one is free. ``keep``: a further test ``(q9, checks) -> bool`` a candidate free
+        at every row must pass (its checks then exact within the motions' margin,
+        :data:`~sprayplan.collision.proof.MOTION_MARGIN_MM`, as the motions' proof needs them)."""
         found = list(self.candidates(base, platform, start, rows))
         n = len(rows)
         quick = colliding[np.linspace(0, len(colliding) - 1, min(QUICK, len(colliding))).astype(int)]
@@ -241,9 +255,10 @@ class Repairer:
             checks = self.cell.check(np.concatenate([q9[sample] for _, q9 in found]))
             hit = checks.in_collision.reshape(len(found), len(sample)).any(axis=1)
             found = [c for c, h in zip(found, hit) if not h]
+        margin = None if keep is None else MOTION_MARGIN_MM
         for repair, q9 in found:
-            checks = self.cell.check(q9)
-            if not checks.in_collision.any():
+            checks = self.cell.check(q9, margin_mm=margin)
+            if not checks.in_collision.any() and (keep is None or keep(q9, checks)):
                 return repair, q9, checks
         return None
 
@@ -325,13 +340,68 @@ def _raised(repairer: Repairer, st: StationPlan, work: _Station, config: Collisi
     return best
 
 
-def flag_motions(cell: CellCollision, stations: list[_Station]) -> tuple[list[np.ndarray], int, int]:
+def repair_motions(
+    repairer: Repairer, st: StationPlan, work: _Station, motion: np.ndarray, q_prev=None, next_move=None
+) -> dict:
+    """The waypoint repairs for the spray strokes of a station whose waypoints are all free but a motion
+    between two of them is in collision (``motion``: the station's motion flags, :func:`flag_motions`);
+    ``work`` changed in place. Returns how many such motions were freed, by repair.
+
+    A candidate (another branch, a roll, a tilt: the stroke's poses within the seed's tolerances, as
+    :meth:`Repairer.repair_stroke` keeps them) is kept when its waypoints are free, every motion between them
+    is proven free, and the motions into and out of the stroke (from the last reached waypoint before it, to
+    the first after it; across the station moves, ``q_prev`` the last reached joints of the station before and
+    ``next_move`` the first of the one after with its motion flag) flag fewer motions in all than before. The waypoints the freed motions arrive at take
+    the repair's name (``StationPlan.repair``), marked as motion repairs (``_Station.motion_repaired``) where
+    they had none; the stroke's waypoints a branch, roll or tilt freed before take the new one's name."""
+    freed = dict.fromkeys(MOTION_REPAIRS, 0)
+    rows = np.flatnonzero(work.reachable)
+    previous = HOME_JOINTS
+    for stroke, sl in zip(st.strokes, _slices(st)):
+        reached = np.flatnonzero(work.reachable[sl])
+        index = np.arange(sl.start, sl.stop)[reached]
+        inner = np.flatnonzero(motion[index][1:]) + 1  # into index[1:], within the stroke
+        if stroke.spray_on and len(inner) and not work.collision[index].any():
+            before = rows[rows < index[0]]
+            after = rows[rows > index[-1]]
+            q_in = work.q9[before[-1]] if len(before) else q_prev
+            q_out, out_flag = (work.q9[after[0]], motion[after[0]]) if len(after) else (next_move or (None, False))
+            flagged = len(inner) + int(q_in is not None and motion[index[0]]) + int(q_out is not None and out_flag)
+
+            def keep(q9, checks, q_in=q_in, q_out=q_out, flagged=flagged):
+                if motion_hits(repairer.cell, q9[:-1], q9[1:], checks.slack_mm[:-1], checks.slack_mm[1:]).any():
+                    return False
+                ends = [(q_in, q9[0]), (q9[-1], q_out)]
+                legs = [(a, b) for a, b in ends if a is not None and b is not None]
+                if not legs:
+                    return True
+                a, b = (np.array(v) for v in zip(*legs))
+                return int(motion_hits(repairer.cell, a, b).sum()) < flagged
+
+            kept = repairer.best(stroke_poses(stroke), work.platform, previous, reached, inner, keep)
+            if kept is not None:
+                repair, q9, checks = kept
+                repairer._apply(work, index, q9, checks)
+                # waypoints freed before by another candidate of the stroke are now freed by this one
+                redone = index[np.isin(work.repair[index], MOTION_REPAIRS)]
+                work.repair[redone] = repair
+                arrived = index[inner][work.repair[index[inner]] == ""]
+                work.repair[arrived] = repair
+                work.motion_repaired[arrived] = True
+                freed[repair] += len(inner)
+        if len(reached):
+            previous = work.q9[sl][reached[-1], :6]
+    return freed
+
+
+def flag_motions(cell: CellCollision, stations: list[_Station], known=None) -> tuple[list[np.ndarray], int, int]:
     """Per station, the waypoints whose incoming motion is in collision (module docstring); and how many
     motions were checked and how many were in collision.
 
     The motions join consecutive reachable waypoints, across stations too (the station move), and are proven
     or checked by :func:`sprayplan.collision.proof.motion_hits`. A motion that ends at a waypoint in
-    collision is in collision.
+    collision is in collision. ``known``: ``(flags, moved)``, the flags found before and per station the
+    waypoints moved since; only the motions with an end moved are checked again.
     """
     flags = [np.zeros(len(w.q9), bool) for w in stations]
     rows = [(i, j) for i, w in enumerate(stations) for j in np.flatnonzero(w.reachable)]
@@ -339,10 +409,20 @@ def flag_motions(cell: CellCollision, stations: list[_Station]) -> tuple[list[np
         return flags, 0, 0
     q9 = np.array([stations[i].q9[j] for i, j in rows])
     hit_at = np.array([stations[i].collision[j] for i, j in rows])
-    slack = end_slacks(cell, q9)
     m = len(q9) - 1
     in_collision = hit_at[:-1] | hit_at[1:]
-    index = np.flatnonzero(~in_collision)
+    todo = ~in_collision
+    if known is not None:
+        before, moved = known
+        in_collision = np.array([before[i][j] for i, j in rows[1:]])
+        at = np.array([moved[i][j] for i, j in rows])
+        todo = at[:-1] | at[1:]
+        in_collision[todo] = (hit_at[:-1] | hit_at[1:])[todo]
+        todo &= ~in_collision
+    index = np.flatnonzero(todo)
+    ends = np.unique(np.concatenate([index, index + 1]))
+    slack = np.zeros(len(q9))
+    slack[ends] = end_slacks(cell, q9[ends])
     in_collision[index] = motion_hits(cell, q9[index], q9[index + 1], slack[index], slack[index + 1])
     for k in np.flatnonzero(in_collision):
         i, j = rows[k + 1]
@@ -350,7 +430,9 @@ def flag_motions(cell: CellCollision, stations: list[_Station]) -> tuple[list[np
     return flags, m, int(in_collision.sum())
 
 
-def _reroute(router: Router, repairer: Repairer, st: StationPlan, work: _Station, motion: np.ndarray, job, place, counts):
+def _reroute(
+    router: Router, repairer: Repairer, st: StationPlan, work: _Station, motion: np.ndarray, job, place, counts
+):
     """A station's transfers in collision re-routed (``collision.transfers``): returns its strokes, its
     arrays and its motion flags with every route found in place of its transfer; ``counts`` updated.
 
@@ -374,7 +456,9 @@ def _reroute(router: Router, repairer: Repairer, st: StationPlan, work: _Station
             continue
         counts["in_collision"] += 1
         found = None
-        if not (work.collision[ia] or work.collision[ib]):
+        if work.collision[ia] or work.collision[ib]:  # no route can free an end
+            counts["end_in_collision"] += 1
+        else:
             found = router.route(work.q9[ia], work.q9[ib], seed=[job.collision.seed, place, k])
         if found is None:
             counts["flagged"] += 1
@@ -397,6 +481,7 @@ def _reroute(router: Router, repairer: Repairer, st: StationPlan, work: _Station
             checks.slack_mm.copy(),
             np.full(n, found.kind, dtype=object),
             np.ones(n, bool),
+            np.zeros(n, bool),
         )
         work = work.spliced(sl, rows)
         motion = np.concatenate([motion[: sl.start], np.zeros(n, bool), motion[sl.stop :]])
@@ -429,8 +514,34 @@ def collision_stage(plan: Plan, whole, job: JobConfig, gantry: Gantry, progress:
         works.append(work)
         step()
     motion_flags, _, motion_hits_before = flag_motions(cell, works)
+    motions_freed = dict.fromkeys(MOTION_REPAIRS, 0)
+    if config.repair:
+        was = [w.q9.copy() for w in works]
+        firsts = [np.flatnonzero(w.reachable)[:1] for w in works]
+        for i, (st, work, flags) in enumerate(zip(plan.stations, works, motion_flags)):
+            earlier = [w.q9[np.flatnonzero(w.reachable)[-1]] for w in works[:i] if w.reachable.any()]
+            later = [
+                (w.q9[f[0]], bool(m[f[0]]))
+                for w, f, m in zip(works[i + 1 :], firsts[i + 1 :], motion_flags[i + 1 :])
+                if len(f)
+            ]
+            found = repair_motions(
+                repairer, st, work, flags, earlier[-1] if earlier else None, later[0] if later else None
+            )
+            for name, count in found.items():
+                motions_freed[name] += count
+        if any(motions_freed.values()):
+            for st, work in zip(plan.stations, works):
+                repairer.errors(work, st)
+            moved = [(w.q9 != q).any(axis=1) for w, q in zip(works, was)]
+            motion_flags, _, _ = flag_motions(cell, works, (motion_flags, moved))
     strokes = [st.strokes for st in plan.stations]
-    transfers = {"in_collision": 0, "rerouted_by": dict.fromkeys(TRANSFER_REPAIRS, 0), "flagged": 0}
+    transfers = {
+        "in_collision": 0,
+        "rerouted_by": dict.fromkeys(TRANSFER_REPAIRS, 0),
+        "flagged": 0,
+        "end_in_collision": 0,
+    }
     if config.repair:
         router = Router(cell, whole)
         for place, st in enumerate(plan.stations):
@@ -438,7 +549,7 @@ def collision_stage(plan: Plan, whole, job: JobConfig, gantry: Gantry, progress:
                 router, repairer, st, works[place], motion_flags[place], job, place, transfers
             )
     stations = tuple(w.plan(st, m, s) for w, st, m, s in zip(works, plan.stations, motion_flags, strokes))
-    by_repair = {name: sum(int((w.repair == name).sum()) for w in works) for name in REPAIRS}
+    by_repair = {name: sum(int(((w.repair == name) & ~w.motion_repaired).sum()) for w in works) for name in REPAIRS}
     flagged = sum(int(w.collision.sum()) for w in works)
     motion_hits = sum(int(m.sum()) for m in motion_flags)
     reached = int(sum(w.reachable.sum() for w in works))
@@ -454,10 +565,13 @@ def collision_stage(plan: Plan, whole, job: JobConfig, gantry: Gantry, progress:
         "motions_checked": max(0, reached - 1),
         "flagged_motions": motion_hits,
         "flagged_motions_before_reroute": motion_hits_before,
+        "motions_repaired": int(sum(motions_freed.values())),
+        "motions_repaired_by": motions_freed,
         "transfers_in_collision": transfers["in_collision"],
         "transfers_rerouted": int(sum(transfers["rerouted_by"].values())),
         "transfers_rerouted_by": transfers["rerouted_by"],
         "transfers_flagged": transfers["flagged"],
+        "transfers_end_in_collision": transfers["end_in_collision"],
     }
     if job.export.strict and (flagged or motion_hits):
         first = next((i, w) for i, w in enumerate(works) if w.collision.any()) if flagged else None

@@ -21,7 +21,13 @@ routes, in the order tried (:data:`~sprayplan.types.TRANSFER_REPAIRS`):
 
 A node is solved by the closed-form IK nearest the joints before it; a route is *free* when every node is
 free (``CellCollision.check``) and every leg is proven free (:func:`~sprayplan.collision.proof.motion_hits`:
-every pair at or above its gap everywhere along it). What no route frees stays as planned, flagged.
+every pair at or above its gap everywhere along it). What no route frees stays as planned, flagged. A
+transfer whose end is itself in collision cannot be freed by any route: none is tried. Each configuration
+and each leg is checked once per transfer (:class:`Checked`).
+
+The routes join ``q_a`` and ``q_b`` as they are, so where the two lie on different IK branches or whole turns
+apart (the kinematics stage or a waypoint repair chose them stroke by stroke) the retract and via routes'
+middle leg is that long joint move too, and only the search can free it.
 
 Why our own RRT-Connect: ``ompl`` 2.0.1 installs here from a 4.6 MB BSD-3 wheel (17 MB installed), but its
 Python bindings have no way to seed one search: the seed of its random numbers is global to the process and
@@ -45,6 +51,8 @@ from sprayplan.types import TRANSFER_REPAIRS, Part, Stroke
 DETOUR_MARGIN_RAD = math.pi / 2
 #: The longest leg the search grows at once, as a bound on any body point's displacement, mm.
 DETOUR_STEP_MM = 150.0
+#: The states of a walk toward the other tree checked at once (the walk stops at the first one blocked).
+WALK_CHUNK = 8
 
 
 @dataclasses.dataclass(frozen=True)
@@ -163,32 +171,37 @@ class Router:
                 continue
             yield "via", np.vstack([first, last[::-1]])
 
-    def free(self, q_a: np.ndarray, nodes: np.ndarray, q_b: np.ndarray) -> bool:
-        """Every node free and every leg ``q_a -> nodes... -> q_b`` proven free."""
+    def free(self, q_a: np.ndarray, nodes: np.ndarray, q_b: np.ndarray, memo: Checked | None = None) -> bool:
+        """Every node free and every leg ``q_a -> nodes... -> q_b`` proven free (``memo``: checks already made)."""
+        memo = Checked(self.cell) if memo is None else memo
         chain = np.vstack([q_a, nodes, q_b])
-        slack = end_slacks(self.cell, chain)
-        if (slack < 0).any():
+        if (memo.slacks(chain) < 0).any():
             return False
-        return not motion_hits(self.cell, chain[:-1], chain[1:], slack[:-1], slack[1:]).any()
-
-    def edges_free(self, q_a: np.ndarray, q_b: np.ndarray) -> np.ndarray:
-        """(m,) bool: the legs ``q_a[i] -> q_b[i]`` proven free (ends included)."""
-        return ~motion_hits(self.cell, q_a, q_b)
-
-    def states_free(self, q9: np.ndarray) -> np.ndarray:
-        return ~self.cell.check(q9).in_collision
+        return bool(memo.legs_free(chain[:-1], chain[1:]).all())
 
     def route(self, q_a: np.ndarray, q_b: np.ndarray, seed: int = 0) -> Route | None:
-        """The first free route from ``q_a`` to ``q_b`` (module docstring), or None."""
+        """The first free route from ``q_a`` to ``q_b`` (module docstring), or None; None at once when an end
+        is itself in collision (no route can free it).
+
+        Every configuration and every leg is checked once per transfer (:class:`Checked`): the ends and the
+        nodes of all retract and via routes in one call, the legs the routes share (the retract out of the
+        stroke before, into the stroke after) once, the search's states with the slacks its legs' proof needs.
+        """
+        memo = Checked(self.cell)
+        if (memo.slacks(np.vstack([q_a, q_b])) < 0).any():
+            return None
+        found = list(self.candidates(q_a, q_b))
+        if found:
+            memo.slacks(np.vstack([nodes for _, nodes in found]))
         tried = 0
-        for kind, nodes in self.candidates(q_a, q_b):
+        for kind, nodes in found:
             tried += 1
-            if self.free(q_a, nodes, q_b):
+            if self.free(q_a, nodes, q_b, memo):
                 return Route(kind, nodes, tried)
         if not self.config.detour:
             return None
         tried += 1
-        if self.free(q_a, np.zeros((0, 9)), q_b):
+        if self.free(q_a, np.zeros((0, 9)), q_b, memo):
             return Route("detour", np.zeros((0, 9)), tried)
         lo, hi = self.detour_box(q_a, q_b)
         weights = np.concatenate([self.cell.reach_radii_mm, np.ones(3)])
@@ -197,8 +210,8 @@ class Router:
             q_b,
             lo,
             hi,
-            self.states_free,
-            self.edges_free,
+            lambda q: memo.slacks(q) >= 0,
+            memo.legs_free,
             weights,
             DETOUR_STEP_MM,
             self.config.detour_iterations,
@@ -207,7 +220,7 @@ class Router:
         tried += 1
         if path is None:
             return None
-        path = shortcut(path, self.edges_free)
+        path = shortcut(path, memo.legs_free)
         return Route("detour", path[1:-1], tried)
 
     def detour_box(self, q_a: np.ndarray, q_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -219,14 +232,53 @@ class Router:
         return lo, hi
 
 
+class Checked:
+    """The slacks of configurations and the legs proven free or not, each found once (one transfer's routes).
+
+    Parameters
+    ----------
+    cell : CellCollision
+    """
+
+    def __init__(self, cell):
+        self.cell = cell
+        self._slack: dict[bytes, float] = {}
+        self._free: dict[tuple[bytes, bytes], bool] = {}
+
+    def slacks(self, q9) -> np.ndarray:
+        """(n,) mm: :func:`~sprayplan.collision.proof.end_slacks` of ``q9`` (n, 9), those not known yet in
+        one call."""
+        q9 = np.atleast_2d(np.asarray(q9, dtype=float))
+        keys = [q.tobytes() for q in q9]
+        new = {k: i for i, k in enumerate(keys) if k not in self._slack}
+        if new:
+            found = end_slacks(self.cell, q9[list(new.values())])
+            self._slack.update(zip(new, found.tolist()))
+        return np.array([self._slack[k] for k in keys], dtype=float)
+
+    def legs_free(self, q_a, q_b) -> np.ndarray:
+        """(m,) bool: the legs ``q_a[i] -> q_b[i]`` proven free (:func:`~sprayplan.collision.proof.motion_hits`,
+        with the ends' known slacks), those not known yet in one call."""
+        q_a = np.atleast_2d(np.asarray(q_a, dtype=float))
+        q_b = np.atleast_2d(np.asarray(q_b, dtype=float))
+        keys = [tuple(sorted((a.tobytes(), b.tobytes()))) for a, b in zip(q_a, q_b)]
+        new = {k: i for i, k in enumerate(keys) if k not in self._free}
+        if new:
+            rows = list(new.values())
+            hits = motion_hits(self.cell, q_a[rows], q_b[rows], self.slacks(q_a[rows]), self.slacks(q_b[rows]))
+            self._free.update(zip(new, (~hits).tolist()))
+        return np.array([self._free[k] for k in keys], dtype=bool)
+
+
 def rrt_connect(q_a, q_b, lower, upper, states_free, edges_free, weights, step, iterations, rng):
     """A path ``(k, d)`` from ``q_a`` to ``q_b`` (both included) through free states and free edges, by
     RRT-Connect (Kuffner and LaValle 2000); None when none is found in ``iterations``.
 
     Each iteration samples a state uniformly in ``[lower, upper]`` (``rng``: the same generator state gives
     the same path), extends the current tree one step of at most ``step`` toward it, then grows the other
-    tree toward the new state in steps until it joins or is blocked (its steps checked in one call each of
-    ``states_free`` and ``edges_free``); then the trees swap roles. Distances are ``weights . |dq|`` (with the
+    tree toward the new state in steps until it joins or is blocked (its states checked :data:`WALK_CHUNK` at a
+    time up to the first blocked, the legs up to there in one call of ``edges_free``); then the trees swap
+    roles. Distances are ``weights . |dq|`` (with the
     reach radii: the bound on any body point's displacement, mm).
 
     Parameters
@@ -259,7 +311,11 @@ def rrt_connect(q_a, q_b, lower, upper, states_free, edges_free, weights, step, 
         count = max(1, math.ceil(gap / step)) if whole else 1
         fractions = np.minimum(1.0, step * np.arange(1, count + 1) / gap)
         points = start + fractions[:, None] * (q - start)
-        ok = states_free(points)
+        ok = np.ones(len(points), bool)
+        for i in range(0, len(points), WALK_CHUNK):  # a walk is checked a few states at a time, up to its block
+            ok[i : i + WALK_CHUNK] = states_free(points[i : i + WALK_CHUNK])
+            if not ok[i : i + WALK_CHUNK].all():
+                break
         upto = int(np.argmin(ok)) if not ok.all() else len(points)
         if upto == 0:
             return None, False
@@ -325,4 +381,3 @@ def route_stroke(gantry, q_a: np.ndarray, nodes: np.ndarray, q_b: np.ndarray, st
 def is_route(repair: np.ndarray) -> bool:
     """A transfer's waypoints (their ``StationPlan.repair``) are a route the collision stage made."""
     return bool(np.isin(np.asarray(repair, dtype=object), TRANSFER_REPAIRS).any())
-
