@@ -719,6 +719,9 @@ class CollisionConfig(Section):
         How far the tilt repair turns the gun axis; default 80 % of ``[kinematics] axis_tol_deg``.
     platform_raise_mm : float
         The gantry repair tries the station this much higher, then twice and three times as high.
+    cloud_radius_mm : float or None
+        A point-cloud part's collision body is a ball of this radius about every point; None: from the cloud's
+        spacing (``collision.spheres.cloud_radius_mm``).
     """
 
     SECTION = "collision"
@@ -733,6 +736,7 @@ class CollisionConfig(Section):
     floor_facing_deg: float = 45.0
     tilt_deg: float | None = None
     platform_raise_mm: float = 150.0
+    cloud_radius_mm: float | None = None
 
     def _check(self):
         _at_least(CollisionConfig, "clearance_mm", self.clearance_mm, 0)
@@ -742,6 +746,7 @@ class CollisionConfig(Section):
         _within(CollisionConfig, "floor_facing_deg", self.floor_facing_deg, 0, 90)
         _at_least(CollisionConfig, "tilt_deg", self.tilt_deg, 0)
         _at_least(CollisionConfig, "platform_raise_mm", self.platform_raise_mm, 0)
+        _at_least(CollisionConfig, "cloud_radius_mm", self.cloud_radius_mm, 0, strict=True)
         if self.clearance_mm > 0 and self.motion_step_mm > 2 * self.clearance_mm:
             raise _fail(
                 CollisionConfig,

@@ -35,6 +35,7 @@ from sprayplan.collision.broadphase import (
 )
 from sprayplan.collision.motion import motion_bound_mm, motion_checks
 from sprayplan.collision.settings import CollisionConfig
+from sprayplan.collision.spheres import SphereSet, boxes_to_spheres, capsules_to_spheres, cloud_radius_mm, cloud_samples
 from sprayplan.errors import ConfigError, DataError
 from sprayplan.robots.gantry import Gantry
 from sprayplan.robots.model import dh_transforms
@@ -248,7 +249,8 @@ class CellCollision:
     gantry : Gantry
         The nine-axis robot (its arm's link sizes from :data:`~sprayplan.collision.bodies.UR_LINK_SIZES`).
     part : Part
-        A mesh part (a point cloud raises :class:`~sprayplan.errors.DataError`: not supported yet).
+        A mesh (a BVH of its triangles) or a point cloud (a ball about every point, of radius
+        ``config.cloud_radius_mm`` or from the cloud's spacing: :mod:`~sprayplan.collision.spheres`).
     config : CollisionConfig
     gantry_bodies : GantryBodies
 
@@ -258,7 +260,7 @@ class CellCollision:
         A robot without link sizes; a gun radius too large for the gun; ``collision.floor_z_mm`` above the
         part's lowest point.
     DataError
-        A point-cloud part.
+        A point cloud of fewer than two distinct points.
     """
 
     def __init__(
@@ -270,11 +272,6 @@ class CellCollision:
     ):
         _require_coal()
         config = CollisionConfig() if config is None else config
-        if not part.is_mesh:
-            name = f" {part.name!r}" if part.name else ""
-            raise DataError(
-                f"part{name} is a point cloud: collision checks need a mesh (a surface from the cloud is not built yet)"
-            )
         lowest = float(part.bounds[0, 2])
         if config.floor_z_mm is None:
             floor_z = lowest - config.floor_offset_mm
@@ -296,14 +293,21 @@ class CellCollision:
         self.body_names = tuple(b.name for b in self.capsules) + GANTRY_NAMES
         geometries = [coal.Capsule(b.radius_mm, b.length_mm) for b in self.capsules]
         geometries += [coal.Box(*size) for size in box_sizes]
-        self._mesh = coal.BVHModelOBBRSS()
         vertices = np.ascontiguousarray(part.vertices, dtype=float)
         faces = np.ascontiguousarray(part.faces, dtype=np.int64)
         self._part_vertices, self._part_faces = vertices, faces
-        self._mesh.beginModel(len(faces), len(vertices))
-        self._mesh.addVertices(vertices)
-        self._mesh.addTriangles(faces)
-        self._mesh.endModel()
+        #: The point cloud's balls (:mod:`~sprayplan.collision.spheres`), None for a mesh.
+        self.spheres = None
+        if part.is_mesh:
+            self._mesh = coal.BVHModelOBBRSS()
+            self._mesh.beginModel(len(faces), len(vertices))
+            self._mesh.addVertices(vertices)
+            self._mesh.addTriangles(faces)
+            self._mesh.endModel()
+        else:
+            radius = cloud_radius_mm(vertices) if config.cloud_radius_mm is None else config.cloud_radius_mm
+            self.spheres = SphereSet.of(vertices, radius)
+            self._mesh = None
         self._floor = coal.Halfspace(np.array([0.0, 0.0, 1.0]), floor_z)
         self._geometries = geometries
         index = {name: i for i, name in enumerate(self.body_names)}
@@ -334,7 +338,7 @@ class CellCollision:
         self._tests = tuple(other)  # per pair but the last: (static or body index, body index)
         self._request = coal.DistanceRequest()
         self._static = {
-            "part": (self._mesh, coal.Transform3s()),
+            "part": (self._mesh, coal.Transform3s()),  # a mesh's; a cloud's part pairs never reach coal
             "floor": (self._floor, coal.Transform3s()),
         }
         self._samples = None  # the part's surface samples for the lower bounds, made on first use
@@ -388,19 +392,10 @@ class CellCollision:
             Joint vectors of the wrong shape or not finite.
         """
         q9 = _joint_vectors(q9)
-        poses = self.body_poses(q9)
         tcp_z = self.tcp(q9)[:, 2]
         out = np.empty((len(q9), len(self.pairs)))
-        request, geometries, static = self._request, self._geometries, self._static
-        for row in range(len(q9)):
-            transforms = [coal.Transform3s(p[:3, :3], p[:3, 3]) for p in poses[row]]
-            for column, (a, b) in enumerate(self._tests):
-                if isinstance(a, str):
-                    geometry, transform = static[a]
-                else:
-                    geometry, transform = geometries[a], transforms[a]
-                result = coal.DistanceResult()
-                out[row, column] = coal.distance(geometries[b], transforms[b], geometry, transform, request, result)
+        rows, columns = np.divmod(np.arange(len(q9) * len(self._tests)), len(self._tests))
+        out[rows, columns] = self._exact(q9, rows, columns)
         out[:, -1] = tcp_z - self.floor_z_mm
         return BodyDistances(out, self.pairs, self.required_mm)
 
@@ -415,7 +410,9 @@ class CellCollision:
 
     def samples(self):
         """The part's :class:`~sprayplan.collision.broadphase.SurfaceSamples` (made once)."""
-        if self._samples is None:
+        if self._samples is None and self.spheres is not None:
+            self._samples = cloud_samples(self.spheres)
+        elif self._samples is None:
             vertices = np.asarray(self._part_vertices)
             self._samples = surface_samples(Part(vertices, self._part_faces), self.COVER_MM)
         return self._samples
@@ -486,32 +483,49 @@ class CellCollision:
         exact[:, -1] = True
         return bound, exact
 
+    def _exact(self, q9: np.ndarray, rows: np.ndarray, columns: np.ndarray) -> np.ndarray:
+        """(k,) the signed distances of pairs ``columns`` (indices into :attr:`pairs`, not the TCP's) at joint
+        vectors ``q9[rows]``: coal's, or for a cloud's part pairs the balls' closed form."""
+        out = np.empty(len(rows))
+        poses = self.body_poses(q9[np.unique(rows)]) if len(rows) else None
+        pose_row = np.searchsorted(np.unique(rows), rows)
+        c = len(self.capsules)
+        todo = np.ones(len(rows), bool)
+        if self.spheres is not None:
+            other = np.array([b for _, b in self._tests])[columns]
+            part = np.array([a == "part" for a, _ in self._tests])[columns]
+            capsule = np.flatnonzero(part & (other < c))
+            if len(capsule):
+                segments = self.capsule_segments(q9[rows[capsule]])[np.arange(len(capsule)), other[capsule]]
+                out[capsule] = capsules_to_spheres(self.spheres, segments, self._radii[other[capsule]])
+            box = np.flatnonzero(part & (other >= c))
+            if len(box):
+                centres = poses[pose_row[box], other[box], :3, 3]
+                out[box] = boxes_to_spheres(self.spheres, centres, self._box_half[other[box] - c])
+            todo[part] = False
+        geometries, static, request = self._geometries, self._static, self._request
+        for i in np.flatnonzero(todo):
+            a, b = self._tests[columns[i]]
+            pose_b = poses[pose_row[i], b]
+            if isinstance(a, str):
+                geometry, transform = static[a]
+            else:
+                pose_a = poses[pose_row[i], a]
+                geometry, transform = geometries[a], coal.Transform3s(pose_a[:3, :3], pose_a[:3, 3])
+            result = coal.DistanceResult()
+            out[i] = coal.distance(
+                geometries[b], coal.Transform3s(pose_b[:3, :3], pose_b[:3, 3]), geometry, transform, request, result
+            )
+        return out
+
     def _check_chunk(self, q9: np.ndarray, required: np.ndarray, margin: float):
         n = len(q9)
         upper = float(required.max()) + margin
         bound, exact = self._bounds(q9, upper)
         rows, columns = np.nonzero(~exact & (bound - required < margin))
         if len(rows):
-            poses = self.body_poses(q9)
-            geometries, static = self._geometries, self._static
-            for row, column in zip(rows, columns):
-                a, b = self._tests[column]
-                pose_b = poses[row, b]
-                if isinstance(a, str):
-                    geometry, transform = static[a]
-                else:
-                    pose_a = poses[row, a]
-                    geometry, transform = geometries[a], coal.Transform3s(pose_a[:3, :3], pose_a[:3, 3])
-                result = coal.DistanceResult()
-                bound[row, column] = coal.distance(
-                    geometries[b],
-                    coal.Transform3s(pose_b[:3, :3], pose_b[:3, 3]),
-                    geometry,
-                    transform,
-                    self._request,
-                    result,
-                )
-                exact[row, column] = True
+            bound[rows, columns] = self._exact(q9, rows, columns)
+            exact[rows, columns] = True
         slack = bound - required
         column = np.argmin(slack, axis=1) if n else np.zeros(0, int)
         rows = np.arange(n)
