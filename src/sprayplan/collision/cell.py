@@ -437,6 +437,40 @@ class CellCollision:
         fields = [np.concatenate(f) for f in zip(*parts)]
         return ConfigChecks(*fields)
 
+    def collides(self, q9, clearance_mm: float | None = None, extra_mm: float = 0.0) -> np.ndarray:
+        """(n,) bool: at joint vectors ``q9`` (9,) or (n, 9), some pair is closer than its gap plus ``extra_mm``;
+        the same answer as ``check(q9).in_collision`` (for ``extra_mm`` 0) at a fraction of the exact queries.
+
+        Only the pairs whose lower bound is below their gap are measured, and a row's pairs are measured in
+        rounds, the least bound first, until one is in collision or none is left: a row's answer needs one pair
+        in collision, or every near pair clear.
+
+        Raises
+        ------
+        DataError
+            Joint vectors of the wrong shape or not finite.
+        """
+        q9 = _joint_vectors(q9)
+        required = self._required(self._clearance(clearance_mm, motion=False)) + float(extra_mm)
+        out = np.zeros(len(q9), bool)
+        for start in range(0, len(q9), self.CHUNK):
+            chunk = q9[start : start + self.CHUNK]
+            bound, exact = self._bounds(chunk, float(required.max()))
+            slack = bound - required
+            hit = (exact & (slack < 0)).any(axis=1)
+            open_ = ~exact & (slack < 0)
+            open_[hit] = False
+            order = np.argsort(np.where(open_, slack, np.inf), axis=1)  # each row's near pairs, least bound first
+            for k in range(open_.sum(axis=1).max(initial=0)):
+                columns = order[:, k]
+                rows = np.flatnonzero(~hit & open_[np.arange(len(chunk)), columns])
+                if not len(rows):
+                    break
+                distance = self._exact(chunk, rows, columns[rows])
+                hit[rows[distance - required[columns[rows]] < 0]] = True
+            out[start : start + len(chunk)] = hit
+        return out
+
     def _bounds(self, q9: np.ndarray, upper_mm: float) -> tuple[np.ndarray, np.ndarray]:
         """(n, p) lower bounds on every pair's distance and (n, p) which of them are exact."""
         n, c = len(q9), len(self.capsules)
@@ -446,12 +480,8 @@ class CellCollision:
         bound = np.full((n, len(self.pairs)), np.inf)
         exact = np.zeros((n, len(self.pairs)), dtype=bool)
         samples = self.samples()
-        points = {}
-
-        def along(i):
-            if i not in points:
-                points[i] = segment_points(segments[:, i], self.SPACING_MM)
-            return points[i]
+        centres = segments.mean(axis=2)  # (n, c, 3)
+        reach = np.linalg.norm(segments[:, :, 1] - segments[:, :, 0], axis=2) / 2.0 + radii  # (n, c)
 
         for column, (a, b) in enumerate(self._tests):
             if a == "floor":
@@ -469,16 +499,25 @@ class CellCollision:
                     half = self._box_half[box]
                     ends = np.stack([boxes[:, box] - [0, 0, half[2]], boxes[:, box] + [0, 0, half[2]]], axis=1)
                     radius = float(np.hypot(half[0], half[1]))
-                bound[:, column] = capsules_to_surface(samples, ends, radius, upper_mm, self.SPACING_MM)
-            elif b < c and a >= c:  # an arm body against a gantry box
+                bound[:, column] = capsules_to_surface(samples, ends, radius, upper_mm, self.SPACING_MM, b >= c)
+            elif b < c and a >= c:  # an arm body against a gantry box: its bounding sphere, then its points
                 box = a - c
-                pts, half = along(b)
-                distance = point_box_distance(pts, boxes[:, box, None, :], self._box_half[box]).min(axis=1)
-                bound[:, column] = distance - half - radii[b]
-            else:  # the gun (b) against a link (a)
-                pts_a, half_a = along(a)
-                pts_b, half_b = along(b)
-                bound[:, column] = segments_gap(pts_a, pts_b) - half_a - half_b - radii[a] - radii[b]
+                coarse = point_box_distance(centres[:, b], boxes[:, box], self._box_half[box]) - reach[:, b]
+                bound[:, column] = coarse
+                rows = np.flatnonzero(coarse < upper_mm)
+                if len(rows):
+                    pts, half = segment_points(segments[rows, b], self.SPACING_MM)
+                    distance = point_box_distance(pts, boxes[rows, box, None, :], self._box_half[box]).min(axis=1)
+                    bound[rows, column] = np.maximum(coarse[rows], distance - half - radii[b])
+            else:  # the gun (b) against a link (a): bounding spheres, then points
+                coarse = np.linalg.norm(centres[:, a] - centres[:, b], axis=1) - reach[:, a] - reach[:, b]
+                bound[:, column] = coarse
+                rows = np.flatnonzero(coarse < upper_mm)
+                if len(rows):
+                    pts_a, half_a = segment_points(segments[rows, a], self.SPACING_MM)
+                    pts_b, half_b = segment_points(segments[rows, b], self.SPACING_MM)
+                    fine = segments_gap(pts_a, pts_b) - half_a - half_b - radii[a] - radii[b]
+                    bound[rows, column] = np.maximum(coarse[rows], fine)
         bound[:, -1] = self.tcp(q9)[:, 2] - self.floor_z_mm
         exact[:, -1] = True
         return bound, exact

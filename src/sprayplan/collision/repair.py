@@ -227,13 +227,12 @@ class Repairer:
         for sample in (quick, spread):
             if not found or not len(sample):
                 continue
-            checks = self.cell.check(np.concatenate([q9[sample] for _, q9 in found]))
-            hit = checks.in_collision.reshape(len(found), len(sample)).any(axis=1)
+            hit = self.cell.collides(np.concatenate([q9[sample] for _, q9 in found]))
+            hit = hit.reshape(len(found), len(sample)).any(axis=1)
             found = [c for c, h in zip(found, hit) if not h]
         for repair, q9 in found:
-            checks = self.cell.check(q9)
-            if not checks.in_collision.any():
-                return repair, q9, checks
+            if not self.cell.collides(q9).any():
+                return repair, q9, self.cell.check(q9)
         return None
 
     def repair_stroke(self, work: _Station, stroke, sl: slice, start: np.ndarray, platform=None) -> str:
@@ -371,8 +370,7 @@ def flag_motions(cell: CellCollision, stations: list[_Station]) -> tuple[list[np
     k = index[owner]
     if len(k):
         grid = q9[k] + s[:, None] * (q9[k + 1] - q9[k])
-        found = cell.check(grid, margin_mm=step)
-        hit = found.slack_mm < step / 2.0
+        hit = cell.collides(grid, extra_mm=step / 2.0)
         in_collision[np.unique(k[hit])] = True
     for k in np.flatnonzero(in_collision):
         i, j = rows[k + 1]
