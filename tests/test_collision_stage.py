@@ -266,13 +266,16 @@ def test_collision_config_is_the_job_section():
     assert not JobConfig().collision.check  # opt-in (``--collisions``) until the stage is fast
 
 
-def test_a_point_cloud_is_planned_and_says_its_collisions_are_not_checked(testdata):
+def test_a_point_cloud_plan_is_checked_against_the_cloud(testdata):
     from sprayplan.job import run_job
 
     cloud = testdata / "pointclouds" / "reach_part_normals_ascii.pcd"
-    result = run_job(cloud, JobConfig().replace(load={"units": "m"}, collision={"check": True}), until="totals")
-    assert result.totals["collisions"] == {"checked": False, "reason": "point cloud"}
-    assert result.plan.stations and not any(st.collision.any() for st in result.plan.stations)
+    job = JobConfig().replace(load={"units": "m"}, collision={"check": True, "repair": False}, timing={"enabled": False})
+    result = run_job(cloud, job, until="totals")
+    summary = result.totals["collisions"]
+    assert summary["checked"] and summary["waypoints_checked"] == sum(int(s.reachable.sum()) for s in result.plan.stations)
+    flagged = sum(int(s.collision.sum()) for s in result.plan.stations)
+    assert flagged == summary["flagged_waypoints"] == summary["in_collision_before_repair"] > 0
 
 
 def test_the_distance_grid_and_the_tree_bound_the_true_distance_from_below(testdata):
