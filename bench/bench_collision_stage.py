@@ -1,15 +1,20 @@
 """The collision stage on whole plans: time to check and repair, and the waypoints in collision before repairs,
-repaired and left flagged (docs/benchmarks.md, "The collision stage").
+repaired and left flagged; the transfers in collision, re-routed by kind and left flagged, and the motions
+flagged before and after the transfers were re-routed (docs/benchmarks.md, "The collision stage").
+
+With ``--transfers`` each plan is also run with the transfer routes off (``retract_mm = []``,
+``via_height_mm`` none, ``detour`` false), so that the routes' cost is the difference of the two medians.
 
 Each part is planned to the ``refine`` stage once (no film target, so no tuning), then the collision stage is
 timed ``--runs`` times on that plan (median wall and CPU time). Before the stage, the check of every reachable
 waypoint of the plan (``CellCollision.check``: the gun, the links, the carriage and the column against the
 part, the floor and each other) is timed on its own: waypoints checked per second, and part queries per second
 (nine capsules, the gun and the eight links, against the part at each). Parts: the demo roof (``z > 1000``),
-the reach part (``x > -250``), the reach part's 262-point scan (a point cloud, balls about its points), and with ``--large`` the DTC hull and the BMW body (from
-``$SPRAYPLAN_TESTDATA`` or shared/testdata); ``--only`` picks parts by a piece of their name.
+the reach part (``x > -250``), the reach part's 262-point scan (a point cloud: a ball about every point), and
+with ``--large`` the DTC hull and the BMW body (from ``$SPRAYPLAN_TESTDATA`` or shared/testdata); ``--only``
+picks the parts whose name starts with its text.
 
-    PYTHONPATH=src python bench/bench_collision_stage.py [--runs 3] [--large] [--only hull]
+    PYTHONPATH=src python bench/bench_collision_stage.py [--runs 3] [--large]
 """
 
 from __future__ import annotations
@@ -49,15 +54,18 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--large", action="store_true")
-    parser.add_argument("--only", default="", help="only the parts whose name holds this")
+    parser.add_argument("--transfers", action="store_true", help="the transfer table (routes on and off)")
+    parser.add_argument("--only", default=None, help="only the parts whose name starts with this")
     args = parser.parse_args(argv)
+    if args.transfers:
+        return transfer_table(args)
     print(
         "| part | waypoints | check waypoints/s | part queries/s | in collision before | repaired (branch/roll/tilt/platform) "
         "| flagged | motions | flagged motions | stage wall s (median) | stage CPU s (median) | load |"
     )
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name, source, job in cases(args.large):
-        if args.only not in name:
+        if args.only and not name.startswith(args.only):
             continue
         state = run_job(source, job.replace(collision={"check": False}), until="refine")
         cell = CellCollision(state.gantry(), state.whole, state.job.collision)
@@ -80,6 +88,36 @@ def main(argv=None) -> int:
             f"{summary['repaired']} ({by['branch']}/{by['roll']}/{by['tilt']}/{by['platform']}) | "
             f"{summary['flagged_waypoints']} | {summary['motions_checked']} | {summary['flagged_motions']} | "
             f"{statistics.median(times):.1f} | {statistics.median(cpu):.1f} | {os.getloadavg()[0]:.1f} |",
+            flush=True,
+        )
+    return 0
+
+
+def transfer_table(args) -> int:
+    off = {"retract_mm": [], "via_height_mm": None, "detour": False}
+    print(
+        "| part | transfers in collision | re-routed (retract/via/detour) | transfers flagged | motions flagged "
+        "before / after | stage s, routes off | stage s, routes on (median) |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    for name, source, job in cases(args.large):
+        if args.only and not name.startswith(args.only):
+            continue
+        state = run_job(source, job.replace(collision={"check": False}), until="refine")
+        times = {}
+        for label, settings in (("off", off), ("on", {})):
+            run = state.job.replace(collision=settings) if settings else state.job
+            times[label] = []
+            for _ in range(args.runs):
+                began = time.perf_counter()
+                _, summary = collision_stage(state.plan, state.whole, run, state.gantry())
+                times[label].append(time.perf_counter() - began)
+        by = summary["transfers_rerouted_by"]
+        print(
+            f"| {name} | {summary['transfers_in_collision']} | {summary['transfers_rerouted']} "
+            f"({by['retract']}/{by['via']}/{by['detour']}) | {summary['transfers_flagged']} | "
+            f"{summary['flagged_motions_before_reroute']} / {summary['flagged_motions']} | "
+            f"{statistics.median(times['off']):.1f} | {statistics.median(times['on']):.1f} |",
             flush=True,
         )
     return 0

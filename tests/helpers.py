@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sprayplan.surface.normals import outward_face_normals
 from sprayplan.types import Part
 
 
@@ -67,3 +68,31 @@ def planned(part, job):
     from sprayplan.job import run_job
 
     return run_job(part, job.replace(coating={"thickness_um": None}), until="kinematics").plan
+
+
+def grid_box(n: int = 6, size=(400.0, 200.0, 100.0)) -> Part:
+    """A closed box of ``n x n`` squares (two triangles each) a side, outward winding, centred on the origin."""
+    vertices, faces = [], []
+    half = np.asarray(size) / 2.0
+    for axis in range(3):
+        for sign in (1.0, -1.0):
+            u, v = [a for a in range(3) if a != axis]
+            base = len(vertices)
+            for i in range(n + 1):
+                for j in range(n + 1):
+                    p = np.zeros(3)
+                    p[axis] = sign * half[axis]
+                    p[u] = -half[u] + 2 * half[u] * i / n
+                    p[v] = -half[v] + 2 * half[v] * j / n
+                    vertices.append(p)
+            for i in range(n):
+                for j in range(n):
+                    a = base + i * (n + 1) + j
+                    b, c, d = a + n + 1, a + n + 2, a + 1
+                    faces += [[a, b, c], [a, c, d]]
+    part = Part(np.array(vertices), np.array(faces), name="box")
+    # duplicate corner vertices merged so that the sides share edges
+    key = np.round(part.vertices, 6)
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    fixed, _ = outward_face_normals(part.vertices[first], inverse.reshape(-1)[part.faces])
+    return Part(part.vertices[first], fixed, name="box")

@@ -719,6 +719,19 @@ class CollisionConfig(Section):
         How far the tilt repair turns the gun axis; default 80 % of ``[kinematics] axis_tol_deg``.
     platform_raise_mm : float
         The gantry repair tries the station this much higher, then twice and three times as high.
+    retract_mm : list of float
+        A transfer in collision is first re-routed by retracting the gun along its axis at the end of the
+        stroke before and approaching the stroke after along its axis by each of these lengths in turn
+        (``collision.transfers``); empty: no retract routes.
+    via_height_mm : float or None
+        Then through two via poses with the gun tip this high above the part's top near the station, plus
+        ``clearance_mm``; None: no via routes.
+    detour : bool
+        Then a joint-space detour: the straight joint move, then a seeded RRT-Connect search.
+    detour_iterations : int
+        The RRT-Connect search's iterations per transfer (each grows one tree once and tries to join the other).
+    seed : int
+        Random seed of the RRT-Connect search.
     cloud_radius_mm : float or None
         A point-cloud part's collision body is a ball of this radius about every point; None: from the cloud's
         spacing (``collision.spheres.cloud_radius_mm``).
@@ -736,9 +749,26 @@ class CollisionConfig(Section):
     floor_facing_deg: float = 45.0
     tilt_deg: float | None = None
     platform_raise_mm: float = 150.0
+    retract_mm: tuple = (50.0, 100.0, 200.0)
+    via_height_mm: float | None = 100.0
+    detour: bool = True
+    detour_iterations: int = 200
+    seed: int = 0
     cloud_radius_mm: float | None = None
 
     def _check(self):
+        value = self.retract_mm
+        if (
+            isinstance(value, (str, bytes))
+            or not hasattr(value, "__len__")
+            or any(isinstance(v, (bool, str)) or not isinstance(v, (int, float)) for v in value)
+            or not all(math.isfinite(v) and 0 < v <= MAX_COORDINATE_MM for v in value)
+        ):
+            raise _fail(CollisionConfig, "retract_mm", "a list of positive finite lengths", value)
+        object.__setattr__(self, "retract_mm", tuple(float(v) for v in value))
+        _at_least(CollisionConfig, "via_height_mm", self.via_height_mm, 0)
+        _within(CollisionConfig, "detour_iterations", self.detour_iterations, 0, 100000)
+        _at_least(CollisionConfig, "seed", self.seed, 0)
         _at_least(CollisionConfig, "clearance_mm", self.clearance_mm, 0)
         _at_least(CollisionConfig, "floor_offset_mm", self.floor_offset_mm, 0)
         _at_least(CollisionConfig, "gun_radius_mm", self.gun_radius_mm, 0, strict=True)

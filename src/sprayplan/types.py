@@ -163,8 +163,12 @@ STROKE_KINDS = ("spray", "transfer", "touch-up")
 #: all (unreachable).
 IK_METHODS = ("analytic", "sqp", "")
 
-#: How the collision stage freed a waypoint (``StationPlan.repair``), or empty.
-REPAIR_KINDS = ("branch", "roll", "tilt", "platform", "")
+#: How the collision stage freed a waypoint of a stroke in place (``StationPlan.repair``).
+WAYPOINT_REPAIRS = ("branch", "roll", "tilt", "platform")
+#: How it re-routed a transfer (every waypoint of the new transfer carries the kind).
+TRANSFER_REPAIRS = ("retract", "via", "detour")
+#: Every value of ``StationPlan.repair``: a waypoint repair, a transfer route, or empty.
+REPAIR_KINDS = WAYPOINT_REPAIRS + TRANSFER_REPAIRS + ("",)
 
 
 @dataclass(frozen=True)
@@ -346,7 +350,9 @@ class StationPlan:
         That pair, ``"elbow/part"``; empty where not checked.
     repair : (n,) str
         How a waypoint found in collision was freed: ``branch``, ``roll``, ``tilt`` or ``platform``
-        (:data:`sprayplan.collision.repair.REPAIRS`); empty where nothing was repaired.
+        (:data:`WAYPOINT_REPAIRS`); on a transfer the collision stage re-routed, the route's kind on each of its
+        waypoints: ``retract``, ``via`` or ``detour`` (:data:`TRANSFER_REPAIRS`); empty where nothing was
+        repaired.
     """
 
     index: int
@@ -422,7 +428,7 @@ class StationPlan:
             object.__setattr__(self, name, value)
         bad = sorted(set(self.repair) - set(REPAIR_KINDS))
         if bad:
-            raise ValueError(f"repair must be one of branch, roll, tilt, platform or empty, got {bad[0]!r}")
+            raise ValueError(f"repair must be one of {', '.join(REPAIR_KINDS[:-1])} or empty, got {bad[0]!r}")
 
     def __len__(self) -> int:
         return len(self.q9)

@@ -280,6 +280,7 @@ def cmd_paths(args) -> int:
 
 
 from sprayplan.cli.batch import add_batch_parser  # noqa: E402 - batches of jobs
+from sprayplan.cli.cells import add_parsers as add_cell_parsers  # noqa: E402 - the cell commands, own module
 from sprayplan.cli.export import add_export_parser, program_format  # noqa: E402 - robot programs
 from sprayplan.cli.plan import cmd_plan, cmd_simulate  # noqa: E402 - the main job's commands
 from sprayplan.cli.robots import cmd_fk, cmd_ik, cmd_robots  # noqa: E402 - the robot commands, own module
@@ -406,6 +407,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     robots_cmd.add_argument("robot", nargs="?", help="an industrial arm's name or an OPW arm's .toml file")
     robots_cmd.set_defaults(func=cmd_robots)
+    add_cell_parsers(sub, common, _add_load_options)
     fk_cmd = sub.add_parser("fk", parents=[common], help="forward kinematics: joints CSV -> poses CSV")
     fk_cmd.add_argument("joints", help="CSV with columns q1..q6 (rad; q1..q5 for r5150)")
     fk_cmd.add_argument("-o", "--output", required=True)
@@ -447,6 +449,11 @@ def build_parser() -> argparse.ArgumentParser:
     group.add_argument("--region")
     group = plan_cmd.add_argument_group("plan")
     group.add_argument("--robot", help="gantry-ur5 (default) or gantry-ur5e: seed 000's gantry and its arm")
+    group.add_argument(
+        "--cell",
+        help="plan a whole body in a cell of several robots: line3, sides2 (`sprayplan cells`) or a cell .toml "
+        "(docs/cells.md); writes cell_plan.json instead of plan.json",
+    )
     group.add_argument("--seed", type=int, help="random seed of the station cover and the tours (default 0)")
     group.add_argument(
         "--mode", choices=["paths", "points"], help="slicing strokes (default) or the seed's target points"

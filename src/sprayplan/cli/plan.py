@@ -114,6 +114,11 @@ def summary_line(result, outdir) -> str:
             f"flagged, {collisions['repaired']} of {collisions['in_collision_before_repair']} repaired "
             f"(clearance {collisions['clearance_mm']:g} mm)"
         )
+        if collisions.get("transfers_in_collision"):
+            line += (
+                f"; transfers: {collisions['transfers_rerouted']} of {collisions['transfers_in_collision']} "
+                f"re-routed, {collisions['transfers_flagged']} flagged"
+            )
     if totals.get("floor_facing_left_out_mm2"):
         line += f"; surface facing the floor left out: {totals['floor_facing_left_out_mm2'] / 1e6:.4g} m2"
     if result.film is not None:
@@ -201,6 +206,10 @@ def cmd_plan(args) -> int:
     check_outputs([(args.output, "-o")], [], folder=True)
     _check_samples(args.samples)
     job = _job_config(args)
+    if getattr(args, "cell", None) is not None:
+        from sprayplan.cli.cells import cmd_plan_cell
+
+        return cmd_plan_cell(args, job)
     inputs = [(args.part, "part"), (args.config, "-c"), (file_input(job.coating.process), "--process")]
     check_folder_outputs(args.output, JOB_FILES, "-o", inputs)
     if job.export.programs:

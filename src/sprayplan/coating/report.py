@@ -22,7 +22,7 @@ from sprayplan.surface.pairs import unique_pairs
 log = logging.getLogger(__name__)
 
 
-def _weighted_stats(values: np.ndarray, weights: np.ndarray, lo: float, hi: float) -> dict:
+def weighted_stats(values: np.ndarray, weights: np.ndarray, lo: float, hi: float) -> dict:
     total = float(weights.sum())
     if total <= 0 or not len(values):
         return {"count": 0}
@@ -92,18 +92,18 @@ def coating_report(
             "tolerance_um": float(tolerance_um),
             "painted_fraction": float(painted_fraction),
         },
-        "painted": _weighted_stats(t[painted], w[painted], lo, hi),
-        "all": _weighted_stats(t[surface], w[surface], lo, hi),
+        "painted": weighted_stats(t[painted], w[painted], lo, hi),
+        "all": weighted_stats(t[surface], w[surface], lo, hi),
     }
     out["painted"]["share_of_area"] = float(w[painted].sum() / max(w.sum(), 1e-300))
     if edge_band_mm is not None:
         inner = painted & (boundary_distance(result.points, result.faces) > edge_band_mm)
-        out["interior"] = _weighted_stats(t[inner], w[inner], lo, hi)
+        out["interior"] = weighted_stats(t[inner], w[inner], lo, hi)
         out["interior"]["edge_band_mm"] = float(edge_band_mm)
         out["interior"]["share_of_area"] = float(w[inner].sum() / max(w.sum(), 1e-300))
     if samples is not None:
         index = _measuring_points(samples, painted, w, seed)
-        stats = _weighted_stats(t[index], np.ones(len(index)), lo, hi)
+        stats = weighted_stats(t[index], np.ones(len(index)), lo, hi)
         stats["indices"] = [int(i) for i in index]
         out["measuring_points"] = stats
     wet = float(result.stroke_paint_ml.sum())

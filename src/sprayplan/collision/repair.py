@@ -21,13 +21,12 @@ position and axis tolerances against the *original* poses (``[kinematics] positi
 ``axis_tol_deg``), and no waypoint of the stroke is in collision. What no repair frees stays flagged
 (``StationPlan.collision``); nothing is silently kept.
 
-Motions (:func:`flag_motions`): between two checked waypoints whose least slacks are ``S_a`` and ``S_b``
-(distance minus the pair's gap, over every pair) and whose joint motion moves no body point more than ``B``
-(``collision.motion``), every configuration in between keeps a slack of at least ``(S_a + S_b - B) / 2``: each
-distance is 1-Lipschitz in the bodies' displacement, at most ``B s`` from one end and ``B (1 - s)`` from the
-other. Where that is not negative the motion is free; the others are bisected, then checked on a fixed grid
-(:func:`flag_motions`). A motion in collision flags the waypoint it arrives at
-(``StationPlan.motion_collision``); transfers are not yet re-routed (retract, via pose, joint-space detour).
+Motions (:func:`flag_motions`): every motion between consecutive reached waypoints proven free in bulk or
+checked on a grid (:func:`sprayplan.collision.proof.motion_hits`). A motion in collision flags the waypoint it
+arrives at (``StationPlan.motion_collision``). Then the transfers in collision are re-routed
+(:mod:`sprayplan.collision.transfers`: a longer retract, via poses at a safe height, a joint-space detour); a
+transfer no route frees stays flagged. Motions inside a spray stroke cannot be re-routed (the path is fixed)
+and stay flagged.
 """
 
 from __future__ import annotations
@@ -35,11 +34,12 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+from types import SimpleNamespace
 
 import numpy as np
 
 from sprayplan.collision.cell import CellCollision
-from sprayplan.collision.motion import motion_bound_mm
+from sprayplan.collision.proof import end_slacks, motion_hits
 from sprayplan.config import CollisionConfig, JobConfig, KinematicsConfig
 from sprayplan.errors import InputError
 from sprayplan.progress import Progress, counted
@@ -48,12 +48,14 @@ from sprayplan.robots.model import TAU
 from sprayplan.robots.stage import HOME_JOINTS
 from sprayplan.robots.ur_ik import ur_ik
 from sprayplan.surface.poses import stroke_poses
-from sprayplan.types import REPAIR_KINDS, Plan, StationPlan
+from sprayplan.collision.transfers import Router, route_stroke
+from sprayplan.types import TRANSFER_REPAIRS, WAYPOINT_REPAIRS, Plan, StationPlan
 
 log = logging.getLogger(__name__)
 
-#: The repairs, in the order they are tried (``types.REPAIR_KINDS`` less the empty one).
-REPAIRS = REPAIR_KINDS[:-1]
+#: The waypoint repairs, in the order they are tried (``types.WAYPOINT_REPAIRS``; transfers are re-routed
+#: after them, ``collision.transfers``).
+REPAIRS = WAYPOINT_REPAIRS
 #: The rolls about the gun axis tried, degrees.
 ROLLS_DEG = (90.0, -90.0, 180.0, 45.0, -45.0, 135.0, -135.0)
 #: How many of a stroke's colliding waypoints a candidate is checked at before the whole stroke.
@@ -138,11 +140,20 @@ class _Station:
         self.pair[rows] = pair_names(cell)[found.column]
         self.slack[rows] = found.slack_mm
 
-    def plan(self, st: StationPlan, motion: np.ndarray) -> StationPlan:
+    def spliced(self, sl: slice, rows: _Station) -> _Station:
+        """This station's arrays with the rows ``sl`` replaced by ``rows``'s (the platform kept)."""
+        out = {
+            f.name: np.concatenate([getattr(self, f.name)[: sl.start], getattr(rows, f.name), getattr(self, f.name)[sl.stop :]])
+            for f in dataclasses.fields(self)
+            if f.name != "platform"
+        }
+        return _Station(platform=self.platform, **out)
+
+    def plan(self, st: StationPlan, motion: np.ndarray, strokes=None) -> StationPlan:
         return StationPlan(
             st.index,
             self.platform,
-            st.strokes,
+            st.strokes if strokes is None else strokes,
             self.q9,
             self.reachable,
             self.method,
@@ -313,22 +324,13 @@ def _raised(repairer: Repairer, st: StationPlan, work: _Station, config: Collisi
     return best
 
 
-#: The margin over their gaps within which pairs are measured exactly for the motions' proof, mm: slacks are
-#: known up to about this, and a motion moving bodies less than twice it is proven free at once.
-MOTION_MARGIN_MM = 100.0
-#: Bisections of the motions not proven at once, before the rest are walked (``CellCollision.check_motion``).
-BISECTIONS = 4
-
-
 def flag_motions(cell: CellCollision, stations: list[_Station]) -> tuple[list[np.ndarray], int, int]:
     """Per station, the waypoints whose incoming motion is in collision (module docstring); and how many
     motions were checked and how many were in collision.
 
-    A motion is proven free when ``(S_a + S_b - B) / 2 >= 0``; the rest are split at their middle (the halves'
-    bounds are ``B / 2``) up to :data:`BISECTIONS` times, all midpoints of a level checked in one call; what is
-    still unproven is checked on a grid of ``ceil(B / motion_step_mm)`` steps (``collision.motion``'s fixed
-    grid: a configuration between two checks is within half a step of one, so each check must keep half a
-    step over its gaps), all in one call. A motion that ends at a waypoint in collision is in collision.
+    The motions join consecutive reachable waypoints, across stations too (the station move), and are proven
+    or checked by :func:`sprayplan.collision.proof.motion_hits`. A motion that ends at a waypoint in
+    collision is in collision.
     """
     flags = [np.zeros(len(w.q9), bool) for w in stations]
     rows = [(i, j) for i, w in enumerate(stations) for j in np.flatnonzero(w.reachable)]
@@ -336,46 +338,72 @@ def flag_motions(cell: CellCollision, stations: list[_Station]) -> tuple[list[np
         return flags, 0, 0
     q9 = np.array([stations[i].q9[j] for i, j in rows])
     hit_at = np.array([stations[i].collision[j] for i, j in rows])
-    slack = cell.check(q9, margin_mm=MOTION_MARGIN_MM).slack_mm
+    slack = end_slacks(cell, q9)
     m = len(q9) - 1
     in_collision = hit_at[:-1] | hit_at[1:]
-    # open motions as segments (index, s0, s1, slack at s0, slack at s1)
     index = np.flatnonzero(~in_collision)
-    s0, s1 = np.zeros(len(index)), np.ones(len(index))
-    a_slack, b_slack = slack[index], slack[index + 1]
-    total = motion_bound_mm(q9[index], q9[index + 1], cell.reach_radii_mm)
-    for level in range(BISECTIONS + 1):
-        bound = total * (s1 - s0)
-        open_ = (a_slack + b_slack - bound) / 2.0 < 0
-        if not open_.any() or level == BISECTIONS:
-            break
-        index, s0, s1, a_slack, b_slack, total = (v[open_] for v in (index, s0, s1, a_slack, b_slack, total))
-        mid = (s0 + s1) / 2.0
-        q_mid = q9[index] + mid[:, None] * (q9[index + 1] - q9[index])
-        mid_slack = cell.check(q_mid, margin_mm=MOTION_MARGIN_MM).slack_mm
-        index = np.concatenate([index, index])
-        s0, s1 = np.concatenate([s0, mid]), np.concatenate([mid, s1])
-        a_slack, b_slack = np.concatenate([a_slack, mid_slack]), np.concatenate([mid_slack, b_slack])
-        total = np.concatenate([total, total])
-    else:  # pragma: no cover - the loop always breaks
-        open_ = np.zeros(len(index), bool)
-    # what is still open: every piece checked on a grid at most motion_step_mm of bound apart, all at once,
-    # each check against its gaps plus half a step (every configuration between is within half a step of one)
-    index, s0, s1, total = index[open_], s0[open_], s1[open_], total[open_]
-    step = cell.config.motion_step_mm
-    counts = np.maximum(1, np.ceil(total * (s1 - s0) / step - 1e-12)).astype(int)
-    owner = np.repeat(np.arange(len(index)), counts + 1)
-    within = np.arange(len(owner)) - np.repeat(np.cumsum(counts + 1) - (counts + 1), counts + 1)
-    s = s0[owner] + (s1 - s0)[owner] * within / counts[owner]
-    k = index[owner]
-    if len(k):
-        grid = q9[k] + s[:, None] * (q9[k + 1] - q9[k])
-        hit = cell.collides(grid, extra_mm=step / 2.0)
-        in_collision[np.unique(k[hit])] = True
+    in_collision[index] = motion_hits(cell, q9[index], q9[index + 1], slack[index], slack[index + 1])
     for k in np.flatnonzero(in_collision):
         i, j = rows[k + 1]
         flags[i][j] = True
     return flags, m, int(in_collision.sum())
+
+
+def _reroute(router: Router, repairer: Repairer, st: StationPlan, work: _Station, motion: np.ndarray, job, place, counts):
+    """A station's transfers in collision re-routed (``collision.transfers``): returns its strokes, its
+    arrays and its motion flags with every route found in place of its transfer; ``counts`` updated.
+
+    A transfer is in collision when a waypoint of it, a motion into one or the motion into the stroke after
+    it is. Its route runs from the last reached joints of the stroke before to the first of the stroke after
+    (both must be free); the route's legs are proven free, so no motion of it, nor the one into the stroke
+    after, is flagged. Transfers are taken last to first, so that the rows of those before stay put."""
+    strokes = list(st.strokes)
+    slices = _slices(st)
+    standoff = job.paths.standoff_mm
+    for k in range(len(strokes) - 2, 0, -1):
+        if strokes[k].spray_on:
+            continue
+        sl = slices[k]
+        before = np.flatnonzero(work.reachable[slices[k - 1]])
+        after = np.flatnonzero(work.reachable[slices[k + 1]])
+        if not len(before) or not len(after):
+            continue
+        ia, ib = slices[k - 1].start + before[-1], slices[k + 1].start + after[0]
+        if not (work.collision[sl].any() or motion[sl].any() or motion[ib]):
+            continue
+        counts["in_collision"] += 1
+        found = None
+        if not (work.collision[ia] or work.collision[ib]):
+            found = router.route(work.q9[ia], work.q9[ib], seed=[job.collision.seed, place, k])
+        if found is None:
+            counts["flagged"] += 1
+            continue
+        counts["rerouted_by"][found.kind] += 1
+        q9 = np.vstack([work.q9[ia], found.nodes, work.q9[ib]])
+        n = len(q9)
+        checks = repairer.cell.check(q9)
+        rows = _Station(
+            work.platform,
+            q9,
+            np.ones(n, bool),
+            np.array([work.method[ia], *["analytic"] * (n - 2), work.method[ib]], dtype=object),
+            np.zeros(n),
+            np.zeros(n),
+            np.zeros(n, bool),
+            checks.in_collision.copy(),
+            checks.distance_mm.copy(),
+            repairer.names[checks.column],
+            checks.slack_mm.copy(),
+            np.full(n, found.kind, dtype=object),
+            np.ones(n, bool),
+        )
+        work = work.spliced(sl, rows)
+        motion = np.concatenate([motion[: sl.start], np.zeros(n, bool), motion[sl.stop :]])
+        motion[ib + n - (sl.stop - sl.start)] = False
+        strokes[k] = route_stroke(repairer.gantry, q9[0], found.nodes, q9[-1], standoff)
+    if any(a is not b for a, b in zip(strokes, st.strokes)):
+        repairer.errors(work, SimpleNamespace(strokes=strokes))
+    return tuple(strokes), work, motion
 
 
 def collision_stage(plan: Plan, whole, job: JobConfig, gantry: Gantry, progress: Progress | None = None):
@@ -386,7 +414,7 @@ def collision_stage(plan: Plan, whole, job: JobConfig, gantry: Gantry, progress:
     cell = CellCollision(gantry, whole, config)
     repairer = Repairer(cell, gantry, job.kinematics, config)
     step = counted(progress, "collision", len(plan.stations))
-    works, before, by_repair = [], 0, dict.fromkeys(REPAIRS, 0)
+    works, before = [], 0
     for st in plan.stations:
         work = _Station.of(st)
         work.check(cell)
@@ -397,24 +425,38 @@ def collision_stage(plan: Plan, whole, job: JobConfig, gantry: Gantry, progress:
             if work.collision.any():
                 work = _raised(repairer, st, work, config)
         repairer.errors(work, st)
-        for name in REPAIRS:
-            by_repair[name] += int((work.repair == name).sum())
         works.append(work)
         step()
-    motion_flags, motions, motion_hits = flag_motions(cell, works)
-    stations = tuple(w.plan(st, m) for w, st, m in zip(works, plan.stations, motion_flags))
+    motion_flags, _, motion_hits_before = flag_motions(cell, works)
+    strokes = [st.strokes for st in plan.stations]
+    transfers = {"in_collision": 0, "rerouted_by": dict.fromkeys(TRANSFER_REPAIRS, 0), "flagged": 0}
+    if config.repair:
+        router = Router(cell, whole)
+        for place, st in enumerate(plan.stations):
+            strokes[place], works[place], motion_flags[place] = _reroute(
+                router, repairer, st, works[place], motion_flags[place], job, place, transfers
+            )
+    stations = tuple(w.plan(st, m, s) for w, st, m, s in zip(works, plan.stations, motion_flags, strokes))
+    by_repair = {name: sum(int((w.repair == name).sum()) for w in works) for name in REPAIRS}
     flagged = sum(int(w.collision.sum()) for w in works)
+    motion_hits = sum(int(m.sum()) for m in motion_flags)
+    reached = int(sum(w.reachable.sum() for w in works))
     summary = {
         "checked": True,
         "clearance_mm": config.clearance_mm,
         "floor_z_mm": round(cell.floor_z_mm, 3),
-        "waypoints_checked": int(sum(w.reachable.sum() for w in works)),
+        "waypoints_checked": reached,
         "in_collision_before_repair": before,
         "repaired": int(sum(by_repair.values())),
         "repaired_by": by_repair,
         "flagged_waypoints": flagged,
-        "motions_checked": motions,
+        "motions_checked": max(0, reached - 1),
         "flagged_motions": motion_hits,
+        "flagged_motions_before_reroute": motion_hits_before,
+        "transfers_in_collision": transfers["in_collision"],
+        "transfers_rerouted": int(sum(transfers["rerouted_by"].values())),
+        "transfers_rerouted_by": transfers["rerouted_by"],
+        "transfers_flagged": transfers["flagged"],
     }
     if job.export.strict and (flagged or motion_hits):
         first = next((i, w) for i, w in enumerate(works) if w.collision.any()) if flagged else None

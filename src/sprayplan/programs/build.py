@@ -11,7 +11,9 @@ the program reaches (docs/programs.md, "What the programs do"):
 - one linear move per further waypoint at the plan's speed, blended (radius at most ``blend_mm`` and
   ``blend_share`` of the shorter neighbouring segment; 0 at the run's ends), the gun switched off
   ``lead_off_s`` before the last;
-- a linear ``retract`` back along the gun axis.
+- a linear ``retract`` back along the gun axis;
+- where the collision stage re-routed the transfer before a stroke (``collision.transfers``), a joint move
+  (``route``) to each inner waypoint of the route before the stroke's first run.
 
 Targets are the poses the plan's joints give the TCP (forward kinematics of ``q9``): equal to the plan's gun
 poses where the analytic IK solved them, and what the arm really does where SQP did (within the plan's
@@ -33,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sprayplan.collision.transfers import is_route
 from sprayplan.errors import InputError
 from sprayplan.programs.model import (
     JOINT,
@@ -236,7 +239,9 @@ def build_program(plan, job, fmt: str, strict: bool | None = None) -> CellProgra
         q9 = target_q9(st, fmt)
         poses = cell.poses(q9[:, :6], q9[:, 6:]) if len(q9) else np.zeros((0, 4, 4))
         moves = [_home(cell, st.platform_mm)]
+        routed: set = set()
         for run in st_runs:
+            moves += route_moves(st, run, data, poses, q9, routed)
             moves += _run_moves(cell, cfg, run, data, poses, q9, lead_on, lead_off, report)
         moves.append(_home(cell, st.platform_mm))
         stations.append(StationProgram(order, st.index, np.array(st.platform_mm), tuple(moves)))
@@ -246,6 +251,20 @@ def build_program(plan, job, fmt: str, strict: bool | None = None) -> CellProgra
     return CellProgram(
         tuple(stations), np.array(plan.home_mm), HOME_JOINTS.copy(), cell.tool2flange, plan.name, report, home
     )
+
+
+def route_moves(st, run: Run, data, poses, q9, routed: set) -> list[Move]:
+    """Joint moves (``route``) to the inner waypoints of the transfer before ``run``'s stroke when the collision
+    stage re-routed it (``collision.transfers``; its ends are the strokes' own waypoints): before the stroke's
+    first run only (``routed``: the strokes done)."""
+    if run.stroke == 0 or run.stroke in routed:
+        return []
+    routed.add(run.stroke)
+    before = np.flatnonzero(data["stroke"] == run.stroke - 1)
+    if not len(before) or data["spray"][before].any() or not is_route(st.repair[before]):
+        return []
+    inner = [int(k) for k in before[1:-1] if st.reachable[k]]
+    return [Move(JOINT, "route", poses[k], q9[k, :6].copy(), q9[k, 6:].copy()) for k in inner]
 
 
 def _refuse(report: dict) -> None:

@@ -43,6 +43,7 @@ from sprayplan.programs.model import (
     rapid_config,
 )
 from sprayplan.robots.stage import HOME_JOINTS, gantry_for
+from sprayplan.types import TRANSFER_REPAIRS
 
 POSITION_MM = 0.01
 ANGLE_DEG = 0.01
@@ -175,6 +176,11 @@ def _is_home(move, external_mm) -> bool:
     )
 
 
+def is_route_rows(st) -> np.ndarray:
+    """(n,) bool: the waypoints of a station's transfers that the collision stage re-routed."""
+    return np.isin(st.repair, TRANSFER_REPAIRS) & st.reachable
+
+
 class _Station:
     """The plan's side of one station: the waypoints' poses from the plan's joints, and what the plan wants."""
 
@@ -199,10 +205,17 @@ def _check_station(order, moves, fmt, plan, job, cell, result: CheckResult) -> N
             result.fail(home, "the gun must not be switched on at home")
     matched = np.zeros(len(station.q9), bool)
     k, pointer = 1, 0
+    routes = station.q9[is_route_rows(station.st)]
     while k < len(moves) - 1:
         if moves[k].kind != JOINT:
             result.fail(moves[k], "a run must begin with a joint move to its approach pose")
             return
+        if moves[k + 1].kind == JOINT and k + 1 < len(moves) - 1:  # a joint move to a route's waypoint
+            if not len(routes) or np.abs(routes[:, :6] - moves[k].joints).max(axis=1).min() > JOINT_RAD:
+                result.fail(moves[k], "a joint move between runs to no waypoint of a transfer the plan re-routed")
+                return
+            k += 1
+            continue
         j = k + 1
         while j < len(moves) - 1 and moves[j].kind == LINEAR:
             j += 1

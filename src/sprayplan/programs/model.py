@@ -39,7 +39,8 @@ class Move:
     kind : {"linear", "joint"}
     role : str
         What it is for: ``spray`` (to a plan waypoint), ``approach``, ``retract``, ``transfer`` (the joint move
-        to an approach pose), ``home``, ``via`` (a point inserted on a spray segment to place a gun event).
+        to an approach pose), ``home``, ``via`` (a point inserted on a spray segment to place a gun event), ``route`` (a joint move to a
+        waypoint of a transfer the collision stage re-routed).
     pose : (4, 4) float, mm
         The TCP's pose at the target, in the part frame (for a joint move: the pose its joints give).
     joints : (6,) float, rad

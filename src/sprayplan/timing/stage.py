@@ -7,7 +7,9 @@ rest to rest, within the axes' limits and never faster than the planned tip spee
 is a point-to-point joint move from rest to rest (:func:`sprayplan.timing.moves.point_to_point`):
 
 - a transfer (spray off) goes from the last joints before it to its own last reachable waypoint's joints, as
-  the robot programs' joint moves do; its waypoints get the times at their share of its length;
+  the robot programs' joint moves do; its waypoints get the times at their share of its length; a transfer
+  the collision stage re-routed (``collision.transfers``) is a joint move to each of its waypoints in turn,
+  the legs its proof covers, each waypoint stamped when it is reached;
 - the unreachable waypoints of a stroke are skipped by a joint move (no time stamp: NaN), and so is a jump of
   an arm joint by more than ``[timing] joint_jump_deg`` between two waypoints (a change of IK branch, an SQP
   solution far from its neighbours: no spline through it is a motion the arm should make while spraying);
@@ -27,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sprayplan.collision.transfers import is_route
 from sprayplan.paths.speed import segment_speeds
 from sprayplan.progress import Progress, counted
 from sprayplan.robots.stage import HOME_JOINTS
@@ -163,7 +166,15 @@ def time_plan(plan: Plan, job, gantry, progress: Progress | None = None) -> Plan
             ok = st.reachable[idx]
             if not s.spray_on:
                 planned_time.append(s.length_mm / motion.transfer_speed_mm_s)
-                if ok.any():
+                if ok.any() and is_route(st.repair[idx]):
+                    # a route the collision stage made: a joint move to each of its waypoints in turn
+                    for k in idx[ok]:
+                        move = point_to_point(current, st.q9[k], limits)
+                        clock += move.duration_s
+                        totals["transfer"] += move.duration_s
+                        t[k] = clock
+                        current = st.q9[k]
+                elif ok.any():
                     last = idx[ok][-1]
                     move = point_to_point(current, st.q9[last], limits)
                     along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(s.tcp, axis=0), axis=1))])

@@ -1,0 +1,216 @@
+"""The files of a cell plan (``sprayplan plan --cell``): what :func:`write_cell_plan` writes into OUTDIR, and
+:func:`read_cell_plan`, which reads ``cell_plan.json`` back.
+
+``cell_plan.json``
+    ``format = "sprayplan-cell-plan"``, ``version = 1``; the cell (its robots, their base poses and tracks);
+    the part's placement (``part2cell``); the areas (name, direction, surface, robot, the share it reaches,
+    split or not); per robot its strokes in order, each with its kind, area, roll, and per waypoint the gun
+    tip, the normal, the time factor, the track position, the six joints (rad) and whether it is reached; and the
+    report (film over the whole body, per area, per robot, per seam; cycle times). mm, rad, s.
+``waypoints.csv``
+    One row a waypoint of every robot: ``robot, stroke, waypoint, kind, area, x_mm, y_mm, z_mm, nx, ny, nz,
+    dwell, track_mm, roll_deg, q1..q6, reachable``.
+``areas.csv``
+    One row a face of the painted surface: ``face, area, direction, robot, robot_index``.
+``areas.png``, ``film.png``
+    Pictures: the robot of each face, and the film (``cells.pictures``).
+``thickness.ply``, ``thickness.csv``, ``coating.json``
+    The whole body's film, as ``sprayplan plan`` writes them (``export.film``); ``coating.json`` is the film
+    part of the report.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+
+from sprayplan.export.files import atomic_output
+
+FORMAT = "sprayplan-cell-plan"
+VERSION = 1
+#: The files a cell plan writes into its folder.
+CELL_FILES = (
+    "cell_plan.json", "waypoints.csv", "areas.csv", "areas.png", "thickness.ply", "thickness.csv", "coating.json",
+    "film.png",
+)  # fmt: skip
+WAYPOINT_COLUMNS = [
+    "robot", "stroke", "waypoint", "kind", "area", "x_mm", "y_mm", "z_mm", "nx", "ny", "nz", "dwell", "track_mm",
+    "roll_deg", *(f"q{i + 1}" for i in range(6)), "reachable",
+]  # fmt: skip
+
+
+def _clean(value):
+    """JSON-ready: numpy to Python, NaN and inf to None."""
+    if isinstance(value, dict):
+        return {str(k): _clean(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_clean(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _clean(value.tolist())
+    if isinstance(value, (np.floating, float)):
+        return float(value) if np.isfinite(value) else None
+    if isinstance(value, (np.integer,)):
+        return int(value)
+    if isinstance(value, (np.bool_,)):
+        return bool(value)
+    return value
+
+
+def cell_plan_dict(plan) -> dict:
+    """``cell_plan.json``'s content (module docstring)."""
+    cell = plan.cell
+    robots = []
+    for cr in cell.robots:
+        entry = {
+            "name": cr.name,
+            "model": cr.model,
+            "tool": cr.tool,
+            "base2cell": cr.base2cell,
+            "reach_mm": cr.reach_mm,
+        }
+        if cr.track is not None:
+            entry["track"] = {
+                "axis": cr.track.axis,
+                "range_mm": list(cr.track.range_mm),
+                "speed_mm_s": cr.track.speed_mm_s,
+            }
+        robots.append(entry)
+    a = plan.areas
+    areas = [
+        {
+            "name": a.names[k],
+            "direction": a.direction[k],
+            "area_mm2": round(float(a.area_mm2[k]), 3),
+            "robot": cell.robots[r].name if (r := int(plan.assignment.area_robot[k])) >= 0 else None,
+            "share_reached": round(float(plan.assignment.area_share[k]), 6),
+            "split": bool(plan.assignment.split[k]),
+        }
+        for k in range(len(a))
+    ]
+    work = []
+    for r in plan.robots:
+        strokes, at = [], 0
+        for i, s in enumerate(r.strokes):
+            n = len(s)
+            strokes.append(
+                {
+                    "kind": s.kind,
+                    "area": int(r.area[i]),
+                    "roll_deg": float(r.roll_deg[i]),
+                    "track_mm": np.round(r.track_mm[at : at + n], 6),
+                    "tcp_mm": np.round(s.tcp, 6),
+                    "normals": np.round(s.normals, 9),
+                    "points_mm": np.round(s.points, 6),
+                    "dwell": np.round(s.dwell, 9),
+                    "q_rad": np.round(r.q[at : at + n], 12),
+                    "reachable": r.reachable[at : at + n],
+                }
+            )
+            at += n
+        work.append({"name": r.name, "model": r.model, "strokes": strokes})
+    return _clean(
+        {
+            "format": FORMAT,
+            "version": VERSION,
+            "cell": {"name": cell.name, "source": cell.source, "floor_z_mm": cell.floor_z_mm, "robots": robots},
+            "part": {"name": plan.part.name, "part2cell": plan.part2cell},
+            "areas": areas,
+            "robots": work,
+            "report": plan.report,
+            "timings_s": plan.timings_s,
+        }
+    )
+
+
+def write_cell_plan(outdir, plan, target_um: float = 50.0, tolerance_um: float = 5.0) -> list[str]:
+    """Write a cell plan's files into ``outdir`` (an existing folder; module docstring). Returns the paths."""
+    from sprayplan.export.film import write_thickness_csv, write_thickness_ply
+    from sprayplan.export.tables import write_table
+
+    outdir = os.fspath(outdir)
+    written = []
+    path = os.path.join(outdir, "cell_plan.json")
+    with atomic_output(path, "w", encoding="utf-8") as handle:
+        handle.write(json.dumps(cell_plan_dict(plan), separators=(",", ":")))
+        handle.write("\n")
+    written.append(path)
+    rows = []
+    for r in plan.robots:
+        at = 0
+        for i, s in enumerate(r.strokes):
+            for j in range(len(s)):
+                q = r.q[at + j]
+                rows.append(
+                    [r.name, i, j, s.kind, int(r.area[i]), *np.round(s.tcp[j], 4), *np.round(s.normals[j], 6),
+                     round(float(s.dwell[j]), 6), round(float(r.track_mm[at + j]), 4), float(r.roll_deg[i]),
+                     *np.round(q, 9), int(r.reachable[at + j])]
+                )  # fmt: skip
+            at += len(s)
+    path = os.path.join(outdir, "waypoints.csv")
+    write_table(path, WAYPOINT_COLUMNS, rows)
+    written.append(path)
+    names = [cr.name for cr in plan.cell.robots]
+    fr = plan.assignment.face_robot
+    area_rows = [
+        [f, plan.areas.names[k], plan.areas.direction[k], names[fr[f]] if fr[f] >= 0 else "", int(fr[f])]
+        for f, k in enumerate(plan.areas.face_area.tolist())
+    ]
+    path = os.path.join(outdir, "areas.csv")
+    write_table(path, ["face", "area", "direction", "robot", "robot_index"], area_rows)
+    written.append(path)
+    from sprayplan.cells.pictures import areas_picture, film_picture
+
+    path = os.path.join(outdir, "areas.png")
+    areas_picture(path, plan)
+    written.append(path)
+    if plan.film is not None:
+        path = os.path.join(outdir, "film.png")
+        film_picture(path, plan, target_um, tolerance_um)
+        written.append(path)
+        for name, write in (("thickness.ply", None), ("thickness.csv", write_thickness_csv)):
+            path = os.path.join(outdir, name)
+            if write is None:
+                write_thickness_ply(path, plan.film, target_um, tolerance_um)
+            else:
+                write(path, plan.film)
+            written.append(path)
+        path = os.path.join(outdir, "coating.json")
+        with atomic_output(path, "w", encoding="utf-8") as handle:
+            json.dump(_clean(plan.report.get("film", {})), handle, indent=1)
+            handle.write("\n")
+        written.append(path)
+    return written
+
+
+def read_cell_plan(path) -> dict:
+    """``cell_plan.json`` read back, with each stroke's arrays as numpy arrays (``tcp_mm``, ``normals``,
+    ``points_mm``, ``dwell``, ``track_mm``, ``q_rad``, ``reachable``) and the robots' ``base2cell`` as (4, 4).
+
+    Raises
+    ------
+    PartFileError
+        Not a cell plan, another version, or a broken file (the message names the file).
+    """
+    from sprayplan.errors import PartFileError
+    from sprayplan.export.files import read_json_file
+
+    data = read_json_file(path, FORMAT, "cell plan", versions=(VERSION,))
+
+    try:
+        for r in data["cell"]["robots"]:
+            r["base2cell"] = np.array(r["base2cell"], dtype=float).reshape(4, 4)
+        data["part"]["part2cell"] = np.array(data["part"]["part2cell"], dtype=float).reshape(4, 4)
+        for r in data["robots"]:
+            for s in r["strokes"]:
+                for key in ("tcp_mm", "normals", "points_mm"):
+                    s[key] = np.array(s[key], dtype=float).reshape(-1, 3)
+                s["dwell"] = np.array(s["dwell"], dtype=float)
+                s["track_mm"] = np.array(s["track_mm"], dtype=float)
+                s["q_rad"] = np.array([[np.nan if v is None else v for v in row] for row in s["q_rad"]], float)
+                s["q_rad"] = s["q_rad"].reshape(-1, 6)
+                s["reachable"] = np.array(s["reachable"], dtype=bool)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise PartFileError(path, f"not a readable cell plan ({exc})") from None
+    return data

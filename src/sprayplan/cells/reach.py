@@ -1,0 +1,116 @@
+"""Which robot of a cell reaches which face of a placed part: the input of
+:func:`sprayplan.surface.areas.assign_areas` (issue 18, "each area given to the robot that reaches all of it
+best").
+
+For every face, the gun stands at ``centroid + standoff * normal`` with its axis along ``-normal`` (the pose
+a stroke over the face would take), turned about its own axis by each of ``rolls`` angles (the roll is free for
+the spray). A robot on a track tries its base at the track position nearest the face and at ``track_offsets_mm``
+either side of it (clipped to the track). The score of a (robot, face) is the share of those (track position,
+roll) tries that the robot's inverse kinematics solves within its joint limits on any branch: 0 where none
+does (not reached), 1 where every try does (the face is reached whichever way the gun is turned and from
+anywhere near it on the track, a measure of dexterity). Collisions are not counted here: the collision stage
+checks the plan.
+
+A car body has tens of thousands of faces, and neighbouring faces of one direction are reached alike: faces
+are grouped by ``cluster_mm`` cubes of their centres and by the :data:`~sprayplan.surface.areas.DIRECTIONS`
+class of their normals, and the largest face of each group stands for it (its score is the group's). The
+groups are small against a robot's reach (50 mm against 2 m), so only the seams between robots move, by at
+most a group's size; ``cluster_mm = 0`` tries every face.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sprayplan.cells.spec import Cell
+from sprayplan.surface.areas import DIRECTIONS
+from sprayplan.surface.pairs import unique_rows
+from sprayplan.surface.poses import poses_at
+from sprayplan.types import Part
+
+#: Rolls about the gun axis tried, degrees.
+ROLLS_DEG = (0.0, 90.0, 180.0, 270.0)
+#: Track positions tried either side of the one nearest a face, mm.
+TRACK_OFFSETS_MM = (0.0, -500.0, 500.0)
+#: The size of the cubes faces are grouped by, mm.
+CLUSTER_MM = 50.0
+
+
+def face_groups(centres: np.ndarray, normals: np.ndarray, face_area: np.ndarray, cluster_mm: float):
+    """The faces grouped by ``cluster_mm`` cubes and normal direction class: (the representative face of each
+    group, (g,) int; the group of each face, (m,) int). Every face is its own group when ``cluster_mm`` is 0."""
+    m = len(centres)
+    if cluster_mm <= 0 or m == 0:
+        return np.arange(m), np.arange(m)
+    basis = np.array(list(DIRECTIONS.values()))
+    cube = np.floor((centres - centres.min(axis=0)) / cluster_mm).astype(np.int64)
+    key = np.column_stack([cube, np.argmax(normals @ basis.T, axis=1)])
+    _, _, group = unique_rows(key)
+    # the largest face of each group (ties: the lowest index)
+    order = np.lexsort((np.arange(m), -face_area, group))
+    first = np.r_[True, group[order][1:] != group[order][:-1]]
+    return order[first], group
+
+
+def _rot_z(angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    out = np.eye(4)
+    out[:2, :2] = [[c, -s], [s, c]]
+    return out
+
+
+def reach_matrix(
+    cell: Cell,
+    part: Part,
+    face_normals: np.ndarray,
+    standoff_mm: float,
+    rolls_deg=ROLLS_DEG,
+    track_offsets_mm=TRACK_OFFSETS_MM,
+    cluster_mm: float = CLUSTER_MM,
+) -> np.ndarray:
+    """(robots, faces) float in [0, 1]: how well each robot reaches each face (module docstring).
+
+    ``part`` is in the cell frame (:func:`~sprayplan.cells.spec.place_part`); ``face_normals`` its outward
+    unit face normals; ``cluster_mm`` groups faces (module docstring). A gantry cell's robot reaches everything its stations will be placed for (score 1): its
+    reach is decided by the stations stage.
+    """
+    all_centres = part.triangles.mean(axis=1)
+    all_normals = np.asarray(face_normals, dtype=float)
+    rep, group = face_groups(all_centres, all_normals, part.face_areas, cluster_mm)
+    centres, normals = all_centres[rep], all_normals[rep]
+    tips = centres + standoff_mm * normals
+    base_poses = poses_at(tips, normals)
+    out = np.zeros((len(cell.robots), len(centres)))
+    for i, cr in enumerate(cell.robots):
+        if cr.is_gantry:
+            out[i] = 1.0
+            continue
+        robot = cr.robot(0.0)
+        origin = cr.base2cell[:3, 3]
+        # faces beyond the reach sphere of the whole track are not tried
+        if cr.track is None:
+            shifts = [np.zeros(len(tips))]
+        else:
+            along = (tips - origin) @ cr.track.axis
+            lo, hi = cr.track.range_mm
+            shifts = [np.clip(along + d, lo, hi) for d in track_offsets_mm]
+        tries = 0
+        for s in shifts:
+            offset = np.zeros((len(tips), 4, 4))
+            if cr.track is not None:
+                offset[:, :3, 3] = -s[:, None] * cr.track.axis
+            base_at = origin + (0 if cr.track is None else s[:, None] * cr.track.axis)
+            near = np.linalg.norm(tips - base_at, axis=1) <= cr.reach_mm + 1e-9
+            for roll in rolls_deg:
+                tries += 1
+                if not near.any():
+                    continue
+                poses = base_poses[near] @ _rot_z(math.radians(roll)) + offset[near]
+                sols = robot.ik(poses)
+                hit = np.zeros(len(tips), bool)
+                hit[near] = sols.valid.any(axis=1)
+                out[i] += hit
+        out[i] /= max(tries, 1)
+    return out[:, group]

@@ -1,0 +1,206 @@
+"""The cell commands of the command line: ``sprayplan cells`` and ``sprayplan areas`` (see ``cli.main``)."""
+
+from __future__ import annotations
+
+import math
+
+from sprayplan.cli.common import check_outputs, file_input
+from sprayplan.cli.common import stage as _stage
+
+#: The columns of ``sprayplan areas -o FILE.csv``: one row a face of the part as loaded.
+AREA_COLUMNS = ["face", "area", "direction", "robot", "robot_index", "reach", "face_area_mm2"]
+
+
+def cmd_cells(args) -> int:
+    """List the cell presets, or describe one (a name or a cell .toml)."""
+    from sprayplan.cells import list_cells, load_cell
+
+    if args.cell is None:
+        for name in list_cells():
+            cell = load_cell(name)
+            robots = ", ".join(f"{r.name} ({r.model})" for r in cell.robots)
+            print(f"{name:12s} {len(cell.robots)} robot{'s' if len(cell.robots) > 1 else ''}: {robots}")
+        print("(a cell .toml: see docs/cells.md; `sprayplan cells NAME` for details)")
+        return 0
+    cell = load_cell(args.cell, "cell")
+    print(f"{cell.name}: {cell.description or 'a cell'}")
+    print(f"  floor at z = {cell.floor_z_mm:g} mm; part aligned {cell.align}, centre at {list(cell.position_mm)} mm")
+    for r in cell.robots:
+        if r.is_gantry:
+            print(f"  {r.name}: {r.model}, gun {r.tool} (a gantry: its stations are planned)")
+            continue
+        origin = ", ".join(f"{v:g}" for v in r.base2cell[:3, 3])
+        track = ""
+        if r.track is not None:
+            axis = ", ".join(f"{v:g}" for v in r.track.axis)
+            lo, hi = r.track.range_mm
+            track = f", track along ({axis}) {lo:g} .. {hi:g} mm at {r.track.speed_mm_s:g} mm/s"
+        print(f"  {r.name}: {r.model}, gun {r.tool}, base at ({origin}) mm, reach {r.reach_mm:.0f} mm{track}")
+    return 0
+
+
+def cmd_areas(args) -> int:
+    """Split a part's surface into areas and give each to a robot of the cell (surface.areas)."""
+    import numpy as np
+
+    from sprayplan.cells import load_cell, place_part
+    from sprayplan.cells.reach import reach_matrix
+    from sprayplan.errors import ConfigError
+    from sprayplan.export.files import staged_files
+    from sprayplan.export.tables import write_table
+    from sprayplan.io.load import load_part
+    from sprayplan.surface.areas import assign_areas, segment_areas
+    from sprayplan.surface.region import drop_floor_facing
+
+    check_outputs([(args.output, "-o")], [(args.part, "part"), (file_input(args.cell), "--cell")])
+    if not (math.isfinite(args.standoff_mm) and args.standoff_mm >= 0):
+        raise ConfigError(f"--standoff-mm: must be a number >= 0, got {args.standoff_mm}")
+    if not (0.0 <= args.min_share < 1.0):
+        raise ConfigError(f"--min-share: must be in [0, 1), got {args.min_share}")
+    cell = load_cell(args.cell)
+    with _stage("load"):
+        part = load_part(args.part, units=args.units, up=args.up)
+    if not part.is_mesh:
+        raise ConfigError(f"{args.part}: areas are found on meshes only (this is a point cloud)")
+    with _stage("place"):
+        placed = place_part(part, cell).part
+        kept = np.ones(len(placed.faces), bool)
+        painted = placed
+        if args.floor_facing_deg is not None:
+            limit = -math.sin(math.radians(args.floor_facing_deg))
+            tri = placed.triangles
+            cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+            nz = cross[:, 2] / np.maximum(np.linalg.norm(cross, axis=1), 1e-300)
+            painted, _ = drop_floor_facing(placed, args.floor_facing_deg)
+            kept = nz >= limit
+    with _stage("areas"):
+        areas = segment_areas(painted, min_share=args.min_share)
+    with _stage("reach"):
+        reach = reach_matrix(cell, painted, areas.face_normals, args.standoff_mm)
+        assigned = assign_areas(areas, painted.face_areas, reach)
+    names = [r.name for r in cell.robots]
+    index = np.flatnonzero(kept)
+    fa = painted.face_areas
+    rows = []
+    for j, f in enumerate(index):
+        k, r = int(areas.face_area[j]), int(assigned.face_robot[j])
+        best = float(reach[r, j]) if r >= 0 else 0.0
+        rows.append(
+            [
+                int(f),
+                areas.names[k],
+                areas.direction[k],
+                names[r] if r >= 0 else "",
+                r,
+                round(best, 4),
+                round(float(fa[j]), 3),
+            ]
+        )
+    with staged_files([args.output]) as (temp,):
+        write_table(temp, AREA_COLUMNS, rows)
+    for k, name in enumerate(areas.names):
+        r = int(assigned.area_robot[k])
+        who = names[r] if r >= 0 else "no robot"
+        split = " (split: part to another robot)" if assigned.split[k] else ""
+        print(
+            f"  {name:12s} {areas.area_mm2[k] / 1e6:7.3f} m^2 -> {who}, reaches {100 * assigned.area_share[k]:.1f} %{split}"
+        )
+    per_robot = ", ".join(f"{n} {a / 1e6:.2f} m^2" for n, a in zip(names, assigned.robot_area_mm2))
+    left_out = len(placed.faces) - len(index)
+    print(
+        f"{len(areas)} areas of {painted.area / 1e6:.2f} m^2 on {cell.name}: {per_robot}; unreached "
+        f"{assigned.unreached_mm2 / 1e6:.3f} m^2; {left_out} floor-facing faces left out -> {args.output}"
+    )
+    return 0
+
+
+def add_parsers(sub, common, add_load_options) -> None:
+    """The ``cells`` and ``areas`` subcommands."""
+    cells = sub.add_parser("cells", parents=[common], help="list the cell presets, or describe one (docs/cells.md)")
+    cells.add_argument("cell", nargs="?", help="a cell preset's name or a cell .toml file")
+    cells.set_defaults(func=cmd_cells)
+    areas = sub.add_parser(
+        "areas",
+        parents=[common],
+        help="split a part into areas of one surface direction and give each to a robot of a cell -> CSV",
+        description="Automatic areas (seed 003, section 5): the part placed in the cell, its surface split into "
+        "patches of one direction (islands merged), each patch given to the robot that reaches it best, split "
+        "where none reaches it whole. Writes one row a face: its area, direction and robot.",
+    )
+    areas.add_argument("part", help="a mesh file")
+    areas.add_argument("-o", "--output", required=True, help="the CSV to write")
+    areas.add_argument("--cell", default="line3", help="a cell preset (`sprayplan cells`) or a cell .toml")
+    areas.add_argument("--standoff-mm", type=float, default=113.0, help="the gun's standoff (default 113)")
+    areas.add_argument("--min-share", type=float, default=0.03, help="patches under this share are islands")
+    areas.add_argument(
+        "--floor-facing-deg",
+        type=float,
+        default=45.0,
+        help="leave out surface facing more than this below the horizontal (default 45)",
+    )
+    add_load_options(areas)
+    areas.set_defaults(func=cmd_areas)
+
+
+#: ``plan --cell`` options that belong to the gantry's plan and have no meaning in a cell of arms.
+GANTRY_ONLY = ("robot", "mode", "tour", "program", "collisions", "strict")
+
+
+def cmd_plan_cell(args, job) -> int:
+    """``sprayplan plan PART --cell NAME -o OUT``: a whole body painted by the robots of a cell
+    (:func:`sprayplan.cells.plan.plan_cell`), written all or nothing into OUT (``cells.files``)."""
+    import os
+
+    from sprayplan.cells import load_cell
+    from sprayplan.cells.files import CELL_FILES, write_cell_plan
+    from sprayplan.cells.plan import plan_cell
+    from sprayplan.cli.common import check_folder_outputs
+    from sprayplan.errors import ConfigError
+    from sprayplan.export.files import staged_folder
+    from sprayplan.io.load import load_part
+
+    for name in GANTRY_ONLY:
+        value = getattr(args, name, None)
+        if value not in (None, False, []):
+            raise ConfigError(f"--{name.replace('_', '-')}: not available with --cell (a cell of arms is planned)")
+    cell = load_cell(args.cell)
+    if cell.is_gantry:
+        args.cell = None
+        from sprayplan.cli.plan import cmd_plan
+
+        return cmd_plan(args)
+    inputs = [(args.part, "part"), (args.config, "-c"), (file_input(args.cell), "--cell")]
+    check_folder_outputs(args.output, CELL_FILES, "-o", inputs)
+    with _stage("load"):
+        part = load_part(args.part, units=job.load.units, up=job.load.up)
+    if job.load.region is not None:
+        raise ConfigError("--region: not available with --cell (the areas split the whole body)")
+    from sprayplan.cli.common import ProgressDisplay
+
+    display = ProgressDisplay(quiet=getattr(args, "quiet", False))
+    try:
+        plan = plan_cell(part, cell, job, progress=display)
+    except BaseException:
+        display.close(finished=False)
+        raise
+    display.close()
+    target = job.coating.thickness_um if job.coating.thickness_um is not None else 50.0
+    with staged_folder(args.output, CELL_FILES) as folder:
+        write_cell_plan(folder, plan, target, job.coating.tolerance_um)
+    report = plan.report
+    robots = ", ".join(
+        f"{name} {r['strokes']} strokes {r['waypoints']} waypoints ({r['unreached_waypoints']} unreached) "
+        f"{r['cycle_time_s']:.0f} s"
+        for name, r in report["robots"].items()
+    )
+    line = f"{cell.name}: {report['areas']} areas; {robots}; cycle {report['cycle_time_s']:.0f} s"
+    film = report.get("film")
+    if film:
+        whole = film["whole"]
+        line += (
+            f"; film mean {whole['mean_um']:.1f} um, {100 * whole['share_in_spec']:.1f} % in spec"
+            f" ({film['report'].get('measuring_points', {}).get('count', 0)} measuring points:"
+            f" {100 * film['report'].get('measuring_points', {}).get('share_in_spec', 0.0):.1f} % in spec)"
+        )
+    print(f"{line} -> {os.path.join(args.output, 'cell_plan.json')}")
+    return 0

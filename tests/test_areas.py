@@ -1,0 +1,308 @@
+"""Automatic areas (surface.areas), cells as data (cells.spec) and the reach matrix (cells.reach): issue 18."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sprayplan.cells import cell_from_dict, list_cells, load_cell, place_part
+from sprayplan.cells.reach import reach_matrix
+from sprayplan.errors import ConfigError
+from sprayplan.io.load import load_part
+from sprayplan.surface.areas import DIRECTIONS, assign_areas, face_adjacency, segment_areas
+from sprayplan.surface.normals import outward_face_normals
+from sprayplan.surface.region import drop_floor_facing
+from sprayplan.types import Part
+from tests.helpers import grid_box
+
+
+def test_a_box_splits_into_its_six_sides_and_the_areas_partition_the_surface():
+    box = grid_box()
+    areas = segment_areas(box, min_share=0.0)
+    assert sorted(areas.direction) == sorted(DIRECTIONS)
+    assert len(areas.face_area) == len(box.faces) and areas.face_area.min() == 0
+    assert areas.area_mm2.sum() == pytest.approx(box.area, rel=1e-12)
+    for k, name in enumerate(areas.direction):
+        mine = areas.face_area == k
+        assert np.allclose(areas.face_normals[mine], DIRECTIONS[name], atol=1e-12)
+        assert areas.area_mm2[k] == pytest.approx(box.face_areas[mine].sum())
+    # in order of decreasing area: the two 400 x 200 sides first
+    assert np.all(np.diff(areas.area_mm2) <= 1e-9)
+    assert set(areas.direction[:2]) == {"top", "bottom"}
+
+
+def test_islands_merge_into_the_neighbour_they_share_most_edge_with():
+    box = grid_box()
+    areas = segment_areas(box, min_share=0.0)
+    # the two 200 x 100 ends are 2 x 20000 of 280000 mm^2: under 8 % they are islands
+    merged = segment_areas(box, min_share=0.08)
+    assert len(merged) == 4
+    assert merged.area_mm2.sum() == pytest.approx(box.area)
+    # an end shares 200 mm with the top and bottom and 100 mm with each side: it joins top or bottom
+    ends = [k for k, d in enumerate(areas.direction) if d.startswith("end")]
+    for k in ends:
+        into = np.unique(merged.face_area[areas.face_area == k])
+        assert len(into) == 1
+        assert merged.direction[into[0]] in ("top", "bottom")
+
+
+def test_face_adjacency_pairs_each_shared_edge_once():
+    box = grid_box(n=3)
+    pairs, length = face_adjacency(box.faces, box.vertices)
+    # a closed triangle mesh: every edge is shared by two faces, edges = 3 m / 2
+    assert len(pairs) == 3 * len(box.faces) // 2
+    assert len(np.unique(pairs, axis=0)) == len(pairs)
+    for (a, b), ell in zip(pairs[:50], length[:50]):
+        shared = set(box.faces[a]) & set(box.faces[b])
+        assert len(shared) == 2
+        p, q = box.vertices[list(shared)]
+        assert ell == pytest.approx(np.linalg.norm(p - q))
+
+
+def test_assignment_follows_the_reach_and_splits_where_no_robot_reaches_all():
+    box = grid_box()
+    areas = segment_areas(box, min_share=0.0)
+    m = len(box.faces)
+    centres = box.triangles.mean(axis=1)
+    reach = np.zeros((2, m))
+    reach[0, centres[:, 1] > 0] = 1.0  # robot 0 reaches the +y half
+    reach[1, centres[:, 1] < 1e-9] = 0.5  # robot 1 the -y half and the middle
+    got = assign_areas(areas, box.face_areas, reach)
+    side_py = areas.direction.index("side +y")
+    side_my = areas.direction.index("side -y")
+    assert got.area_robot[side_py] == 0 and not got.split[side_py]
+    assert got.area_robot[side_my] == 1 and not got.split[side_my]
+    top = areas.direction.index("top")
+    assert got.split[top] and got.area_share[top] == pytest.approx(0.5)
+    on_top = areas.face_area == top
+    expected = np.where(centres[:, 1] > 0, 0, 1)
+    assert np.array_equal(got.face_robot[on_top], expected[on_top])
+    # every face is painted by a robot that reaches it; the surface is conserved
+    assert np.all(reach[got.face_robot, np.arange(m)] > 0)
+    assert got.robot_area_mm2.sum() + got.unreached_mm2 == pytest.approx(box.area)
+    # swapping the robots swaps the answer
+    swapped = assign_areas(areas, box.face_areas, reach[::-1])
+    assert np.array_equal(swapped.face_robot, 1 - got.face_robot)
+
+
+def test_unreached_surface_is_data():
+    box = grid_box()
+    areas = segment_areas(box, min_share=0.0)
+    centres = box.triangles.mean(axis=1)
+    reach = (centres[:, 2] > -49.0)[None, :].astype(float)  # nothing reaches the bottom
+    got = assign_areas(areas, box.face_areas, reach)
+    bottom = areas.direction.index("bottom")
+    assert got.area_robot[bottom] == -1
+    assert got.unreached_mm2 == pytest.approx(areas.area_mm2[bottom])
+    assert np.all(got.face_robot[areas.face_area == bottom] == -1)
+
+
+def test_a_point_cloud_or_a_bad_share_is_refused():
+    cloud = Part(np.random.default_rng(0).random((20, 3)), np.zeros((0, 3), int), name="cloud")
+    with pytest.raises(ConfigError, match="point cloud"):
+        segment_areas(cloud)
+    with pytest.raises(ConfigError, match="min_share"):
+        segment_areas(grid_box(), min_share=1.5)
+
+
+# ------------------------------------------------------------------------------------------------- cells
+
+
+def test_presets_load_and_name_their_robots():
+    assert {"gantry-ur5", "line3", "sides2"} <= set(list_cells())
+    line3 = load_cell("line3")
+    assert [r.name for r in line3.robots] == ["roof", "left", "right"]
+    assert all(r.track is not None and r.reach_mm > 2000 for r in line3.robots)
+    assert load_cell("gantry-ur5").is_gantry
+
+
+def test_measured_reach_is_the_farthest_flange_point():
+    robot = load_cell("line3").robots[0]
+    arm = robot.robot(0.0)
+    rng = np.random.default_rng(1)
+    lim = arm.joint_limits
+    q = lim[:, 0] + rng.random((2000, 6)) * (lim[:, 1] - lim[:, 0])
+    flange = np.linalg.inv(arm.base2world) @ arm.fk(q) @ np.linalg.inv(arm.tcp2flange)
+    assert np.linalg.norm(flange[:, :3, 3], axis=1).max() <= robot.reach_mm + 1.0
+
+
+def _cell(**robots):
+    return {"name": "t", "robot": [dict(name=k, **v) for k, v in robots.items()]}
+
+
+@pytest.mark.parametrize(
+    "data, message",
+    [
+        (_cell(a={"model": "no-such-arm"}), "unknown robot"),
+        (
+            _cell(a={"model": "abb-irb2400-10", "track": {"axis": "x", "range_mm": [100, 100]}}),
+            "zero or negative length",
+        ),
+        (_cell(a={"model": "abb-irb2400-10"}, b={"model": "abb-irb2400-10", "base_mm": [100, 0, 0]}), "same place"),
+        (_cell(a={"model": "abb-irb2400-10", "colour": "red"}), "unknown key 'colour'"),
+        (_cell(a={"model": "abb-irb2400-10", "base_mm": [0, float("nan"), 0]}), "finite number"),
+        ({"name": "t", "robot": []}, "at least one"),
+        (_cell(a={"model": "gantry-ur5"}, b={"model": "abb-irb2400-10", "base_mm": [3000, 0, 0]}), "gantry"),
+    ],
+)
+def test_bad_cells_name_the_file_and_the_problem(data, message):
+    with pytest.raises(ConfigError, match=message) as err:
+        cell_from_dict(data, source="my_cell.toml")
+    assert str(err.value).startswith("my_cell.toml: ")
+    assert "\n" not in str(err.value)
+
+
+def test_a_cell_file_is_read_and_a_broken_one_refused(tmp_path):
+    good = tmp_path / "two.toml"
+    good.write_text('name = "two"\n[[robot]]\nname = "a"\nmodel = "abb-irb2400-10"\nbase_mm = [0, 2000, 0]\n')
+    assert load_cell(good).robots[0].base2cell[1, 3] == 2000
+    broken = tmp_path / "broken.toml"
+    broken.write_text("[[robot]\n")
+    with pytest.raises(ConfigError, match="broken.toml"):
+        load_cell(broken)
+    with pytest.raises(ConfigError, match="not a known cell"):
+        load_cell("no-such-cell")
+
+
+@pytest.fixture(scope="module")
+def bmw(testdata):
+    return load_part(testdata / "meshes" / "bmw_m6_body_m_yup.ply", units="m", up="y")
+
+
+def test_a_part_is_placed_along_x_on_the_floor(testdata):
+    suv = load_part(testdata / "meshes" / "gazebo_suv_body_m.ply", units="m")  # y along the car
+    placed = place_part(suv, load_cell("line3"))
+    lo, hi = placed.part.bounds
+    ext = hi - lo
+    assert ext[0] > ext[1]
+    assert lo[2] == pytest.approx(0.0, abs=1e-9)
+    assert (lo[:2] + hi[:2]) / 2 == pytest.approx([0.0, 0.0], abs=1e-9)
+    moved = placed.part2cell[:3, :3] @ suv.vertices.T + placed.part2cell[:3, 3:4]
+    assert np.allclose(moved.T, placed.part.vertices, atol=1e-9)
+    assert np.all(placed.reach_share > 0)
+
+
+def test_a_robot_inside_the_part_or_a_part_out_of_reach_is_refused(bmw):
+    inside = cell_from_dict(_cell(a={"model": "abb-irb2400-10", "base_mm": [0, 0, 300]}), source="in.toml")
+    with pytest.raises(ConfigError, match="in.toml: robot 'a' stands inside the part"):
+        place_part(bmw, inside)
+    far = cell_from_dict(_cell(a={"model": "abb-irb2400-10", "base_mm": [0, 20000, 0]}), source="far.toml")
+    with pytest.raises(ConfigError, match="far.toml: .* out of every robot's reach"):
+        place_part(bmw, far)
+
+
+def test_line3_splits_the_bmw_like_the_seed(bmw):
+    """Seed 003, section 5: roof and rear to one robot, each side to its own."""
+    cell = load_cell("line3")
+    part, _ = drop_floor_facing(place_part(bmw, cell).part, 45.0)
+    areas = segment_areas(part)
+    reach = reach_matrix(cell, part, areas.face_normals, standoff_mm=113.0)
+    got = assign_areas(areas, part.face_areas, reach)
+    names = [r.name for r in cell.robots]
+    first = {d: areas.direction.index(d) for d in ("top", "side +y", "side -y")}
+    assert names[got.area_robot[first["top"]]] == "roof"
+    assert names[got.area_robot[first["side +y"]]] == "left"
+    assert names[got.area_robot[first["side -y"]]] == "right"
+    assert got.robot_area_mm2.sum() + got.unreached_mm2 == pytest.approx(part.area)
+    assert got.unreached_mm2 < 0.02 * part.area
+    assert np.all(reach[got.face_robot[got.face_robot >= 0], np.flatnonzero(got.face_robot >= 0)] > 0)
+
+
+def test_reach_scores_are_inverse_kinematics_answers(bmw):
+    """A face scored reached has a pose the robot solves, one scored 0 has none, at the face itself."""
+    cell = load_cell("sides2")
+    part, _ = drop_floor_facing(place_part(bmw, cell).part, 45.0)
+    _, normals = outward_face_normals(part.vertices, part.faces)
+    rng = np.random.default_rng(3)
+    pick = rng.choice(len(part.faces), 300, replace=False)
+    sub = Part(part.vertices, part.faces[pick], name="sub")
+    exact = reach_matrix(cell, sub, normals[pick], 113.0, cluster_mm=0.0)
+    grouped = reach_matrix(cell, part, normals, 113.0)[:, pick]
+    assert ((exact > 0) == (grouped > 0)).mean() > 0.9
+    from sprayplan.surface.poses import poses_at
+
+    centres = sub.triangles.mean(axis=1)
+    robot = cell.robots[0]
+    arm = robot.robot(0.0)
+    for f in np.flatnonzero(exact[0] > 0)[:20]:
+        tip = centres[f] + 113.0 * normals[pick][f]
+        s = np.clip((tip - robot.base2cell[:3, 3]) @ robot.track.axis, *robot.track.range_mm)
+        solved = False
+        for offset in (0.0, -500.0, 500.0):
+            shift = np.clip(s + offset, *robot.track.range_mm)
+            moved = dataclasses_replace_base(arm, robot, shift)
+            for roll in (0.0, 90.0, 180.0, 270.0):
+                c, sn = np.cos(np.radians(roll)), np.sin(np.radians(roll))
+                rz = np.array([[c, -sn, 0, 0], [sn, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+                pose = poses_at(tip[None], normals[pick][f][None])[0] @ rz
+                sols = moved.ik(pose[None])
+                for q in sols.q[0][sols.valid[0]]:
+                    assert np.allclose(moved.fk(q[None])[0], pose, atol=1e-6)
+                    solved = True
+        assert solved
+
+
+def dataclasses_replace_base(arm, robot, shift):
+    import dataclasses
+
+    base = robot.base2cell.copy()
+    base[:3, 3] += shift * robot.track.axis
+    return dataclasses.replace(arm, base2world=base)
+
+
+# ------------------------------------------------------------------------------------------------- command line
+
+
+def _run(argv, capsys):
+    from sprayplan.cli import main
+
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_areas_command_writes_one_row_a_painted_face(testdata, tmp_path, capsys):
+    import csv
+
+    out = tmp_path / "areas.csv"
+    suv = testdata / "meshes" / "gazebo_suv_body_m.ply"
+    code, text, err = _run(["-q", "areas", suv, "--units", "m", "--cell", "sides2", "-o", out], capsys)
+    assert code == 0, err
+    rows = list(csv.DictReader(out.open()))
+    part = load_part(suv, units="m")
+    placed = place_part(part, load_cell("sides2")).part
+    painted, _ = drop_floor_facing(placed, 45.0)
+    assert len(rows) == len(painted.faces)
+    assert sum(float(r["face_area_mm2"]) for r in rows) == pytest.approx(painted.area, rel=1e-4)
+    faces = np.array([int(r["face"]) for r in rows])
+    assert len(np.unique(faces)) == len(faces) and faces.max() < len(placed.faces)
+    assert {r["robot"] for r in rows} <= {"left", "right", ""}
+    assert all((r["robot"] == "") == (r["robot_index"] == "-1") for r in rows)
+    assert "areas of" in text and str(out) in text
+
+
+@pytest.mark.parametrize(
+    "extra, words",
+    [
+        (["--cell", "no-such-cell"], "not a known cell"),
+        (["--min-share", "2"], "--min-share"),
+        (["--standoff-mm", "nan"], "--standoff-mm"),
+    ],
+)
+def test_areas_bad_options_are_one_line_and_write_nothing(testdata, tmp_path, capsys, extra, words):
+    out = tmp_path / "areas.csv"
+    suv = testdata / "meshes" / "gazebo_suv_body_m.ply"
+    code, _, err = _run(["areas", suv, "--units", "m", "-o", out, *extra], capsys)
+    assert code == 2
+    assert words in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert not out.exists()
+
+
+def test_a_broken_cell_file_is_one_line(testdata, tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[[robot]]\nname = "a"\nmodel = "abb-irb2400-10"\ntrack = {axis = "x", range_mm = [5, 5]}\n')
+    code, _, err = _run(["cells", bad], capsys)
+    assert code == 2 and "bad.toml" in err and "zero or negative length" in err
+    out = tmp_path / "a.csv"
+    code, _, err = _run(["areas", testdata / "meshes" / "gazebo_suv_body_m.ply", "--cell", bad, "-o", out], capsys)
+    assert code == 2 and not out.exists()

@@ -1,0 +1,174 @@
+"""Transfers in collision re-routed by the collision stage (``collision.transfers``): on a small synthetic
+cell where the straight transfer between two spray strokes runs through a post standing on a plate."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("coal")
+
+from sprayplan.collision.cell import CellCollision
+from sprayplan.collision.repair import collision_stage
+from sprayplan.collision.transfers import Router, rrt_connect
+from sprayplan.config import JobConfig
+from sprayplan.paths.planner import transfer
+from sprayplan.robots.gantry import build_gantry
+from sprayplan.robots.stage import solve_strokes, station_plan
+from sprayplan.types import TRANSFER_REPAIRS, Part, Plan, Stroke
+
+#: The gantry raised above the height the stations stage would give, so that the arm has room over the plate.
+RAISE_MM = 450.0
+BOX_FACES = np.array(
+    [[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4], [2, 6, 3], [3, 6, 7], [0, 4, 2],
+     [2, 4, 6], [1, 3, 5], [3, 7, 5]]
+)  # fmt: skip
+
+
+def box(lo, hi):
+    v = np.array([[x, y, z] for z in (lo[2], hi[2]) for y in (lo[1], hi[1]) for x in (lo[0], hi[0])], float)
+    return v, BOX_FACES
+
+
+def plate_with_post(height_mm: float) -> Part:
+    """An 800 x 500 mm plate (top at z = 0) with a 30 x 60 mm post of the given height at its centre."""
+    (v1, f1), (v2, f2) = box([-400, -250, -20], [400, 250, 0]), box([-15, -30, 0], [15, 30, height_mm])
+    return Part(np.vstack([v1, v2]), np.vstack([f1, f2 + 8]), name=f"plate, post {height_mm:g} mm")
+
+
+def line_stroke(x0: float, x1: float) -> Stroke:
+    points = np.column_stack([np.linspace(x0, x1, 11), np.zeros(11), np.zeros(11)])
+    normals = np.tile([0.0, 0.0, 1.0], (11, 1))
+    return Stroke(points, normals, points + 113.0 * normals, True, np.ones(11, bool), 0)
+
+
+@pytest.fixture(scope="module")
+def gantry():
+    return build_gantry("ur5")
+
+
+@pytest.fixture(scope="module")
+def plan(gantry):
+    """One station: a stroke left of the post, the straight transfer over the plate, a stroke right of it."""
+    job = JobConfig()
+    a, b = line_stroke(-250.0, -150.0), line_stroke(150.0, 250.0)
+    strokes = (a, transfer(a, b, job.paths), b)
+    platform = gantry.platform_for(np.vstack([s.points for s in strokes])) + [0.0, 0.0, RAISE_MM]
+    st = station_plan(0, platform, strokes, solve_strokes(gantry, strokes, platform, job.kinematics))
+    assert st.reachable.all()
+    return Plan((st,), platform, np.zeros((0, 3)))
+
+
+def dense_slack(cell: CellCollision, chain: np.ndarray, spacing_mm: float = 2.0) -> float:
+    """The least exact slack (coal, every pair) along the joint-interpolated legs of ``chain``, checked at
+    configurations no body point moves more than ``spacing_mm`` apart (an independent check of the proof)."""
+    from sprayplan.collision.motion import motion_checks
+
+    q = np.vstack([motion_checks(a, b, cell.reach_radii_mm, spacing_mm) for a, b in zip(chain[:-1], chain[1:])])
+    return float(cell.distances(q).slack_mm.min())
+
+
+def transfer_rows(st):
+    start = len(st.strokes[0])
+    return slice(start, start + len(st.strokes[1]))
+
+
+def ends(st):
+    """The joints the transfer joins: the first stroke's last and the last stroke's first."""
+    return st.q9[len(st.strokes[0]) - 1], st.q9[len(st) - len(st.strokes[-1])]
+
+
+def run(plan, gantry, height_mm, **collision):
+    whole = plate_with_post(height_mm)
+    job = JobConfig().replace(collision=collision) if collision else JobConfig()
+    after, summary = collision_stage(plan, whole, job, gantry)
+    return whole, job, after, summary
+
+
+@pytest.mark.parametrize("height_mm, settings, kind", [(150.0, {}, "retract"), (260.0, {"retract_mm": [50.0], "via_height_mm": 20.0}, "via")])
+def test_a_colliding_transfer_is_rerouted_and_its_route_is_free_when_checked_densely(
+    plan, gantry, height_mm, settings, kind
+):
+    whole, job, after, summary = run(plan, gantry, height_mm, **settings)
+    cell = CellCollision(gantry, whole, job.collision)
+    q_a, q_b = ends(plan.stations[0])
+    assert dense_slack(cell, np.vstack([q_a, q_b])) < 0  # the straight move collides ...
+    assert cell.check(plan.stations[0].q9[transfer_rows(plan.stations[0])]).in_collision.any()  # ... and the line
+    st = after.stations[0]
+    rows = transfer_rows(st)
+    assert summary["transfers_in_collision"] == 1 and summary["transfers_rerouted_by"][kind] == 1
+    assert summary["transfers_flagged"] == 0 and summary["flagged_motions"] == 0
+    assert (st.repair[rows] == kind).all()
+    assert not st.collision.any() and not st.motion_collision.any()
+    # the route runs from the stroke before to the stroke after, and is free all along
+    route = st.q9[rows]
+    assert np.array_equal(route[0], q_a) and np.array_equal(route[-1], q_b)
+    assert dense_slack(cell, route) >= 0
+    # the strokes around it are kept, and the new transfer's waypoints are where its joints put the gun
+    assert np.array_equal(st.strokes[0].tcp, plan.stations[0].strokes[0].tcp)
+    assert np.array_equal(st.strokes[2].tcp, plan.stations[0].strokes[2].tcp)
+    assert np.allclose(st.strokes[1].tcp, gantry.gun2world(route)[:, :3, 3], atol=1e-9)
+    assert np.allclose(st.position_error_mm[rows], 0.0, atol=1e-6)
+
+
+@pytest.fixture(scope="module")
+def detoured(plan, gantry):
+    """The post too high for the retracts, and the vias blocked by the gantry's column: a detour."""
+    return run(plan, gantry, 300.0, detour_iterations=300)
+
+
+def test_the_first_free_route_is_kept_in_order(plan, gantry, detoured):
+    whole, job, after, summary = detoured
+    assert summary["transfers_rerouted_by"]["detour"] == 1
+    cell = CellCollision(gantry, whole, job.collision)
+    router = Router(cell, whole)
+    q_a, q_b = ends(plan.stations[0])
+    tried = list(router.candidates(q_a, q_b))
+    assert [k for k, _ in tried][:3] == ["retract"] * 3 and "via" in [k for k, _ in tried]
+    for _, nodes in tried:  # every retract and via route before the detour really is in collision
+        assert dense_slack(cell, np.vstack([q_a, nodes, q_b])) < 0
+    route = after.stations[0].q9[transfer_rows(after.stations[0])]
+    assert dense_slack(cell, route) >= 0
+    assert dense_slack(cell, np.vstack([q_a, q_b])) < 0  # so not the straight joint move: the search's path
+    assert len(route) > 2
+
+
+def test_a_seeded_search_repeats_and_its_path_is_free():
+    # a 2-D joint space with a wall from y = 0 to 0.8 at 0.4 < x < 0.6, walls checked exactly along each leg
+    def states_free(q):
+        q = np.atleast_2d(q)
+        return ~((q[:, 0] > 0.4) & (q[:, 0] < 0.6) & (q[:, 1] < 0.8))
+
+    def edges_free(a, b):
+        s = np.linspace(0.0, 1.0, 201)[None, :, None]
+        pts = a[:, None] + s * (b - a)[:, None]
+        return states_free(pts.reshape(-1, 2)).reshape(len(a), -1).all(axis=1)
+
+    args = ([0.1, 0.1], [0.9, 0.1], np.zeros(2), np.ones(2), states_free, edges_free, np.ones(2), 0.1, 500)
+    first = rrt_connect(*args, np.random.default_rng(4))
+    again = rrt_connect(*args, np.random.default_rng(4))
+    other = rrt_connect(*args, np.random.default_rng(5))
+    assert first is not None and np.array_equal(first, again)
+    assert other is not None and not (len(other) == len(first) and np.array_equal(other, first))
+    assert np.array_equal(first[0], [0.1, 0.1]) and np.array_equal(first[-1], [0.9, 0.1])
+    assert states_free(first).all() and edges_free(first[:-1], first[1:]).all()
+
+
+def test_the_stage_with_a_detour_repeats(plan, gantry, detoured):
+    _, _, a, summary_a = detoured
+    _, _, b, summary_b = run(plan, gantry, 300.0, detour_iterations=300)
+    assert summary_a == summary_b
+    assert np.array_equal(a.stations[0].q9, b.stations[0].q9)
+
+
+def test_what_no_route_frees_stays_flagged(plan, gantry):
+    # a post up to the gantry; the waypoint repairs' raised station and the search kept short (time)
+    settings = {"platform_raise_mm": 0.0, "retract_mm": [200.0], "detour_iterations": 5}
+    whole, job, after, summary = run(plan, gantry, 2000.0, **settings)
+    st = after.stations[0]
+    assert summary["transfers_in_collision"] == 1 and summary["transfers_flagged"] == 1
+    assert summary["transfers_rerouted"] == 0
+    assert [len(s) for s in st.strokes] == [len(s) for s in plan.stations[0].strokes]
+    assert not set(st.repair) & set(TRANSFER_REPAIRS)
+    assert (st.collision | st.motion_collision)[transfer_rows(st)].any()
+    assert summary["flagged_motions"] == int(st.motion_collision.sum()) > 0
