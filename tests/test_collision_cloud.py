@@ -6,10 +6,9 @@ from __future__ import annotations
 
 import math
 
+import coal
 import numpy as np
 import pytest
-
-coal = pytest.importorskip("coal")
 
 from sprayplan.collision.bodies import CapsuleBody
 from sprayplan.collision.cell import CellCollision, capsule_local_pose
@@ -121,7 +120,9 @@ def cloud_plan(testdata):
 
 def test_fast_check_agrees_with_every_exact_distance_on_a_real_cloud(cloud_plan, gantry):
     cell = CellCollision(gantry, cloud_plan.whole)
-    assert cell.spheres is not None and cell.spheres.radius_mm == pytest.approx(cloud_radius_mm(cloud_plan.whole.vertices))
+    assert cell.spheres is not None and cell.spheres.radius_mm == pytest.approx(
+        cloud_radius_mm(cloud_plan.whole.vertices)
+    )
     q9 = np.concatenate([s.q9 for s in cloud_plan.plan.stations])
     q9 = q9[np.concatenate([s.reachable for s in cloud_plan.plan.stations])]
     rng = np.random.default_rng(0)

@@ -12,11 +12,15 @@ of one of them):
 - capsule to part: the part's surface is sampled (:class:`SurfaceSamples`) so that every surface point lies
   within ``h`` of a sample; a point ``x`` whose nearest sample is ``d_s`` away is at least ``d_s - h`` from the
   surface. Over the segment's points: ``min d_s - h - s / 2 - r``. A voxel grid of distances
-  (:class:`DistanceGrid`) bounds most points first, far more cheaply; only the points it leaves near the
-  surface go to the k-d tree;
-- capsule to box (the gantry's axis-aligned carriage and column): the exact point-to-box distance of the
-  segment's points, ``- s / 2 - r``;
-- capsule to capsule: the least distance between the two segments' points, ``- s - r_a - r_b``;
+  (:class:`DistanceGrid`) bounds the capsule's bounding sphere and its pieces' first, far more cheaply, from
+  below and from above; only the points it leaves near the surface go to the k-d tree, and a capsule it
+  proves within the margin goes to the exact query at once (:func:`capsules_to_surface`). A point cloud's
+  balls (:mod:`~sprayplan.collision.spheres`) are bounded the same way, their centres the samples and their
+  radius the cover;
+- capsule to box (the gantry's axis-aligned carriage and column): the capsule's bounding sphere, then the
+  exact point-to-box distance of the segment's points, ``- s / 2 - r``;
+- capsule to capsule: the two bounding spheres, then the least distance between the two segments' points,
+  ``- s - r_a - r_b``;
 - capsule or box to the floor (a half-space ``z <= floor``), and the TCP's height: exact (the lowest end's
   height minus the radius, the box's bottom).
 """
@@ -199,7 +203,9 @@ def capsules_to_surface(
     lower, above = samples.grid.bounds_mm(centres.reshape(-1, 3))
     level1 = np.minimum(lower.reshape(len(near), pieces) - piece_reach, upper_mm)  # (k, pieces)
     out[near] = np.maximum(out[near], level1.min(axis=1))
-    settled = np.zeros(len(near), bool) if envelope else above.reshape(len(near), pieces).min(axis=1) - radius_mm < upper_mm
+    settled = (
+        np.zeros(len(near), bool) if envelope else above.reshape(len(near), pieces).min(axis=1) - radius_mm < upper_mm
+    )
     rows, which = np.nonzero((level1 < upper_mm) & ~settled[:, None])
     if not len(rows):
         return out

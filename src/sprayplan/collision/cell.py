@@ -2,9 +2,10 @@
 
 Bodies (sizes and sources in :mod:`sprayplan.collision.bodies`): the arm's eight link capsules and the gun's
 capsule along the D-H chain, the gantry's carriage and column (boxes), the part (a BVH of its triangles,
-OBB-RSS) and the floor (a half-space ``z <= floor_z``). Distances come from ``coal`` (the Coal library,
-formerly HPP-FCL; the choice against python-fcl is measured in docs/benchmarks.md and recorded in
-docs/ARCHITECTURE.md). A distance is signed: negative where two bodies overlap (coal's penetration estimate;
+OBB-RSS; for a point cloud, a ball about every point, :mod:`~sprayplan.collision.spheres`) and the floor (a
+half-space ``z <= floor_z``). Distances come from ``coal`` (the Coal library, formerly HPP-FCL; the choice
+against python-fcl is measured in docs/benchmarks.md and recorded in docs/ARCHITECTURE.md), a cloud's in
+closed form. A distance is signed: negative where two bodies overlap (coal's penetration estimate;
 only its sign is relied on).
 
 Pairs tested and the gap each must keep (``required_mm``):

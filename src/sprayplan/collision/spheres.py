@@ -33,6 +33,7 @@ from scipy.spatial import cKDTree
 from sprayplan.collision.broadphase import SurfaceSamples, distance_grid
 from sprayplan.errors import DataError
 
+
 def cloud_radius_mm(points: np.ndarray) -> float:
     """The default ball radius of a cloud, mm: ``s / sqrt(2)``, ``s`` the median of its points'
     nearest-neighbour distances.
@@ -84,7 +85,9 @@ class SphereSet:
 def cloud_samples(spheres: SphereSet) -> SurfaceSamples:
     """The balls as :class:`~sprayplan.collision.broadphase.SurfaceSamples`: the points with ``cover_mm`` the
     radius, so that ``nearest point - cover`` (the samples' lower bound) is the distance to the balls."""
-    return SurfaceSamples(spheres.points, spheres.radius_mm, spheres.tree, distance_grid(spheres.points, spheres.radius_mm))
+    return SurfaceSamples(
+        spheres.points, spheres.radius_mm, spheres.tree, distance_grid(spheres.points, spheres.radius_mm)
+    )
 
 
 def _point_segment_mm(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -129,4 +132,3 @@ def boxes_to_spheres(spheres: SphereSet, centres: np.ndarray, half_sizes: np.nda
         gap = np.maximum(np.abs(spheres.points[near] - centres[i]) - half_sizes[i], 0.0)
         out[i] = float(np.sqrt((gap * gap).sum(axis=1)).min()) - spheres.radius_mm
     return out
-

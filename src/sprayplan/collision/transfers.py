@@ -176,7 +176,7 @@ class Router:
         return ~motion_hits(self.cell, q_a, q_b)
 
     def states_free(self, q9: np.ndarray) -> np.ndarray:
-        return ~self.cell.check(q9).in_collision
+        return ~self.cell.collides(q9)
 
     def route(self, q_a: np.ndarray, q_b: np.ndarray, seed: int = 0) -> Route | None:
         """The first free route from ``q_a`` to ``q_b`` (module docstring), or None."""
