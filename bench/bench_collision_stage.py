@@ -7,9 +7,13 @@ With ``--transfers`` each plan is also run with the transfer routes off (``retra
 "motions flagged before" counts them after the waypoint repairs, before the motion repairs and the routes.
 
 Each part is planned to the ``refine`` stage once (no film target, so no tuning), then the collision stage is
-timed ``--runs`` times on that plan (median). Parts: the demo roof (``z > 1000``), the reach part
-(``x > -250``), and with ``--large`` the DTC hull and the BMW body (from ``$SPRAYPLAN_TESTDATA`` or
-shared/testdata).
+timed ``--runs`` times on that plan (median wall and CPU time). Before the stage, the check of every reachable
+waypoint of the plan (``CellCollision.check``: the gun, the links, the carriage and the column against the
+part, the floor and each other) is timed on its own: waypoints checked per second, and part queries per second
+(nine capsules, the gun and the eight links, against the part at each). Parts: the demo roof (``z > 1000``),
+the reach part (``x > -250``), the reach part's 262-point scan (a point cloud: a ball about every point), and
+with ``--large`` the DTC hull and the BMW body (from ``$SPRAYPLAN_TESTDATA`` or shared/testdata); ``--only``
+picks the parts whose name starts with its text.
 
     PYTHONPATH=src python bench/bench_collision_stage.py [--runs 3] [--large]
 """
@@ -17,6 +21,7 @@ shared/testdata).
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 import time
@@ -28,6 +33,7 @@ sys.path.insert(0, str(REPO / "bench"))
 
 from _data import meshes_dir  # noqa: E402
 
+from sprayplan.collision.cell import CellCollision  # noqa: E402
 from sprayplan.collision.repair import collision_stage  # noqa: E402
 from sprayplan.config import JobConfig  # noqa: E402
 from sprayplan.demo import DEMO_REGION, car_roof  # noqa: E402
@@ -38,6 +44,8 @@ def cases(large: bool):
     yield "demo roof (z > 1000)", car_roof(), JobConfig().replace(load={"region": DEMO_REGION})
     reach = REPO / "tests" / "data" / "meshes" / "reach_curved_part.ply"
     yield "reach part (x > -250)", reach, JobConfig().replace(load={"units": "m", "region": "x > -250"})
+    scan = REPO / "tests" / "data" / "pointclouds" / "reach_part_normals_ascii.pcd"
+    yield "reach scan (262-point cloud)", scan, JobConfig().replace(load={"units": "m"})
     if large:
         yield "DTC hull", meshes_dir() / "dtc_ship_hull_ascii.stl.gz", JobConfig().replace(load={"units": "m"})
         yield "BMW body", meshes_dir() / "bmw_m6_body_m_yup.ply", JobConfig().replace(load={"units": "m", "up": "y"})
@@ -53,22 +61,34 @@ def main(argv=None) -> int:
     if args.transfers:
         return transfer_table(args)
     print(
-        "| part | waypoints | in collision before | repaired (branch/roll/tilt/platform) | flagged | motions | flagged motions | stage s (median) |"
+        "| part | waypoints | check waypoints/s | part queries/s | in collision before | repaired (branch/roll/tilt/platform) "
+        "| flagged | motions | flagged motions | stage wall s (median) | stage CPU s (median) | load |"
     )
-    print("|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name, source, job in cases(args.large):
+        if args.only and not name.startswith(args.only):
+            continue
         state = run_job(source, job.replace(collision={"check": False}), until="refine")
-        times = []
+        cell = CellCollision(state.gantry(), state.whole, state.job.collision)
+        q9 = [st.q9[st.reachable] for st in state.plan.stations]
+        cell.check(q9[0][:1])  # the surface samples and the grid, made once per plan
+        began = time.perf_counter()
+        for q in q9:
+            cell.check(q)
+        rate = sum(len(q) for q in q9) / (time.perf_counter() - began)
+        times, cpu = [], []
         for _ in range(args.runs):
-            began = time.perf_counter()
+            began, began_cpu = time.perf_counter(), time.process_time()
             _, summary = collision_stage(state.plan, state.whole, state.job, state.gantry())
             times.append(time.perf_counter() - began)
+            cpu.append(time.process_time() - began_cpu)
         by = summary["repaired_by"]
         print(
-            f"| {name} | {summary['waypoints_checked']} | {summary['in_collision_before_repair']} | "
+            f"| {name} | {summary['waypoints_checked']} | {rate:,.0f} | {9 * rate:,.0f} | "
+            f"{summary['in_collision_before_repair']} | "
             f"{summary['repaired']} ({by['branch']}/{by['roll']}/{by['tilt']}/{by['platform']}) | "
             f"{summary['flagged_waypoints']} | {summary['motions_checked']} | {summary['flagged_motions']} | "
-            f"{statistics.median(times):.1f} |",
+            f"{statistics.median(times):.1f} | {statistics.median(cpu):.1f} | {os.getloadavg()[0]:.1f} |",
             flush=True,
         )
     return 0

@@ -185,6 +185,8 @@ def test_a_real_plan_gets_one_entry_per_waypoint(testdata, gantry):
         ({"motion_step_mm": math.inf}, "collision.motion_step_mm"),
         ({"clearance_mm": 2.0, "motion_step_mm": 10.0}, "collision.motion_step_mm"),
         ({"floor_z_mm": "low"}, "collision.floor_z_mm"),
+        ({"cloud_radius_mm": 0.0}, "collision.cloud_radius_mm"),
+        ({"cloud_radius_mm": math.nan}, "collision.cloud_radius_mm"),
     ],
 )
 def test_bad_settings_name_the_key(settings, key):
@@ -193,7 +195,7 @@ def test_bad_settings_name_the_key(settings, key):
 
 
 def test_bad_inputs(gantry):
-    cloud = Part(np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), np.zeros((0, 3), int), name="scan")
+    cloud = Part(np.zeros((3, 3)), np.zeros((0, 3), int), name="scan")  # one distinct point: no spacing
     with pytest.raises(DataError, match="point cloud"):
         CellCollision(gantry, cloud)
     with pytest.raises(ConfigError, match="link sizes"):

@@ -70,6 +70,8 @@ def test_fast_check_agrees_with_every_exact_distance(reach, gantry):
     slack = exact.slack_mm
     assert (fast.in_collision == (slack < 0).any(axis=1)).all()
     assert fast.in_collision.any() and not fast.in_collision.all()
+    assert (cell.collides(q) == (slack < 0).any(axis=1)).all()  # the yes/no check gives the same answers
+    assert (cell.collides(q, extra_mm=15.0) == (slack < 15.0).any(axis=1)).all()
     true_least = slack.min(axis=1)
     assert (fast.slack_mm <= true_least + 1e-6).all()  # a lower bound everywhere
     assert np.allclose(fast.slack_mm[fast.exact], true_least[fast.exact])  # and exact where it says so
@@ -284,13 +286,16 @@ def test_collision_config_is_the_job_section():
     assert not JobConfig().collision.check  # opt-in (``--collisions``) until the stage is fast
 
 
-def test_a_point_cloud_is_planned_and_says_its_collisions_are_not_checked(testdata):
+def test_a_point_cloud_plan_is_checked_against_the_cloud(testdata):
     from sprayplan.job import run_job
 
     cloud = testdata / "pointclouds" / "reach_part_normals_ascii.pcd"
-    result = run_job(cloud, JobConfig().replace(load={"units": "m"}, collision={"check": True}), until="totals")
-    assert result.totals["collisions"] == {"checked": False, "reason": "point cloud"}
-    assert result.plan.stations and not any(st.collision.any() for st in result.plan.stations)
+    job = JobConfig().replace(load={"units": "m"}, collision={"check": True, "repair": False}, timing={"enabled": False})
+    result = run_job(cloud, job, until="totals")
+    summary = result.totals["collisions"]
+    assert summary["checked"] and summary["waypoints_checked"] == sum(int(s.reachable.sum()) for s in result.plan.stations)
+    flagged = sum(int(s.collision.sum()) for s in result.plan.stations)
+    assert flagged == summary["flagged_waypoints"] == summary["in_collision_before_repair"] > 0
 
 
 def test_the_distance_grid_and_the_tree_bound_the_true_distance_from_below(testdata):
@@ -305,6 +310,10 @@ def test_the_distance_grid_and_the_tree_bound_the_true_distance_from_below(testd
     _, true, _ = trimesh.proximity.closest_point(mesh, x)
     grid = samples.grid.lower_bound_mm(x)
     assert (grid <= true + 1e-6).all()
+    nearest, _ = samples.tree.query(x)
+    _, above = samples.grid.bounds_mm(x)
+    inside = np.isfinite(above)
+    assert inside.mean() > 0.5 and (above[inside] >= nearest[inside] - 1e-6).all()  # an upper bound too
     bound = samples.lower_bound_mm(x, upper_mm=60.0)
     assert (bound <= np.minimum(true, 60.0) + 1e-6).all()
     near = true < 40.0

@@ -785,6 +785,9 @@ class CollisionConfig(Section):
         re-routed"). No search is made for a transfer whose end is in collision.
     seed : int
         Random seed of the RRT-Connect search.
+    cloud_radius_mm : float or None
+        A point-cloud part's collision body is a ball of this radius about every point; None: from the cloud's
+        spacing (``collision.spheres.cloud_radius_mm``).
     """
 
     SECTION = "collision"
@@ -804,6 +807,7 @@ class CollisionConfig(Section):
     detour: bool = True
     detour_iterations: int = 200
     seed: int = 0
+    cloud_radius_mm: float | None = None
 
     def _check(self):
         value = self.retract_mm
@@ -825,6 +829,7 @@ class CollisionConfig(Section):
         _within(CollisionConfig, "floor_facing_deg", self.floor_facing_deg, 0, 90)
         _at_least(CollisionConfig, "tilt_deg", self.tilt_deg, 0)
         _at_least(CollisionConfig, "platform_raise_mm", self.platform_raise_mm, 0)
+        _at_least(CollisionConfig, "cloud_radius_mm", self.cloud_radius_mm, 0, strict=True)
         if self.clearance_mm > 0 and self.motion_step_mm > 2 * self.clearance_mm:
             raise _fail(
                 CollisionConfig,

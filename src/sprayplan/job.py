@@ -214,11 +214,6 @@ def _collision(state: JobState, progress: Progress) -> JobState:
     from sprayplan.collision.repair import collision_stage
 
     whole = state.whole if state.whole is not None else state.part
-    if not whole.is_mesh:
-        log.warning(
-            "%s: a point cloud: collisions are not checked (a surface from the cloud is not built yet)", state.name
-        )
-        return dataclasses.replace(state, collisions={"checked": False, "reason": "point cloud"})
     plan, summary = collision_stage(state.plan, whole, state.job, state.gantry(), progress)
     return dataclasses.replace(state, plan=plan, collisions=summary)
 

@@ -12,11 +12,15 @@ of one of them):
 - capsule to part: the part's surface is sampled (:class:`SurfaceSamples`) so that every surface point lies
   within ``h`` of a sample; a point ``x`` whose nearest sample is ``d_s`` away is at least ``d_s - h`` from the
   surface. Over the segment's points: ``min d_s - h - s / 2 - r``. A voxel grid of distances
-  (:class:`DistanceGrid`) bounds most points first, far more cheaply; only the points it leaves near the
-  surface go to the k-d tree;
-- capsule to box (the gantry's axis-aligned carriage and column): the exact point-to-box distance of the
-  segment's points, ``- s / 2 - r``;
-- capsule to capsule: the least distance between the two segments' points, ``- s - r_a - r_b``;
+  (:class:`DistanceGrid`) bounds the capsule's bounding sphere and its pieces' first, far more cheaply, from
+  below and from above; only the points it leaves near the surface go to the k-d tree, and a capsule it
+  proves within the margin goes to the exact query at once (:func:`capsules_to_surface`). A point cloud's
+  balls (:mod:`~sprayplan.collision.spheres`) are bounded the same way, their centres the samples and their
+  radius the cover;
+- capsule to box (the gantry's axis-aligned carriage and column): the capsule's bounding sphere, then the
+  exact point-to-box distance of the segment's points, ``- s / 2 - r``;
+- capsule to capsule: the two bounding spheres, then the least distance between the two segments' points,
+  ``- s - r_a - r_b``;
 - capsule or box to the floor (a half-space ``z <= floor``), and the TCP's height: exact (the lowest end's
   height minus the radius, the box's bottom).
 """
@@ -49,13 +53,24 @@ class DistanceGrid:
     cover_mm: float
 
     def lower_bound_mm(self, flat: np.ndarray) -> np.ndarray:
+        """(k,) lower bounds on the distances of points (k, 3) to the surface."""
+        return self.bounds_mm(flat)[0]
+
+    def bounds_mm(self, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(k,) lower bounds on the distances of points (k, 3) to the surface, and (k,) upper bounds on their
+        distances to the nearest sample (so to the surface, where the samples lie): ``EDT(i) + v sqrt(3)``
+        inside the grid (the sample in the nearest held voxel is within ``v sqrt(3) / 2`` of its centre, the
+        point within as much of its own), inf outside."""
         index = np.floor((flat - self.origin) / self.voxel_mm).astype(np.int64)
         shape = np.array(self.edt_mm.shape)
         inside = ((index >= 0) & (index < shape)).all(axis=1)
-        out = np.full(len(flat), self.pad_mm - self.cover_mm)
+        lower = np.full(len(flat), self.pad_mm - self.cover_mm)
+        upper = np.full(len(flat), np.inf)
         i = index[inside]
-        out[inside] = self.edt_mm[i[:, 0], i[:, 1], i[:, 2]] - self.voxel_mm * math.sqrt(3.0) - self.cover_mm
-        return out
+        edt = self.edt_mm[i[:, 0], i[:, 1], i[:, 2]].astype(float)
+        lower[inside] = edt - self.voxel_mm * math.sqrt(3.0) - self.cover_mm
+        upper[inside] = edt + self.voxel_mm * math.sqrt(3.0)
+        return lower, upper
 
 
 def distance_grid(points: np.ndarray, cover_mm: float, voxel_mm: float = 10.0, pad_mm: float = 200.0) -> DistanceGrid:
@@ -153,27 +168,45 @@ def segment_points(segments: np.ndarray, spacing_mm: float) -> tuple[np.ndarray,
 
 
 def capsules_to_surface(
-    samples: SurfaceSamples, segments: np.ndarray, radius_mm: float, upper_mm: float, spacing_mm: float
+    samples: SurfaceSamples,
+    segments: np.ndarray,
+    radius_mm: float,
+    upper_mm: float,
+    spacing_mm: float,
+    envelope: bool = False,
 ) -> np.ndarray:
     """(n,) lower bounds on the distance from capsules (segments ``(n, 2, 3)``, one radius) to the sampled
     surface, capped near ``upper_mm``: bounding spheres of the whole segment, then of pieces about
     ``4 spacing`` long, then points ``spacing`` apart, each level only where the last left less than
     ``upper_mm``. Every level is a lower bound (a sphere of radius ``rho`` about ``c`` holds the capsule part,
-    so its distance is at least ``lb(c) - rho``); the best of them is kept."""
+    so its distance is at least ``lb(c) - rho``); the best of them is kept.
+
+    A capsule is not refined further once a level proves it nearer than ``upper_mm``: a ball of the capsule's
+    radius about a segment point ``x`` lies inside the capsule, so the capsule is at most ``d(x) - radius`` from
+    the surface (``d(x)`` the distance to ``x``'s nearest sample, bounded from above by
+    :meth:`DistanceGrid.bounds_mm`), and a capsule whose bound is below ``upper_mm`` for certain needs its exact
+    distance whatever a finer bound would say. The two coarse levels use the grid alone (a k-d tree query far
+    from a dense surface costs ten times one near it); the points, the tree where the grid leaves them near. ``envelope`` True: the capsule only encloses the body bounded (a box), whose distance it does not
+    bound from above, so every level is refined."""
     start, end = segments[:, 0], segments[:, 1]
     length = np.linalg.norm(end - start, axis=1)
     reach = length / 2.0 + radius_mm
-    out = samples.lower_bound_mm((start + end) / 2.0, upper_mm + float(reach.max(initial=0.0))) - reach
-    near = np.flatnonzero(out < upper_mm)
+    lower, above = samples.grid.bounds_mm((start + end) / 2.0)
+    out = np.minimum(lower - reach, upper_mm)
+    near = np.flatnonzero((out < upper_mm) & (envelope | (above - radius_mm >= upper_mm)))
     if not len(near):
         return out
     pieces = max(1, math.ceil(float(length[near].max()) / (4.0 * spacing_mm)))
     t = (np.arange(pieces) + 0.5) / pieces
     centres = start[near, None] + t[None, :, None] * (end[near] - start[near])[:, None]  # (k, pieces, 3)
     piece_reach = (length[near] / pieces / 2.0 + radius_mm)[:, None]
-    level1 = samples.lower_bound_mm(centres, upper_mm + float(piece_reach.max())) - piece_reach  # (k, pieces)
+    lower, above = samples.grid.bounds_mm(centres.reshape(-1, 3))
+    level1 = np.minimum(lower.reshape(len(near), pieces) - piece_reach, upper_mm)  # (k, pieces)
     out[near] = np.maximum(out[near], level1.min(axis=1))
-    rows, which = np.nonzero(level1 < upper_mm)
+    settled = (
+        np.zeros(len(near), bool) if envelope else above.reshape(len(near), pieces).min(axis=1) - radius_mm < upper_mm
+    )
+    rows, which = np.nonzero((level1 < upper_mm) & ~settled[:, None])
     if not len(rows):
         return out
     a = start[near[rows]] + (which / pieces)[:, None] * (end[near[rows]] - start[near[rows]])

@@ -2,9 +2,10 @@
 
 Bodies (sizes and sources in :mod:`sprayplan.collision.bodies`): the arm's eight link capsules and the gun's
 capsule along the D-H chain, the gantry's carriage and column (boxes), the part (a BVH of its triangles,
-OBB-RSS) and the floor (a half-space ``z <= floor_z``). Distances come from ``coal`` (the Coal library,
-formerly HPP-FCL; the choice against python-fcl is measured in docs/benchmarks.md and recorded in
-docs/ARCHITECTURE.md). A distance is signed: negative where two bodies overlap (coal's penetration estimate;
+OBB-RSS; for a point cloud, a ball about every point, :mod:`~sprayplan.collision.spheres`) and the floor (a
+half-space ``z <= floor_z``). Distances come from ``coal`` (the Coal library, formerly HPP-FCL; the choice
+against python-fcl is measured in docs/benchmarks.md and recorded in docs/ARCHITECTURE.md), a cloud's in
+closed form. A distance is signed: negative where two bodies overlap (coal's penetration estimate;
 only its sign is relied on).
 
 Pairs tested and the gap each must keep (``required_mm``):
@@ -35,6 +36,7 @@ from sprayplan.collision.broadphase import (
 )
 from sprayplan.collision.motion import motion_bound_mm, motion_checks
 from sprayplan.collision.settings import CollisionConfig
+from sprayplan.collision.spheres import SphereSet, boxes_to_spheres, capsules_to_spheres, cloud_radius_mm, cloud_samples
 from sprayplan.errors import ConfigError, DataError
 from sprayplan.robots.gantry import Gantry
 from sprayplan.robots.model import dh_transforms
@@ -248,7 +250,8 @@ class CellCollision:
     gantry : Gantry
         The nine-axis robot (its arm's link sizes from :data:`~sprayplan.collision.bodies.UR_LINK_SIZES`).
     part : Part
-        A mesh part (a point cloud raises :class:`~sprayplan.errors.DataError`: not supported yet).
+        A mesh (a BVH of its triangles) or a point cloud (a ball about every point, of radius
+        ``config.cloud_radius_mm`` or from the cloud's spacing: :mod:`~sprayplan.collision.spheres`).
     config : CollisionConfig
     gantry_bodies : GantryBodies
 
@@ -258,7 +261,7 @@ class CellCollision:
         A robot without link sizes; a gun radius too large for the gun; ``collision.floor_z_mm`` above the
         part's lowest point.
     DataError
-        A point-cloud part.
+        A point cloud of fewer than two distinct points.
     """
 
     def __init__(
@@ -270,11 +273,6 @@ class CellCollision:
     ):
         _require_coal()
         config = CollisionConfig() if config is None else config
-        if not part.is_mesh:
-            name = f" {part.name!r}" if part.name else ""
-            raise DataError(
-                f"part{name} is a point cloud: collision checks need a mesh (a surface from the cloud is not built yet)"
-            )
         lowest = float(part.bounds[0, 2])
         if config.floor_z_mm is None:
             floor_z = lowest - config.floor_offset_mm
@@ -296,14 +294,21 @@ class CellCollision:
         self.body_names = tuple(b.name for b in self.capsules) + GANTRY_NAMES
         geometries = [coal.Capsule(b.radius_mm, b.length_mm) for b in self.capsules]
         geometries += [coal.Box(*size) for size in box_sizes]
-        self._mesh = coal.BVHModelOBBRSS()
         vertices = np.ascontiguousarray(part.vertices, dtype=float)
         faces = np.ascontiguousarray(part.faces, dtype=np.int64)
         self._part_vertices, self._part_faces = vertices, faces
-        self._mesh.beginModel(len(faces), len(vertices))
-        self._mesh.addVertices(vertices)
-        self._mesh.addTriangles(faces)
-        self._mesh.endModel()
+        #: The point cloud's balls (:mod:`~sprayplan.collision.spheres`), None for a mesh.
+        self.spheres = None
+        if part.is_mesh:
+            self._mesh = coal.BVHModelOBBRSS()
+            self._mesh.beginModel(len(faces), len(vertices))
+            self._mesh.addVertices(vertices)
+            self._mesh.addTriangles(faces)
+            self._mesh.endModel()
+        else:
+            radius = cloud_radius_mm(vertices) if config.cloud_radius_mm is None else config.cloud_radius_mm
+            self.spheres = SphereSet.of(vertices, radius)
+            self._mesh = None
         self._floor = coal.Halfspace(np.array([0.0, 0.0, 1.0]), floor_z)
         self._geometries = geometries
         index = {name: i for i, name in enumerate(self.body_names)}
@@ -334,7 +339,7 @@ class CellCollision:
         self._tests = tuple(other)  # per pair but the last: (static or body index, body index)
         self._request = coal.DistanceRequest()
         self._static = {
-            "part": (self._mesh, coal.Transform3s()),
+            "part": (self._mesh, coal.Transform3s()),  # a mesh's; a cloud's part pairs never reach coal
             "floor": (self._floor, coal.Transform3s()),
         }
         self._samples = None  # the part's surface samples for the lower bounds, made on first use
@@ -388,19 +393,10 @@ class CellCollision:
             Joint vectors of the wrong shape or not finite.
         """
         q9 = _joint_vectors(q9)
-        poses = self.body_poses(q9)
         tcp_z = self.tcp(q9)[:, 2]
         out = np.empty((len(q9), len(self.pairs)))
-        request, geometries, static = self._request, self._geometries, self._static
-        for row in range(len(q9)):
-            transforms = [coal.Transform3s(p[:3, :3], p[:3, 3]) for p in poses[row]]
-            for column, (a, b) in enumerate(self._tests):
-                if isinstance(a, str):
-                    geometry, transform = static[a]
-                else:
-                    geometry, transform = geometries[a], transforms[a]
-                result = coal.DistanceResult()
-                out[row, column] = coal.distance(geometries[b], transforms[b], geometry, transform, request, result)
+        rows, columns = np.divmod(np.arange(len(q9) * len(self._tests)), len(self._tests))
+        out[rows, columns] = self._exact(q9, rows, columns)
         out[:, -1] = tcp_z - self.floor_z_mm
         return BodyDistances(out, self.pairs, self.required_mm)
 
@@ -415,7 +411,9 @@ class CellCollision:
 
     def samples(self):
         """The part's :class:`~sprayplan.collision.broadphase.SurfaceSamples` (made once)."""
-        if self._samples is None:
+        if self._samples is None and self.spheres is not None:
+            self._samples = cloud_samples(self.spheres)
+        elif self._samples is None:
             vertices = np.asarray(self._part_vertices)
             self._samples = surface_samples(Part(vertices, self._part_faces), self.COVER_MM)
         return self._samples
@@ -440,6 +438,40 @@ class CellCollision:
         fields = [np.concatenate(f) for f in zip(*parts)]
         return ConfigChecks(*fields)
 
+    def collides(self, q9, clearance_mm: float | None = None, extra_mm: float = 0.0) -> np.ndarray:
+        """(n,) bool: at joint vectors ``q9`` (9,) or (n, 9), some pair is closer than its gap plus ``extra_mm``;
+        the same answer as ``check(q9).in_collision`` (for ``extra_mm`` 0) at a fraction of the exact queries.
+
+        Only the pairs whose lower bound is below their gap are measured, and a row's pairs are measured in
+        rounds, the least bound first, until one is in collision or none is left: a row's answer needs one pair
+        in collision, or every near pair clear.
+
+        Raises
+        ------
+        DataError
+            Joint vectors of the wrong shape or not finite.
+        """
+        q9 = _joint_vectors(q9)
+        required = self._required(self._clearance(clearance_mm, motion=False)) + float(extra_mm)
+        out = np.zeros(len(q9), bool)
+        for start in range(0, len(q9), self.CHUNK):
+            chunk = q9[start : start + self.CHUNK]
+            bound, exact = self._bounds(chunk, float(required.max()))
+            slack = bound - required
+            hit = (exact & (slack < 0)).any(axis=1)
+            open_ = ~exact & (slack < 0)
+            open_[hit] = False
+            order = np.argsort(np.where(open_, slack, np.inf), axis=1)  # each row's near pairs, least bound first
+            for k in range(open_.sum(axis=1).max(initial=0)):
+                columns = order[:, k]
+                rows = np.flatnonzero(~hit & open_[np.arange(len(chunk)), columns])
+                if not len(rows):
+                    break
+                distance = self._exact(chunk, rows, columns[rows])
+                hit[rows[distance - required[columns[rows]] < 0]] = True
+            out[start : start + len(chunk)] = hit
+        return out
+
     def _bounds(self, q9: np.ndarray, upper_mm: float) -> tuple[np.ndarray, np.ndarray]:
         """(n, p) lower bounds on every pair's distance and (n, p) which of them are exact."""
         n, c = len(q9), len(self.capsules)
@@ -449,12 +481,8 @@ class CellCollision:
         bound = np.full((n, len(self.pairs)), np.inf)
         exact = np.zeros((n, len(self.pairs)), dtype=bool)
         samples = self.samples()
-        points = {}
-
-        def along(i):
-            if i not in points:
-                points[i] = segment_points(segments[:, i], self.SPACING_MM)
-            return points[i]
+        centres = segments.mean(axis=2)  # (n, c, 3)
+        reach = np.linalg.norm(segments[:, :, 1] - segments[:, :, 0], axis=2) / 2.0 + radii  # (n, c)
 
         for column, (a, b) in enumerate(self._tests):
             if a == "floor":
@@ -472,19 +500,63 @@ class CellCollision:
                     half = self._box_half[box]
                     ends = np.stack([boxes[:, box] - [0, 0, half[2]], boxes[:, box] + [0, 0, half[2]]], axis=1)
                     radius = float(np.hypot(half[0], half[1]))
-                bound[:, column] = capsules_to_surface(samples, ends, radius, upper_mm, self.SPACING_MM)
-            elif b < c and a >= c:  # an arm body against a gantry box
+                bound[:, column] = capsules_to_surface(samples, ends, radius, upper_mm, self.SPACING_MM, b >= c)
+            elif b < c and a >= c:  # an arm body against a gantry box: its bounding sphere, then its points
                 box = a - c
-                pts, half = along(b)
-                distance = point_box_distance(pts, boxes[:, box, None, :], self._box_half[box]).min(axis=1)
-                bound[:, column] = distance - half - radii[b]
-            else:  # the gun (b) against a link (a)
-                pts_a, half_a = along(a)
-                pts_b, half_b = along(b)
-                bound[:, column] = segments_gap(pts_a, pts_b) - half_a - half_b - radii[a] - radii[b]
+                coarse = point_box_distance(centres[:, b], boxes[:, box], self._box_half[box]) - reach[:, b]
+                bound[:, column] = coarse
+                rows = np.flatnonzero(coarse < upper_mm)
+                if len(rows):
+                    pts, half = segment_points(segments[rows, b], self.SPACING_MM)
+                    distance = point_box_distance(pts, boxes[rows, box, None, :], self._box_half[box]).min(axis=1)
+                    bound[rows, column] = np.maximum(coarse[rows], distance - half - radii[b])
+            else:  # the gun (b) against a link (a): bounding spheres, then points
+                coarse = np.linalg.norm(centres[:, a] - centres[:, b], axis=1) - reach[:, a] - reach[:, b]
+                bound[:, column] = coarse
+                rows = np.flatnonzero(coarse < upper_mm)
+                if len(rows):
+                    pts_a, half_a = segment_points(segments[rows, a], self.SPACING_MM)
+                    pts_b, half_b = segment_points(segments[rows, b], self.SPACING_MM)
+                    fine = segments_gap(pts_a, pts_b) - half_a - half_b - radii[a] - radii[b]
+                    bound[rows, column] = np.maximum(coarse[rows], fine)
         bound[:, -1] = self.tcp(q9)[:, 2] - self.floor_z_mm
         exact[:, -1] = True
         return bound, exact
+
+    def _exact(self, q9: np.ndarray, rows: np.ndarray, columns: np.ndarray) -> np.ndarray:
+        """(k,) the signed distances of pairs ``columns`` (indices into :attr:`pairs`, not the TCP's) at joint
+        vectors ``q9[rows]``: coal's, or for a cloud's part pairs the balls' closed form."""
+        out = np.empty(len(rows))
+        poses = self.body_poses(q9[np.unique(rows)]) if len(rows) else None
+        pose_row = np.searchsorted(np.unique(rows), rows)
+        c = len(self.capsules)
+        todo = np.ones(len(rows), bool)
+        if self.spheres is not None:
+            other = np.array([b for _, b in self._tests])[columns]
+            part = np.array([a == "part" for a, _ in self._tests])[columns]
+            capsule = np.flatnonzero(part & (other < c))
+            if len(capsule):
+                segments = self.capsule_segments(q9[rows[capsule]])[np.arange(len(capsule)), other[capsule]]
+                out[capsule] = capsules_to_spheres(self.spheres, segments, self._radii[other[capsule]])
+            box = np.flatnonzero(part & (other >= c))
+            if len(box):
+                centres = poses[pose_row[box], other[box], :3, 3]
+                out[box] = boxes_to_spheres(self.spheres, centres, self._box_half[other[box] - c])
+            todo[part] = False
+        geometries, static, request = self._geometries, self._static, self._request
+        for i in np.flatnonzero(todo):
+            a, b = self._tests[columns[i]]
+            pose_b = poses[pose_row[i], b]
+            if isinstance(a, str):
+                geometry, transform = static[a]
+            else:
+                pose_a = poses[pose_row[i], a]
+                geometry, transform = geometries[a], coal.Transform3s(pose_a[:3, :3], pose_a[:3, 3])
+            result = coal.DistanceResult()
+            out[i] = coal.distance(
+                geometries[b], coal.Transform3s(pose_b[:3, :3], pose_b[:3, 3]), geometry, transform, request, result
+            )
+        return out
 
     def _check_chunk(self, q9: np.ndarray, required: np.ndarray, margin: float):
         n = len(q9)
@@ -492,26 +564,8 @@ class CellCollision:
         bound, exact = self._bounds(q9, upper)
         rows, columns = np.nonzero(~exact & (bound - required < margin))
         if len(rows):
-            poses = self.body_poses(q9)
-            geometries, static = self._geometries, self._static
-            for row, column in zip(rows, columns):
-                a, b = self._tests[column]
-                pose_b = poses[row, b]
-                if isinstance(a, str):
-                    geometry, transform = static[a]
-                else:
-                    pose_a = poses[row, a]
-                    geometry, transform = geometries[a], coal.Transform3s(pose_a[:3, :3], pose_a[:3, 3])
-                result = coal.DistanceResult()
-                bound[row, column] = coal.distance(
-                    geometries[b],
-                    coal.Transform3s(pose_b[:3, :3], pose_b[:3, 3]),
-                    geometry,
-                    transform,
-                    self._request,
-                    result,
-                )
-                exact[row, column] = True
+            bound[rows, columns] = self._exact(q9, rows, columns)
+            exact[rows, columns] = True
         slack = bound - required
         column = np.argmin(slack, axis=1) if n else np.zeros(0, int)
         rows = np.arange(n)

@@ -82,6 +82,5 @@ def motion_hits(cell, q_a, q_b, slack_a=None, slack_b=None) -> np.ndarray:
     k = index[owner]
     if len(k):
         grid = q_a[k] + s[:, None] * (q_b[k] - q_a[k])
-        found = cell.check(grid, margin_mm=step)
-        hits[np.unique(k[found.slack_mm < step / 2.0])] = True
+        hits[np.unique(k[cell.collides(grid, extra_mm=step / 2.0)])] = True
     return hits

@@ -252,11 +252,13 @@ class Repairer:
         for sample in (quick, spread):
             if not found or not len(sample):
                 continue
-            checks = self.cell.check(np.concatenate([q9[sample] for _, q9 in found]))
-            hit = checks.in_collision.reshape(len(found), len(sample)).any(axis=1)
+            hit = self.cell.collides(np.concatenate([q9[sample] for _, q9 in found]))
+            hit = hit.reshape(len(found), len(sample)).any(axis=1)
             found = [c for c, h in zip(found, hit) if not h]
         margin = None if keep is None else MOTION_MARGIN_MM
         for repair, q9 in found:
+            if self.cell.collides(q9).any():  # the yes/no check first: cheap, and most candidates fail it
+                continue
             checks = self.cell.check(q9, margin_mm=margin)
             if not checks.in_collision.any() and (keep is None or keep(q9, checks)):
                 return repair, q9, checks
