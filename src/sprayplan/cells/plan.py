@@ -215,7 +215,7 @@ def _rot_z(angle_deg: float) -> np.ndarray:
     return out
 
 
-def _tries(cell_robot, stroke: Stroke) -> list[tuple[float, float]]:
+def _tries(cell_robot, stroke: Stroke) -> list[tuple[np.ndarray, float]]:
     """The (track positions at the waypoints (n,) mm, roll deg) tries of a stroke, in the order they are
     preferred; offsets that the track's ends make the same as an earlier one are left out."""
     if cell_robot.track is None:
@@ -242,7 +242,7 @@ def _slice(sols, start: int, n: int):
     )
 
 
-def solve_strokes(cell_robot, strokes) -> list[tuple[float, float, np.ndarray, np.ndarray]]:
+def solve_strokes(cell_robot, strokes) -> list[tuple[np.ndarray, float, np.ndarray, np.ndarray]]:
     """For each stroke, the first (track positions, roll) try that reaches all its waypoints, else the first
     that reaches the most, and the joints along it (module docstring, step 5): ``(track_mm (n,), roll_deg, q
     (n, 6), reachable (n,))`` a stroke.
