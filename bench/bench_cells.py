@@ -72,7 +72,11 @@ def one_gantry(body: str) -> dict:
     job = JobConfig().replace(load=kw, coating={"thickness_um": 50.0}, output={"samples": 420})
     result = run_job(meshes_dir() / name, job)
     wall = time.perf_counter() - start
-    report = result.totals.get("coating", {})
+    from sprayplan.export.film import film_report
+
+    full = film_report(result.film, job, samples=420) if result.film is not None else {}
+    keep = ("count", "area_mm2", "mean_um", "std_um", "share_in_spec")
+    report = {k: {x: v[x] for x in keep if x in v} for k, v in full.items() if k in ("painted", "all", "measuring_points")}
     return {
         "body": body,
         "cell": "gantry-ur5 (one job)",
