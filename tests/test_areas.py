@@ -287,6 +287,7 @@ def test_areas_command_writes_one_row_a_painted_face(testdata, tmp_path, capsys)
         (["--cell", "no-such-cell"], "not a known cell"),
         (["--min-share", "2"], "--min-share"),
         (["--standoff-mm", "nan"], "--standoff-mm"),
+        (["--floor-facing-deg", "nan"], "--floor-facing-deg"),
     ],
 )
 def test_areas_bad_options_are_one_line_and_write_nothing(testdata, tmp_path, capsys, extra, words):

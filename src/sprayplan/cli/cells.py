@@ -50,11 +50,13 @@ def cmd_areas(args) -> int:
     from sprayplan.export.tables import write_table
     from sprayplan.io.load import load_part
     from sprayplan.surface.areas import assign_areas, segment_areas
-    from sprayplan.surface.region import drop_floor_facing
+    from sprayplan.surface.region import drop_floor_facing, not_floor_facing
 
     check_outputs([(args.output, "-o")], [(args.part, "part"), (file_input(args.cell), "--cell")])
     if not (math.isfinite(args.standoff_mm) and args.standoff_mm >= 0):
         raise ConfigError(f"--standoff-mm: must be a number >= 0, got {args.standoff_mm}")
+    if not (0.0 <= args.floor_facing_deg <= 90.0):
+        raise ConfigError(f"--floor-facing-deg: must be in [0, 90], got {args.floor_facing_deg}")
     if not (0.0 <= args.min_share < 1.0):
         raise ConfigError(f"--min-share: must be in [0, 1), got {args.min_share}")
     cell = load_cell(args.cell)
@@ -64,15 +66,8 @@ def cmd_areas(args) -> int:
         raise ConfigError(f"{args.part}: areas are found on meshes only (this is a point cloud)")
     with _stage("place"):
         placed = place_part(part, cell).part
-        kept = np.ones(len(placed.faces), bool)
-        painted = placed
-        if args.floor_facing_deg is not None:
-            limit = -math.sin(math.radians(args.floor_facing_deg))
-            tri = placed.triangles
-            cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-            nz = cross[:, 2] / np.maximum(np.linalg.norm(cross, axis=1), 1e-300)
-            painted, _ = drop_floor_facing(placed, args.floor_facing_deg)
-            kept = nz >= limit
+        painted, _ = drop_floor_facing(placed, args.floor_facing_deg)
+        kept = not_floor_facing(placed, args.floor_facing_deg)  # which faces of the part as loaded remain
     with _stage("areas"):
         areas = segment_areas(painted, min_share=args.min_share)
     with _stage("reach"):

@@ -168,6 +168,16 @@ def select_region(part: Part, region: Region | str | None) -> Part:
     return Part(vertices[used], remap[faces], None, part.name)
 
 
+def not_floor_facing(part: Part, below_deg: float) -> np.ndarray:
+    """(m,) bool: the mesh's faces that :func:`drop_floor_facing` keeps (their normal, by the file's winding, at
+    most ``below_deg`` below the horizontal)."""
+    tri = part.triangles
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    double_area = np.linalg.norm(cross, axis=1)
+    nz = np.divide(cross[:, 2], double_area, out=np.zeros(len(tri)), where=double_area > 0)
+    return nz >= -math.sin(math.radians(below_deg))
+
+
 def drop_floor_facing(part: Part, below_deg: float) -> tuple[Part, float]:
     """The part without the surface that faces the floor: faces (or, for a point cloud, points with normals)
     whose outward normal points more than ``below_deg`` below the horizontal, ``n_z < -sin(below_deg)``.
@@ -189,11 +199,8 @@ def drop_floor_facing(part: Part, below_deg: float) -> tuple[Part, float]:
         if not keep.any():
             raise RegionError(f"part {part.name!r}: all of it faces the floor ([collision] skip_floor_facing)")
         return Part(part.vertices[keep], part.faces, part.vertex_normals[keep], part.name), 0.0
-    tri = part.triangles
-    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    double_area = np.linalg.norm(cross, axis=1)
-    nz = np.divide(cross[:, 2], double_area, out=np.zeros(len(tri)), where=double_area > 0)
-    keep = nz >= limit
+    keep = not_floor_facing(part, below_deg)
+    double_area = 2.0 * part.face_areas
     if keep.all():
         return part, 0.0
     if not keep.any():
