@@ -5,11 +5,13 @@
     ``format = "sprayplan-cell-plan"``, ``version = 1``; the cell (its robots, their base poses and tracks);
     the part's placement (``part2cell``); the areas (name, direction, surface, robot, the share it reaches,
     split or not); per robot its strokes in order, each with its kind, area, roll, and per waypoint the gun
-    tip, the normal, the time factor, the track position, the six joints (rad) and whether it is reached; and the
+    tip, the normal, the time factor, the track position, the six joints (rad), whether it is reached and (with
+    ``--collisions``) whether it collides; and the
     report (film over the whole body, per area, per robot, per seam; cycle times). mm, rad, s.
 ``waypoints.csv``
     One row a waypoint of every robot: ``robot, stroke, waypoint, kind, area, x_mm, y_mm, z_mm, nx, ny, nz,
-    dwell, track_mm, roll_deg, q1..q6, reachable`` (``q6`` empty for the five-axis R5150).
+    dwell, track_mm, roll_deg, q1..q6, reachable, collides`` (``q6`` empty for the five-axis R5150;
+    ``collides`` 1 for a waypoint in collision, empty when the plan was not checked: ``--collisions``).
 ``areas.csv``
     One row a face of the painted surface: ``face, area, direction, robot, robot_index``.
 ``areas.png``, ``film.png``
@@ -37,7 +39,7 @@ CELL_FILES = (
 )  # fmt: skip
 WAYPOINT_COLUMNS = [
     "robot", "stroke", "waypoint", "kind", "area", "x_mm", "y_mm", "z_mm", "nx", "ny", "nz", "dwell", "track_mm",
-    "roll_deg", *(f"q{i + 1}" for i in range(6)), "reachable",
+    "roll_deg", *(f"q{i + 1}" for i in range(6)), "reachable", "collides",
 ]  # fmt: skip
 
 
@@ -96,6 +98,7 @@ def cell_plan_dict(plan) -> dict:
     work = []
     for r in plan.robots:
         strokes, at = [], 0
+        flags = r.collides
         for i, s in enumerate(r.strokes):
             n = len(s)
             strokes.append(
@@ -110,6 +113,7 @@ def cell_plan_dict(plan) -> dict:
                     "dwell": np.round(s.dwell, 9),
                     "q_rad": np.round(r.q[at : at + n], 12),
                     "reachable": r.reachable[at : at + n],
+                    **({} if flags is None else {"collides": flags[at : at + n]}),
                 }
             )
             at += n
@@ -143,13 +147,14 @@ def write_cell_plan(outdir, plan, target_um: float = 50.0, tolerance_um: float =
     rows = []
     for r in plan.robots:
         at = 0
+        flags = r.collides
         for i, s in enumerate(r.strokes):
             for j in range(len(s)):
                 q = [*np.round(r.q[at + j], 9), *([None] * (6 - r.q.shape[1]))]
                 rows.append(
                     [r.name, i, j, s.kind, int(r.area[i]), *np.round(s.tcp[j], 4), *np.round(s.normals[j], 6),
                      round(float(s.dwell[j]), 6), round(float(r.track_mm[at + j]), 4), float(r.roll_deg[i]),
-                     *q, int(r.reachable[at + j])]
+                     *q, int(r.reachable[at + j]), None if flags is None else int(flags[at + j])]
                 )  # fmt: skip
             at += len(s)
     path = os.path.join(outdir, "waypoints.csv")
@@ -218,6 +223,8 @@ def read_cell_plan(path) -> dict:
                 s["q_rad"] = np.array([[np.nan if v is None else v for v in row] for row in s["q_rad"]], float)
                 s["q_rad"] = s["q_rad"].reshape(len(s["tcp_mm"]), -1)
                 s["reachable"] = np.array(s["reachable"], dtype=bool)
+                if "collides" in s:
+                    s["collides"] = np.array(s["collides"], dtype=bool)
     except (KeyError, TypeError, ValueError) as exc:
         raise PartFileError(path, f"not a readable cell plan ({exc})") from None
     return data

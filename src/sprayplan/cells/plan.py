@@ -125,6 +125,8 @@ class RobotWork:
         The joints at every waypoint of all strokes in order, rad (0 where unreached); six for the industrial
         and UR arms, five for the R5150.
     reachable : (n,) bool
+    collides : (n,) bool or None
+        Waypoints found in collision (``[collision] check``, :mod:`~sprayplan.cells.collide`); None unchecked.
     """
 
     name: str
@@ -135,6 +137,7 @@ class RobotWork:
     roll_deg: np.ndarray
     q: np.ndarray
     reachable: np.ndarray
+    collides: np.ndarray | None = None
 
     @property
     def waypoints(self) -> int:
@@ -758,5 +761,80 @@ def plan_cell(
     plan = dataclasses.replace(plan, robots=robots, film=film, report=report)
     if film is not None and target is not None:
         report["film"] = film_report(plan, target, job.coating.tolerance, samples=job.output.samples or 420, seed=0)
+    if job.collision.check:
+        from sprayplan.cells.collide import check_cell
+
+        begin("collisions")
+        robots, report["collisions"] = check_cell(plan, job.collision, repaired_work)
+        plan = dataclasses.replace(plan, robots=robots)
     begin(None)
     return dataclasses.replace(plan, report=report, timings_s=timings)
+
+
+def repaired_work(cell_robot, work: RobotWork, arm) -> tuple[RobotWork, dict]:
+    """A robot's plan with its strokes in collision solved again, as a programmer would: every (track
+    position, roll) try of the stroke (:func:`_tries`) and every IK branch, the branches of a try in the order of
+    their first joints' distance from the joints before the stroke, keeping the first that reaches at least the
+    waypoints reached before with no waypoint and no motion in collision (the motion from the joints before
+    the stroke included). What no try frees stays as it was, and is flagged by the check after.
+
+    ``arm`` is the robot's :class:`~sprayplan.collision.arms.ArmCollision`. Returns the work and
+    ``{"strokes_in_collision", "strokes_repaired"}``.
+    """
+    from sprayplan.collision.arms import check_robot
+    from sprayplan.robots.interface import nearest_turns
+
+    robot = cell_robot.robot(0.0)
+    axis = np.zeros(3) if cell_robot.track is None else cell_robot.track.axis
+    found = check_robot(arm, work.q, work.track_mm, work.reachable)
+    starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
+    q, track, roll, reach = work.q.copy(), work.track_mm.copy(), work.roll_deg.copy(), work.reachable.copy()
+    flagged = repaired = 0
+    for i, stroke in enumerate(work.strokes):
+        a, b = starts[i], starts[i + 1]
+        motions = found.motion_collides[max(a - 1, 0) : b - 1]
+        if not (found.waypoint.collides[a:b].any() or motions.any()):
+            continue
+        flagged += 1
+        before = a - 1 if a > 0 and reach[a - 1] else None
+        seed = q[before] if before is not None else start_joints(robot.dof)
+        need = reach[a:b].copy()
+        tries = _tries(cell_robot, stroke)
+        poses = stroke_poses(stroke)
+        blocks = []
+        for t, r in tries:
+            moved = poses @ _rot_z(r)
+            moved[:, :3, 3] -= t[:, None] * axis
+            blocks.append(moved)
+        sols = robot.ik(np.concatenate(blocks))
+        n = b - a
+        for k, (t, r) in enumerate(tries):
+            valid = sols.valid[k * n : (k + 1) * n]  # (n, branches)
+            joints = sols.q[k * n : (k + 1) * n]
+            candidates = []
+            for branch in range(valid.shape[1]):
+                ok = valid[:, branch]
+                if ok.sum() < need.sum() or not ok[need].all() or not ok.any():
+                    continue
+                qb = np.zeros((n, robot.dof))
+                prev = seed
+                for j in np.flatnonzero(ok):
+                    prev = qb[j] = nearest_turns(robot, joints[j, branch], prev)
+                first = qb[np.flatnonzero(ok)[0]]
+                candidates.append((float(((first - seed) ** 2).sum()), branch, qb, ok))
+            for _, _, qb, ok in sorted(candidates, key=lambda c: c[0]):
+                lead = [] if before is None else [before]
+                test_q = np.concatenate([q[lead], qb])
+                test_t = np.concatenate([track[lead], t])
+                test_ok = np.concatenate([reach[lead], ok])
+                again = check_robot(arm, test_q, test_t, test_ok)
+                if again.waypoint.collides.any() or again.motion_collides.any():
+                    continue
+                q[a:b], track[a:b], reach[a:b], roll[i] = qb, t, ok, r
+                repaired += 1
+                break
+            else:
+                continue
+            break
+    work = dataclasses.replace(work, q=q, track_mm=track, roll_deg=roll, reachable=reach)
+    return work, {"strokes_in_collision": flagged, "strokes_repaired": repaired}

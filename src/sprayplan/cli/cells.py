@@ -138,7 +138,7 @@ def add_parsers(sub, common, add_load_options) -> None:
 
 
 #: ``plan --cell`` options that belong to the gantry's plan and have no meaning in a cell of arms.
-GANTRY_ONLY = ("robot", "robot_file", "mode", "tour", "program", "collisions", "strict")
+GANTRY_ONLY = ("robot", "robot_file", "mode", "tour", "program", "strict")
 
 
 def cmd_plan_robot(args, job_config) -> int:
@@ -241,6 +241,14 @@ def cmd_plan_cell(args, job, cell=None) -> int:
             f"; film mean {whole['mean_um']:.1f} um, {100 * whole['share_in_spec']:.1f} % in spec"
             f" ({film['report'].get('measuring_points', {}).get('count', 0)} measuring points:"
             f" {100 * film['report'].get('measuring_points', {}).get('share_in_spec', 0.0):.1f} % in spec)"
+        )
+    hits = report.get("collisions")
+    if hits:
+        gaps = ", ".join(f"{k} {'-' if v is None else f'{v:g} mm'}" for k, v in hits["robot_gap_mm"].items())
+        line += (
+            f"\ncollisions: {hits['waypoints_in_collision']} waypoints and {hits['motions_in_collision']} motions in "
+            f"collision (clearance {hits['clearance_mm']:g} mm); robots kept apart {hits['robots_kept_apart']}"
+            f" (least gaps {gaps})"
         )
     print(f"{line} -> {os.path.join(args.output, 'cell_plan.json')}")
     return 0

@@ -1,0 +1,85 @@
+"""A cell plan checked for collisions (``sprayplan plan --cell ... --collisions``): every robot's reached
+waypoints and the motions between them against the part and the floor, and every two robots against each
+other in space (:mod:`sprayplan.collision.arms`).
+
+The result is data: each robot's waypoints get a flag (``RobotWork.collides``: cell_plan.json's strokes and
+waypoints.csv's ``collides`` column), and ``report["collisions"]`` gives per robot the waypoints checked and in
+collision (by body and what it meets), the motions in collision, the least slack, and for every two robots the
+least gap between the spaces they sweep (a lower bound). A positive gap is the proof that the two robots can
+paint at the same time in any order and at any speed: that is how the robots of a line are kept apart. A
+negative one says the two robots' work spaces overlap and need a schedule, which is not made here.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+
+import numpy as np
+
+from sprayplan.collision.arms import (
+    COVER_MM,
+    ArmCollision,
+    check_robot,
+    part_mesh,
+    separation,
+    swept_points,
+)
+
+
+def check_cell(plan, config, repair=None) -> tuple[tuple, dict]:
+    """Check a :class:`~sprayplan.cells.plan.CellPlan` with the ``[collision]`` settings ``config``.
+
+    ``repair(cell_robot, work, arm) -> (work, counts)`` (``cells.plan.repaired_work``), when given and
+    ``config.repair`` is on, solves the strokes in collision again before the check.
+    Returns the robots' work with their ``collides`` flags and ``report["collisions"]``.
+
+    Raises
+    ------
+    ConfigError
+        A robot without link sizes (:func:`~sprayplan.collision.arms.arm_radii`), a gun radius too large.
+    """
+    from sprayplan.collision.broadphase import surface_samples
+
+    samples = surface_samples(plan.part, COVER_MM)
+    mesh = part_mesh(plan.part)
+    robots, sweeps, per_robot = [], [], {}
+    for cell_robot, work in zip(plan.cell.robots, plan.robots):
+        arm = ArmCollision(
+            cell_robot,
+            plan.part,
+            plan.cell.floor_z_mm,
+            clearance_mm=config.clearance_mm,
+            gun_radius_mm=config.gun_radius_mm,
+            motion_step_mm=config.motion_step_mm,
+            samples=samples,
+            mesh=mesh,
+        )
+        repairs = {}
+        if repair is not None and config.repair:
+            work, repairs = repair(cell_robot, work, arm)
+        found = check_robot(arm, work.q, work.track_mm, work.reachable)
+        per_robot[work.name] = {**found.summary(), **repairs}
+        robots.append(dataclasses.replace(work, collides=found.waypoint.collides.copy()))
+        sweeps.append(swept_points(arm, work.q, work.track_mm, work.reachable))
+    gaps = {}
+    for (i, a), (j, b) in itertools.combinations(enumerate(sweeps), 2):
+        gap = separation(a, b)
+        gaps[f"{plan.robots[i].name}-{plan.robots[j].name}"] = None if math.isinf(gap) else round(gap, 1)
+    apart = all(g is None or g > 0 for g in gaps.values())
+    report = {
+        "checked": True,
+        "clearance_mm": config.clearance_mm,
+        "robots": per_robot,
+        "waypoints_in_collision": int(sum(r["waypoints_in_collision"] for r in per_robot.values())),
+        "motions_in_collision": int(sum(r["motions_in_collision"] for r in per_robot.values())),
+        "robot_gap_mm": gaps,
+        "robots_kept_apart": "in space (the swept spaces do not meet)" if apart else "not proven: work spaces overlap",
+    }
+    return tuple(robots), report
+
+
+def flags_of(work) -> np.ndarray:
+    """(n,) the robot's waypoint collision flags, all False where the plan was not checked."""
+    return np.zeros(work.waypoints, bool) if work.collides is None else work.collides

@@ -1,0 +1,265 @@
+"""Collision checks of a cell's industrial arms (collision.arms): the bodies follow the kinematics, distances
+agree with an independent computation, motions are sampled finely enough, and two robots' swept spaces are
+bounded from below (issue 18: no collisions, the robots of a line kept apart in space)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from sprayplan.cells.spec import cell_from_dict
+from sprayplan.collision.arms import (
+    ARM_BODIES,
+    ArmCollision,
+    arm_radii,
+    check_robot,
+    opw_points,
+    separation,
+    swept_points,
+)
+from sprayplan.errors import ConfigError
+from sprayplan.surface.poses import poses_at
+from sprayplan.robots.opw import PRESETS, load_opw, opw_fk
+from tests.helpers import grid_box
+
+pytest.importorskip("coal")
+
+CELL = {
+    "name": "two",
+    "robot": [
+        {"name": "left", "model": "abb-irb2400-10", "tool": "wa101", "base_mm": [0.0, 1000.0, 0.0],
+         "base_rpy_deg": [0.0, 0.0, -90.0], "track": {"axis": "x", "range_mm": [-400.0, 400.0]}},
+        {"name": "right", "model": "abb-irb2400-10", "tool": "wa101", "base_mm": [0.0, -1000.0, 0.0],
+         "base_rpy_deg": [0.0, 0.0, 90.0]},
+    ],
+}
+
+
+def _random_q(params, n, seed):
+    rng = np.random.default_rng(seed)
+    return rng.uniform(np.maximum(params.lower, -np.pi), np.minimum(params.upper, np.pi), size=(n, 6))
+
+
+def _segment_distance(tree, a, b):
+    """The distance of the segment a-b to a point set (its k-d tree), over points 0.5 mm apart on the segment."""
+    t = np.linspace(0.0, 1.0, max(2, int(np.linalg.norm(b - a) / 0.5) + 1))
+    return tree.query(a + t[:, None] * (b - a))[0].min()
+
+
+@pytest.mark.parametrize("name", sorted(PRESETS))
+def test_the_bodies_chain_ends_at_the_wrist_centre_and_the_flange_of_the_kinematics(name):
+    """opw_points' wrist centre is the flange less c4 along its z axis, by opw_fk; every body's length is the
+    OPW length it stands for, whatever the joints."""
+    params = load_opw(name)
+    q = _random_q(params, 200, 1)
+    points = opw_points(params, q)
+    flange = opw_fk(params, q)
+    centre = flange[:, :3, 3] - params.c4 * flange[:, :3, 2]
+    np.testing.assert_allclose(points[:, 5], centre, atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(points[:, 3] - points[:, 2], axis=1), params.c2, rtol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(points[:, 4] - points[:, 3], axis=1), abs(params.a2), rtol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(points[:, 5] - points[:, 4], axis=1), params.c3, rtol=1e-12)
+    # the forearm's offset is square to the forearm
+    np.testing.assert_allclose(
+        np.einsum("ij,ij->i", points[:, 4] - points[:, 3], points[:, 5] - points[:, 4]), 0.0, atol=1e-6
+    )
+
+
+def _arm(part, floor=-1000.0, robot=0):
+    cell = cell_from_dict(CELL)
+    return cell.robots[robot], ArmCollision(cell.robots[robot], part, floor, clearance_mm=30.0)
+
+
+def test_segments_are_in_the_cell_frame_at_the_track_position():
+    """The gun segment starts at the flange of the arm's own FK at its base and track position."""
+    part = grid_box(n=4, size=(400.0, 400.0, 400.0))
+    cell_robot, arm = _arm(part)
+    q = _random_q(arm.params, 20, 2)
+    track = np.linspace(-400, 400, 20)
+    segments = arm.segments(q, track)
+    for i in range(len(q)):
+        robot = cell_robot.robot(float(track[i]))
+        tcp = robot.fk(q[i])[0]
+        flange = tcp @ np.linalg.inv(robot.tcp2flange)
+        np.testing.assert_allclose(segments[i, 6, 0], flange[:3, 3], atol=1e-9)
+    np.testing.assert_allclose(arm.tcp(q, track)[3], cell_robot.robot(float(track[3])).fk(q[3])[0][:3, 3], atol=1e-9)
+
+
+def test_the_distance_to_the_part_is_the_capsules_own():
+    """For configurations near a box, the checked distance of the body that comes nearest equals the distance
+    of that capsule to the box's surface computed here by brute force (the box's surface points)."""
+    part = grid_box(n=20, size=(600.0, 600.0, 600.0))
+    cell_robot, arm = _arm(part)
+    q = _random_q(arm.params, 3000, 3)
+    found = arm.check(q, np.zeros(len(q)))
+    segments = arm.segments(q, np.zeros(len(q)))
+    rng = np.random.default_rng(0)
+    # dense points on the box's surface
+    face = rng.integers(0, len(part.faces), 200_000)
+    w = rng.dirichlet(np.ones(3), 200_000)
+    surface = np.einsum("nk,nkd->nd", w, part.vertices[part.faces[face]])
+    tree = cKDTree(surface)
+    inside = np.all(np.abs(segments.reshape(-1, 3)) < 300.0, axis=1).reshape(len(q), -1).any(axis=1)
+    near = np.flatnonzero((found.other == "part") & (found.distance_mm < 45.0) & (found.distance_mm > 0) & ~inside)[:8]
+    assert len(near) >= 3, "the random configurations should bring some arm near the box"
+    for i in near:
+        b = found.body[i]
+        a, e = segments[i, b]
+        brute = _segment_distance(tree, a, e) - arm.radii[b]
+        assert found.distance_mm[i] == pytest.approx(brute, abs=3.0)
+    free = np.flatnonzero(~found.collides)
+    assert len(free) > 10
+    for i in free[:20]:
+        gaps = [_segment_distance(tree, *segments[i, b]) - arm.radii[b] for b in range(1, 7)]
+        assert min(gaps) > arm.clearance_mm - 3.0
+
+
+def test_the_floor_counts_every_body_but_the_base():
+    part = grid_box(n=4, size=(200.0, 200.0, 200.0))
+    part = type(part)(part.vertices + [0.0, 0.0, 2000.0], part.faces, name="high box")
+    cell_robot, arm = _arm(part, floor=0.0)
+    q = _random_q(arm.params, 300, 4)
+    found = arm.check(q, np.zeros(len(q)))
+    segments = arm.segments(q, np.zeros(len(q)))
+    lowest = (segments[..., 2].min(axis=2) - arm.radii)[:, 1:].min(axis=1)
+    tcp = arm.tcp(q, np.zeros(len(q)))[:, 2]
+    expected = (lowest < 0.0) | (tcp < 0.0)
+    assert expected.any() and (~expected).any()
+    np.testing.assert_array_equal(found.collides, expected)
+
+
+def test_motions_are_checked_at_most_one_step_apart():
+    """Between consecutive configurations of a motion's grid (waypoints included) no body end moves more than
+    the motion step."""
+    part = grid_box(n=4, size=(200.0, 200.0, 200.0))
+    cell_robot, arm = _arm(part)
+    rng = np.random.default_rng(5)
+    q = np.cumsum(rng.normal(0, 0.05, (30, 6)), axis=0)
+    track = np.cumsum(rng.normal(0, 20.0, 30))
+    reachable = np.ones(30, bool)
+    reachable[10] = False
+    joints, tracks, owner = arm.motion_configs(q, track, reachable)
+    assert 9 not in owner and 10 not in owner
+    for i in np.unique(owner):
+        configs = np.concatenate([q[i : i + 1], joints[owner == i], q[i + 1 : i + 2]])
+        t = np.concatenate([track[i : i + 1], tracks[owner == i], track[i + 1 : i + 2]])
+        ends = arm.segments(configs, t)
+        moved = np.linalg.norm(np.diff(ends, axis=0), axis=-1).max()
+        assert moved <= arm.motion_step_mm + 1e-9
+
+
+def test_the_slack_proof_flags_the_same_motions_as_the_whole_grid():
+    """Leaving out the configurations a waypoint's slack proves free flags the same motions as checking every
+    configuration of every motion's grid, and checks far fewer; an unreached waypoint is not checked."""
+    part = grid_box(n=6, size=(300.0, 300.0, 300.0))
+    part = type(part)(part.vertices + [0.0, 150.0, 1300.0], part.faces, name="box in reach")
+    cell_robot, arm = _arm(part)
+    rng = np.random.default_rng(7)
+    q = np.cumsum(rng.normal(0, 0.04, (120, 6)), axis=0) + [0.0, 0.0, 0.0, 0.0, 0.3, 0.0]
+    track = np.cumsum(rng.normal(0, 10.0, 120))
+    reachable = np.ones(120, bool)
+    reachable[40] = False
+    result = check_robot(arm, q, track, reachable)
+    joints, tracks, owner = arm.motion_configs(q, track, reachable)
+    full = np.zeros(119, bool)
+    full[np.unique(owner[arm.check(joints, tracks).collides])] = True
+    ends = result.waypoint.collides
+    full |= ends[:-1] | ends[1:]
+    assert full.any() and (~full).sum() > 20
+    np.testing.assert_array_equal(result.motion_collides, full)
+    assert result.motion_checked < len(joints) / 2
+    assert np.isnan(result.waypoint.slack_mm[40]) and not result.waypoint.collides[40]
+
+
+def test_separation_is_a_lower_bound_close_to_the_true_gap():
+    """Two robots' swept spaces: the bound is below the least gap between any two of their capsules (brute
+    force over every pair of configurations), and within the bound's own error of it."""
+    part = grid_box(n=4, size=(200.0, 200.0, 200.0))
+    _, left = _arm(part, robot=0)
+    _, right = _arm(part, robot=1)
+    rng = np.random.default_rng(6)
+    qa = np.cumsum(rng.normal(0, 0.02, (15, 6)), axis=0) + [0.0, 0.3, 0.0, 0.0, 0.5, 0.0]
+    qb = np.cumsum(rng.normal(0, 0.02, (15, 6)), axis=0) + [0.0, 0.3, 0.0, 0.0, 0.5, 0.0]
+    ta, tb = np.zeros(15), np.zeros(15)
+    ok = np.ones(15, bool)
+    sa, sb = swept_points(left, qa, ta, ok), swept_points(right, qb, tb, ok)
+    bound = separation(sa, sb)
+    seg_a, seg_b = left.segments(qa, ta), right.segments(qb, tb)
+    t = np.linspace(0, 1, 60)
+    pa = (seg_a[..., :1, :] + t[:, None] * (seg_a[..., 1:, :] - seg_a[..., :1, :])).reshape(15, 7, -1, 3)
+    pb = (seg_b[..., :1, :] + t[:, None] * (seg_b[..., 1:, :] - seg_b[..., :1, :])).reshape(15, 7, -1, 3)
+    true = np.inf
+    for i in range(7):
+        for j in range(7):
+            a = pa[:, i].reshape(-1, 3)
+            b = pb[:, j].reshape(-1, 3)
+            d = np.sqrt(((a[:, None] - b[None]) ** 2).sum(-1)).min()
+            true = min(true, d - left.radii[i] - right.radii[j])
+    assert bound <= true
+    assert true - bound <= sa[2] + sb[2] + 2 * 25.0 * np.sqrt(3) + 5.0
+    # the same robot against itself has no gap
+    assert separation(sa, sa) < 0
+
+
+def test_an_arm_without_link_sizes_is_refused():
+    with pytest.raises(ConfigError, match="no link sizes"):
+        arm_radii("my-arm")
+    assert len(arm_radii("abb-irb4600-60-205")) == len(ARM_BODIES)
+
+
+def test_a_cell_plan_with_collisions_flags_each_waypoint_as_its_own_check_does(tmp_path):
+    """`sprayplan plan --cell FILE --collisions`: cell_plan.json, waypoints.csv and the report carry the same
+    flags, and they are the flags of each robot's joints read back and checked again here."""
+    import csv
+
+    from sprayplan.cells import load_cell
+    from sprayplan.cells.files import read_cell_plan
+    from sprayplan.cli import main
+    from sprayplan.export.stl import write_stl_binary
+    from sprayplan.io.load import load_part
+    from tests.test_cell_plan import CELL as SMALL_CELL
+    from tests.test_cell_plan import SIZE
+
+    cell_file = tmp_path / "small2.toml"
+    cell_file.write_text(SMALL_CELL)
+    part_file = tmp_path / "box.stl"
+    part_file.write_bytes(write_stl_binary(grid_box(n=8, size=SIZE).triangles))
+    out = tmp_path / "out"
+    assert main(["-q", "plan", str(part_file), "--cell", str(cell_file), "--collisions", "-o", str(out)]) == 0
+    plan = read_cell_plan(out / "cell_plan.json")
+    report = plan["report"]["collisions"]
+    rows = list(csv.DictReader(open(out / "waypoints.csv")))
+    cell = load_cell(cell_file)
+    part = load_part(str(part_file))
+    placed = type(part)(part.vertices @ plan["part"]["part2cell"][:3, :3].T + plan["part"]["part2cell"][:3, 3],
+                        part.faces, name="placed")  # fmt: skip
+    total = 0
+    for robot, work in zip(cell.robots, plan["robots"]):
+        q = np.concatenate([s["q_rad"] for s in work["strokes"]])
+        track = np.concatenate([s["track_mm"] for s in work["strokes"]])
+        ok = np.concatenate([s["reachable"] for s in work["strokes"]])
+        flags = np.concatenate([s["collides"] for s in work["strokes"]])
+        arm = ArmCollision(robot, placed, cell.floor_z_mm)
+        again = check_robot(arm, q, track, ok)
+        np.testing.assert_array_equal(flags, again.waypoint.collides)
+        assert report["robots"][work["name"]]["waypoints_in_collision"] == int(flags.sum())
+        assert report["robots"][work["name"]]["waypoints_checked"] == int(ok.sum())
+        csv_flags = np.array([int(r["collides"]) for r in rows if r["robot"] == work["name"]], bool)
+        np.testing.assert_array_equal(csv_flags, flags)
+        total += int(flags.sum())
+        # the repairs' joints still put the gun where the stroke wants it, at the stroke's track and roll
+        for st in work["strokes"]:
+            good = st["reachable"]
+            if good.any():
+                c, s_ = np.cos(np.radians(st["roll_deg"])), np.sin(np.radians(st["roll_deg"]))
+                roll = np.array([[c, -s_, 0, 0], [s_, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+                want = poses_at(st["tcp_mm"][good], st["normals"][good]) @ roll
+                got = np.stack([robot.robot(t).fk(j[None])[0] for t, j in zip(st["track_mm"][good], st["q_rad"][good])])
+                np.testing.assert_allclose(got[:, :3, 3], want[:, :3, 3], atol=1e-6)
+                np.testing.assert_allclose(got[:, :3, :3], want[:, :3, :3], atol=1e-9)
+    repaired = report["robots"]["left"]["strokes_repaired"]
+    assert 1 <= repaired <= report["robots"]["left"]["strokes_in_collision"]
+    assert report["waypoints_in_collision"] == total
+    gap = report["robot_gap_mm"]["left-right"]
+    assert (gap > 0) == (report["robots_kept_apart"].startswith("in space"))
