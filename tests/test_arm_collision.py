@@ -19,8 +19,8 @@ from sprayplan.collision.arms import (
     swept_points,
 )
 from sprayplan.errors import ConfigError
-from sprayplan.surface.poses import poses_at
 from sprayplan.robots.opw import PRESETS, load_opw, opw_fk
+from sprayplan.surface.poses import poses_at
 from tests.helpers import grid_box
 
 pytest.importorskip("coal")
@@ -28,10 +28,21 @@ pytest.importorskip("coal")
 CELL = {
     "name": "two",
     "robot": [
-        {"name": "left", "model": "abb-irb2400-10", "tool": "wa101", "base_mm": [0.0, 1000.0, 0.0],
-         "base_rpy_deg": [0.0, 0.0, -90.0], "track": {"axis": "x", "range_mm": [-400.0, 400.0]}},
-        {"name": "right", "model": "abb-irb2400-10", "tool": "wa101", "base_mm": [0.0, -1000.0, 0.0],
-         "base_rpy_deg": [0.0, 0.0, 90.0]},
+        {
+            "name": "left",
+            "model": "abb-irb2400-10",
+            "tool": "wa101",
+            "base_mm": [0.0, 1000.0, 0.0],
+            "base_rpy_deg": [0.0, 0.0, -90.0],
+            "track": {"axis": "x", "range_mm": [-400.0, 400.0]},
+        },
+        {
+            "name": "right",
+            "model": "abb-irb2400-10",
+            "tool": "wa101",
+            "base_mm": [0.0, -1000.0, 0.0],
+            "base_rpy_deg": [0.0, 0.0, 90.0],
+        },
     ],
 }
 
@@ -90,7 +101,7 @@ def test_the_distance_to_the_part_is_the_capsules_own():
     """For configurations near a box, the checked distance of the body that comes nearest equals the distance
     of that capsule to the box's surface computed here by brute force (the box's surface points)."""
     part = grid_box(n=20, size=(600.0, 600.0, 600.0))
-    cell_robot, arm = _arm(part)
+    _cell_robot, arm = _arm(part)
     q = _random_q(arm.params, 3000, 3)
     found = arm.check(q, np.zeros(len(q)))
     segments = arm.segments(q, np.zeros(len(q)))
@@ -118,7 +129,7 @@ def test_the_distance_to_the_part_is_the_capsules_own():
 def test_the_floor_counts_every_body_but_the_base():
     part = grid_box(n=4, size=(200.0, 200.0, 200.0))
     part = type(part)(part.vertices + [0.0, 0.0, 2000.0], part.faces, name="high box")
-    cell_robot, arm = _arm(part, floor=0.0)
+    _cell_robot, arm = _arm(part, floor=0.0)
     q = _random_q(arm.params, 300, 4)
     found = arm.check(q, np.zeros(len(q)))
     segments = arm.segments(q, np.zeros(len(q)))
@@ -133,7 +144,7 @@ def test_motions_are_checked_at_most_one_step_apart():
     """Between consecutive configurations of a motion's grid (waypoints included) no body end moves more than
     the motion step."""
     part = grid_box(n=4, size=(200.0, 200.0, 200.0))
-    cell_robot, arm = _arm(part)
+    _cell_robot, arm = _arm(part)
     rng = np.random.default_rng(5)
     q = np.cumsum(rng.normal(0, 0.05, (30, 6)), axis=0)
     track = np.cumsum(rng.normal(0, 20.0, 30))
@@ -154,7 +165,7 @@ def test_the_slack_proof_flags_the_same_motions_as_the_whole_grid():
     configuration of every motion's grid, and checks far fewer; an unreached waypoint is not checked."""
     part = grid_box(n=6, size=(300.0, 300.0, 300.0))
     part = type(part)(part.vertices + [0.0, 150.0, 1300.0], part.faces, name="box in reach")
-    cell_robot, arm = _arm(part)
+    _cell_robot, arm = _arm(part)
     rng = np.random.default_rng(7)
     q = np.cumsum(rng.normal(0, 0.04, (120, 6)), axis=0) + [0.0, 0.0, 0.0, 0.0, 0.3, 0.0]
     track = np.cumsum(rng.normal(0, 10.0, 120))

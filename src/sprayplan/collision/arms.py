@@ -48,7 +48,6 @@ from scipy.spatial import cKDTree
 
 from sprayplan.collision.bodies import gun_capsule
 from sprayplan.collision.broadphase import SurfaceSamples, capsules_to_surface, segment_points, surface_samples
-from sprayplan.collision.motion import motion_checks
 from sprayplan.errors import ConfigError
 from sprayplan.types import Part
 
