@@ -210,7 +210,9 @@ def write_waypoints_csv(path, plan, job, timing=None) -> None:
             if timing is not None:
                 columns.append(_cells(timing.t_s[place][sl], ".10g"))
                 columns.append(_cells(timing.speed_mm_s[place][sl], ".10g"))
-            columns.append([f"{int(c)},{int(m)}" for c, m in zip(st.collision[sl].tolist(), st.motion_collision[sl].tolist())])
+            columns.append(
+                [f"{int(c)},{int(m)}" for c, m in zip(st.collision[sl].tolist(), st.motion_collision[sl].tolist())]
+            )
             columns.append(_cells(st.collision_distance_mm[sl], ".6g"))
             columns.append([str(w) for w in st.collision_with[sl].tolist()])
             columns.append([str(r) for r in st.repair[sl].tolist()])

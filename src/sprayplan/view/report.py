@@ -372,9 +372,7 @@ def station_picture(path: str, scene: Scene, place: int, settings: ReportSetting
     cmap = colormaps["viridis"]
     step = max(1, int(np.ceil(len(spray) / settings.max_labels)))
     colours = [cmap(k / max(len(spray) - 1, 1)) for k in range(len(spray))]
-    _stroke_lines(
-        ax, [(s.points[:, :2], "#999999", "--") for s in st.strokes if not s.spray_on], width=0.6, zorder=1
-    )
+    _stroke_lines(ax, [(s.points[:, :2], "#999999", "--") for s in st.strokes if not s.spray_on], width=0.6, zorder=1)
     _stroke_lines(
         ax,
         [(s.points[:, :2], c, "-" if s.kind == "spray" else ":") for (_i, s), c in zip(spray, colours)],
