@@ -308,8 +308,10 @@ def _start_markers(ax, points: np.ndarray, colours: list):
     from matplotlib.collections import PathCollection
     from matplotlib.markers import MarkerStyle
 
+    from matplotlib.transforms import IdentityTransform
+
     marker = MarkerStyle("o")
-    return PathCollection(
+    markers = PathCollection(
         [marker.get_path().transformed(marker.get_transform())],
         sizes=[3.0**2],
         offsets=points,
@@ -319,6 +321,8 @@ def _start_markers(ax, points: np.ndarray, colours: list):
         linewidths=1.0,
         zorder=3,
     )
+    markers.set_transform(IdentityTransform())  # the marker's size in points (as scatter), not in data units
+    return markers
 
 
 def _wrapped_title(fig, text: str, fontsize: float) -> str:
