@@ -307,7 +307,6 @@ def _start_markers(ax, points: np.ndarray, colours: list):
     ``ax.plot(x, y, "o", markersize=3)``, as one collection."""
     from matplotlib.collections import PathCollection
     from matplotlib.markers import MarkerStyle
-
     from matplotlib.transforms import IdentityTransform
 
     marker = MarkerStyle("o")
