@@ -252,6 +252,7 @@ def test_a_station_picture_looks_as_the_old_one(planned_with_film, tmp_path):
     settings = report.ReportSettings()
     new_backdrop, old_backdrop = report._Backdrop(scene.surface), _OldBackdrop(scene.surface)
     assert new_backdrop.image.shape[2] == 4 and (new_backdrop.image[..., 3] == 1).all()
+    most = 0
     for place in range(len(scene.plan.stations)):
         report.station_picture(tmp_path / "new.png", scene, place, settings, new_backdrop)
         _old_station_picture(tmp_path / "old.png", scene, place, settings, old_backdrop)
@@ -262,7 +263,9 @@ def test_a_station_picture_looks_as_the_old_one(planned_with_film, tmp_path):
         assert (diff > 0).mean() < 0.15, place  # the backdrop's grey within one level of 255 elsewhere
         # the strokes and their start markers all drawn: as many coloured (not grey) pixels, within 2 %
         coloured = [int((image.max(axis=2) - image.min(axis=2) > 30).sum()) for image in (new, old)]
-        assert coloured[1] > 1000 and abs(coloured[0] / coloured[1] - 1) < 0.02, (place, coloured)
+        assert coloured[1] > 0 and abs(coloured[0] / coloured[1] - 1) < 0.02, (place, coloured)
+        most = max(most, coloured[1])
+    assert most > 1000  # a station with many strokes among them
 
 
 @pytest.mark.parametrize("words", [3, 30, 60])
