@@ -166,58 +166,56 @@ def write_plan(
     return [plan_path, csv_path]
 
 
+def _cells(values, fmt: str, blank: bool = True) -> list[str]:
+    """Each value formatted with ``fmt`` (a format spec such as ``".10g"``), or "" where it is not finite."""
+    values = np.asarray(values, dtype=np.float64)
+    out = [format(v, fmt) for v in values.tolist()]
+    if blank:
+        for k in np.flatnonzero(~np.isfinite(values)).tolist():
+            out[k] = ""
+    return out
+
+
 def write_waypoints_csv(path, plan, job, timing=None) -> None:
     """Write waypoints.csv: one row per waypoint, for people (docs/plan-json.md); with ``timing``, each row's
-    time stamp ``t_s`` and ``achievable_speed_mm_s`` (empty where unknown); then the collision stage's flags."""
+    time stamp ``t_s`` and ``achievable_speed_mm_s`` (empty where unknown); then the collision stage's flags.
+
+    Floats at 10 significant digits (``.10g``; errors, speed and clearance at 6), an empty cell where a value is
+    not finite (the joints of an unreachable waypoint); each column is formatted at once and every row joined
+    from them, the file written in one piece.
+    """
     header = (
         "station,stroke,waypoint,spray_on,x,y,z,ax,ay,az,q1,q2,q3,q4,q5,q6,tx,ty,tz,reachable,position_error_mm,"
         "axis_error_deg,speed_mm_s"
     )
     header += ",t_s,achievable_speed_mm_s" if timing is not None else ""
     header += ",collision,motion_collision,collision_distance_mm,collision_with,repair\n"
+    lines = [header]
+    for place, st in enumerate(plan.stations):
+        start = 0
+        for i, s in enumerate(st.strokes):
+            n = len(s)
+            sl = slice(start, start + n)
+            start += n
+            if not n:
+                continue
+            ok = st.reachable[sl]
+            floats = np.column_stack([s.tcp, -s.normals, np.where(ok[:, None], st.q9[sl], np.nan)])
+            columns = [[f"{place},{i},{j},{int(s.spray_on)}" for j in range(n)]]
+            columns += [_cells(floats[:, c], ".10g") for c in range(floats.shape[1])]
+            columns.append([f"{int(v)}" for v in ok.tolist()])
+            columns.append(_cells(st.position_error_mm[sl], ".6g"))
+            columns.append(_cells(st.axis_error_deg[sl], ".6g"))
+            columns.append(_cells(tip_speeds(s, job), ".6g", blank=False))
+            if timing is not None:
+                columns.append(_cells(timing.t_s[place][sl], ".10g"))
+                columns.append(_cells(timing.speed_mm_s[place][sl], ".10g"))
+            columns.append(
+                [f"{int(c)},{int(m)}" for c, m in zip(st.collision[sl].tolist(), st.motion_collision[sl].tolist())]
+            )
+            columns.append(_cells(st.collision_distance_mm[sl], ".6g"))
+            columns.append([str(w) for w in st.collision_with[sl].tolist()])
+            columns.append([str(r) for r in st.repair[sl].tolist()])
+            lines.append("\n".join(map(",".join, zip(*columns))) + "\n")
     with atomic_output(path, "w", newline="") as handle:
-        handle.write(header)
-        for place, st in enumerate(plan.stations):
-            start = 0
-            for i, s in enumerate(st.strokes):
-                n = len(s)
-                q = st.q9[start : start + n]
-                ok = st.reachable[start : start + n]
-                table = np.column_stack(
-                    [
-                        np.full(n, place),
-                        np.full(n, i),
-                        np.arange(n),
-                        np.full(n, int(s.spray_on)),
-                        s.tcp,
-                        -s.normals,
-                        np.where(ok[:, None], q, np.nan),
-                        ok.astype(int),
-                        st.position_error_mm[start : start + n],
-                        st.axis_error_deg[start : start + n],
-                        tip_speeds(s, job),
-                    ]
-                )
-                if timing is not None:
-                    times = timing.t_s[place][start : start + n]
-                    speeds = timing.speed_mm_s[place][start : start + n]
-                    table = np.column_stack([table, times, speeds])
-                sl = slice(start, start + n)
-                distance = st.collision_distance_mm[sl]
-                extra = [
-                    f"{int(c)},{int(m)},{'' if not np.isfinite(d) else f'{d:.6g}'},{w},{r}"
-                    for c, m, d, w, r in zip(
-                        st.collision[sl], st.motion_collision[sl], distance, st.collision_with[sl], st.repair[sl]
-                    )
-                ]
-                for k, row in enumerate(table):
-                    cells = (
-                        [f"{int(v)}" for v in row[:4]]
-                        + ["" if not np.isfinite(v) else f"{v:.10g}" for v in row[4:19]]
-                        + [f"{int(row[19])}"]
-                        + ["" if not np.isfinite(v) else f"{v:.6g}" for v in row[20:22]]
-                        + [f"{row[22]:.6g}"]
-                        + ["" if not np.isfinite(v) else f"{v:.10g}" for v in row[23:]]
-                    )
-                    handle.write(",".join(cells) + "," + extra[k] + "\n")
-                start += n
+        handle.write("".join(lines))

@@ -257,7 +257,11 @@ class _Backdrop:
             ax.scatter(thin.vertices[:, 0], thin.vertices[:, 1], s=0.5, c="#cccccc", linewidths=0)
         fig.patch.set_alpha(0.0)
         canvas.draw()
-        self.image = np.asarray(canvas.buffer_rgba()).copy()
+        # on the axes' white, as float RGBA of alpha 1: imshow then neither rescales bytes nor premultiplies alpha
+        # (whole-image masked-array passes at every layout), and what it shows is what the transparent image gave
+        rgba = np.asarray(canvas.buffer_rgba(), dtype=np.float32) / 255.0
+        alpha = rgba[..., 3:]
+        self.image = np.concatenate([rgba[..., :3] * alpha + (1.0 - alpha), np.ones_like(alpha)], axis=2)
         self.extent = (lo[0], hi[0], lo[1], hi[1])
 
     def draw(self, ax) -> None:
@@ -267,9 +271,95 @@ class _Backdrop:
             ax.update_datalim(np.array([[x0, y0], [x1, y1]]))
 
 
-def _finish(fig, ax, right: float = 0.97) -> None:
+def _finish(fig, ax=None, right: float = 0.97) -> None:
     """Fixed margins (tight_layout measures every label: slow, and the images are all alike)."""
     fig.subplots_adjust(left=0.08, right=right, bottom=0.08, top=0.92)
+
+
+def _runs(items: list, key) -> list[list]:
+    """``items`` cut into runs of neighbours with the same ``key(item)``, in order."""
+    return [list(run) for _, run in itertools.groupby(items, key)]
+
+
+def _stroke_lines(ax, lines: list[tuple], width: float, zorder: float) -> None:
+    """Polylines ((k, 2) points, colour, line style) as line collections, one a run of one style, drawn in the
+    order given: what one ``ax.plot`` a line drew (its caps: projecting when solid, butt when dashed)."""
+    from matplotlib.collections import LineCollection
+
+    for run in _runs(lines, lambda line: line[2]):
+        style = run[0][2]
+        ax.add_collection(
+            LineCollection(
+                [points for points, _, _ in run],
+                colors=[colour for _, colour, _ in run],
+                linewidths=width,
+                linestyles=style,
+                capstyle="projecting" if style == "-" else "butt",
+                joinstyle="round",
+                zorder=zorder,
+            ),
+            autolim=False,
+        )
+
+
+def _start_markers(ax, points: np.ndarray, colours: list):
+    """Filled circles of 3 pt at ``points`` (data), each in its colour with a 1 pt edge of it: the markers of
+    ``ax.plot(x, y, "o", markersize=3)``, as one collection."""
+    from matplotlib.collections import PathCollection
+    from matplotlib.markers import MarkerStyle
+    from matplotlib.transforms import IdentityTransform
+
+    marker = MarkerStyle("o")
+    markers = PathCollection(
+        [marker.get_path().transformed(marker.get_transform())],
+        sizes=[3.0**2],
+        offsets=points,
+        offset_transform=ax.transData,
+        facecolors=colours,
+        edgecolors=colours,
+        linewidths=1.0,
+        zorder=3,
+    )
+    markers.set_transform(IdentityTransform())  # the marker's size in points (as scatter), not in data units
+    return markers
+
+
+def _wrapped_title(fig, text: str, fontsize: float) -> str:
+    """``text`` broken into lines as matplotlib's ``wrap=True`` breaks an axes title centred on the figure (the
+    most words a line that fits the figure's width about the title's centre), found by bisection: a few text
+    measurements instead of one a word, at every layout pass."""
+    import math
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.cbook import is_math_text
+    from matplotlib.font_manager import FontProperties
+
+    if is_math_text(text):
+        return text
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    prop = FontProperties(size=fontsize)
+    box = fig.subplotpars
+    centre = 0.5 * (box.left + box.right) * fig.bbox.width
+    room = 2 * min(centre, fig.bbox.width - centre)
+
+    def width(words) -> int:
+        return math.ceil(renderer.get_text_width_height_descent(" ".join(words), prop, ismath=False)[0])
+
+    lines = []
+    for line in text.split("\n"):
+        words = line.split(" ")
+        while words:
+            fit, over = 1, len(words) + 1  # words[:fit] fits (one word always goes), words[:over] does not
+            if width(words) <= room:
+                fit = len(words)
+            else:
+                over = len(words)
+                while over - fit > 1:
+                    mid = (fit + over) // 2
+                    fit, over = (mid, over) if width(words[:mid]) <= room else (fit, mid)
+            lines.append(" ".join(words[:fit]))
+            words = words[fit:]
+    return "\n".join(lines)
 
 
 def station_picture(path: str, scene: Scene, place: int, settings: ReportSettings, backdrop: _Backdrop) -> None:
@@ -278,22 +368,24 @@ def station_picture(path: str, scene: Scene, place: int, settings: ReportSetting
 
     st = scene.plan.stations[place]
     fig = _figure(settings)
+    _finish(fig, None)
     ax = fig.add_subplot()
     backdrop.draw(ax)
     spray = [(i, s) for i, s in enumerate(st.strokes) if s.spray_on]
     cmap = colormaps["viridis"]
     step = max(1, int(np.ceil(len(spray) / settings.max_labels)))
+    colours = [cmap(k / max(len(spray) - 1, 1)) for k in range(len(spray))]
+    _stroke_lines(ax, [(s.points[:, :2], "#999999", "--") for s in st.strokes if not s.spray_on], width=0.6, zorder=1)
+    _stroke_lines(
+        ax,
+        [(s.points[:, :2], c, "-" if s.kind == "spray" else ":") for (_i, s), c in zip(spray, colours)],
+        width=1.2,
+        zorder=2,
+    )
+    if spray:
+        starts = np.array([s.points[0, :2] for _i, s in spray])
+        ax.add_collection(_start_markers(ax, starts, colours), autolim=False)
     for k, (_i, s) in enumerate(spray):
-        colour = cmap(k / max(len(spray) - 1, 1))
-        ax.plot(
-            s.points[:, 0],
-            s.points[:, 1],
-            color=colour,
-            linewidth=1.2,
-            zorder=2,
-            linestyle="-" if s.kind == "spray" else ":",
-        )
-        ax.plot(s.points[0, 0], s.points[0, 1], "o", color=colour, markersize=3, zorder=3)
         if k % step == 0 or k == len(spray) - 1:
             ax.annotate(
                 str(k + 1),
@@ -304,26 +396,23 @@ def station_picture(path: str, scene: Scene, place: int, settings: ReportSetting
                 textcoords="offset points",
                 bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.8),
             )
-    for s in st.strokes:
-        if not s.spray_on:
-            ax.plot(s.points[:, 0], s.points[:, 1], color="#999999", linewidth=0.6, linestyle="--", zorder=1)
     p = st.platform_mm
     ax.add_patch(Circle(p[:2], scene.working_radius_mm, fill=False, ec="#7f7f7f", linestyle="--", zorder=1))
     ax.plot(p[0], p[1], "s", color=STATION_COLOURS[place % len(STATION_COLOURS)], markersize=8, zorder=5)
+    for s in st.strokes:  # the data limits the lines' points gave
+        ax.update_datalim(s.points[:, :2])
     ax.update_datalim(np.array([p[:2] - scene.working_radius_mm, p[:2] + scene.working_radius_mm]))
     ax.set_aspect("equal")
     ax.autoscale_view()
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     every = "" if step == 1 else f", every {step}th numbered"
-    ax.set_title(
+    title = (
         f"{scene.name}: stop {place + 1} of {len(scene.plan.stations)} (station {st.index}), "
         f"{len(spray)} strokes (their paths on the part) from above, numbered at their start in the order run{every}; "
-        "square: the platform, dashed circle: its working circle",
-        fontsize=9,
-        wrap=True,
+        "square: the platform, dashed circle: its working circle"
     )
-    _finish(fig, ax)
+    ax.set_title(_wrapped_title(fig, title, 9), fontsize=9)
     _save(fig, path)
 
 
