@@ -27,6 +27,7 @@ import toppra
 from toppra.constraint import JointAccelerationConstraint, LinearConstraint
 
 from sprayplan.timing.limits import AxisLimits
+from sprayplan.timing.reach import reach_paths
 
 log = logging.getLogger(__name__)
 
@@ -103,19 +104,36 @@ class _SpeedBound(LinearConstraint):
         return None, None, None, None, None, None, xbound
 
 
-def _bounds(path, tip, grid, s_way, cap, limits: AxisLimits):
+def _bounds(d1, slope, grid, s_way, cap, limits: AxisLimits):
     """The upper bound of sd^2 at each grid point (every axis at its speed limit, the tip at its planned speed:
-    at a waypoint the slower of its two segments') and the planned tip speed of each grid interval."""
+    at a waypoint the slower of its two segments') and the planned tip speed of each grid interval; ``d1``: q'(s)
+    at the grid points, ``slope``: the tip's |p'(s)| there."""
     n = len(s_way)
     segment = np.clip(np.searchsorted(s_way, grid, side="right") - 1, 0, n - 2)  # the segment of each point
     on_waypoint = np.isin(grid, s_way)
     cap_grid = np.where(on_waypoint, np.minimum(cap[np.maximum(segment - 1, 0)], cap[segment]), cap[segment])
     cap_grid[-1] = cap[-1]
-    d1 = np.abs(path(grid, 1))
     with np.errstate(divide="ignore"):
-        joint_x = np.min((limits.velocity[None, :] / d1) ** 2, axis=1)
-        tip_x = (cap_grid / _tip_slope(path, tip, grid)) ** 2
+        joint_x = np.min((limits.velocity[None, :] / np.abs(d1)) ** 2, axis=1)
+        tip_x = (cap_grid / slope) ** 2
     return np.minimum(joint_x, tip_x), cap[segment[:-1]]
+
+
+def _slope_function(tip: Callable, tip_rate: Callable | None):
+    """``slope(path, s, d1=None) -> (k,)``: |p'(s)|, the gun tip's distance per unit of s at path positions s
+    (``d1``: q'(s) there when known): from ``tip_rate`` exactly, else central differences of ``tip``."""
+    if tip_rate is None:
+
+        def slope(path, s, d1=None):
+            return _tip_slope(path, tip, s)
+
+    else:
+
+        def slope(path, s, d1=None):
+            _, rate = tip_rate(path(s), path(s, 1) if d1 is None else d1)
+            return np.linalg.norm(rate, axis=1)
+
+    return slope
 
 
 def _tip_slope(path, tip: Callable, s: np.ndarray, h: float = 1e-7) -> np.ndarray:
@@ -134,6 +152,7 @@ def time_path(
     check_steps: int = 4,
     max_rounds: int = 2,
     knot_speeds: tuple | None = None,
+    tip_rate: Callable | None = None,
 ) -> PathTiming:
     """Time a joint path from rest to rest, fastest within ``limits`` and the gun-tip speed bound.
 
@@ -154,59 +173,123 @@ def time_path(
         The speeds that space the spline's knots (see the module docstring); None: ``limits.velocity`` and the
         largest of ``cap_mm_s``. The joint path between the waypoints depends on them: give the same ones to
         compare timings of one path under different limits.
+    tip_rate : callable or None
+        ``tip_rate(q (k, dof), dq (k, dof)) -> (positions (k, 3), rates (k, 3))``: the tip and its rate of
+        change along joint rates dq (``robots.gantry.Gantry.gun_tip``); None: central differences of ``tip``.
     """
-    q = np.asarray(q, float)
-    n, dof = q.shape
-    cap = np.asarray(cap_mm_s, float)
-    # knots spaced by the least time each segment can take (the tip, by forward kinematics, at the fastest
-    # planned speed; every axis at its limit): the spline then does not overshoot where the joints move much over a
-    # short stretch of the tip's path (a wrist turning near a singularity), and sd stays near 1 or below
-    # (toppra's LP solver loses the feasible set where sd^2 grows large)
-    axis_speed, tip_speed = (limits.velocity, float(cap.max())) if knot_speeds is None else knot_speeds
-    tip_step = np.linalg.norm(np.diff(tip(q), axis=0), axis=1) / tip_speed
-    axis_step = (np.abs(np.diff(q, axis=0)) / np.asarray(axis_speed, float)).max(axis=1)
-    step = np.maximum(np.maximum(tip_step, axis_step), MIN_STEP_S)
-    s_way = np.concatenate([[0.0], np.cumsum(step)])
-    path = toppra.SplineInterpolator(s_way, q)
-    # grid: the waypoints, the middle of every segment, and points closing in on the two ends (from rest, the
-    # first interval's constant sdd takes twice the time of the same stretch at speed: small intervals there
-    # keep that to what the acceleration limits really cost)
-    grid = np.empty(2 * n - 1)
-    grid[0::2] = s_way
-    grid[1::2] = 0.5 * (s_way[:-1] + s_way[1:])
-    head = grid[1] * END_FRACTIONS
-    tail = grid[-1] - (grid[-1] - grid[-2]) * END_FRACTIONS[::-1]
-    grid = np.concatenate([grid[:1], head, grid[1:-1], tail, grid[-1:]])
-    acceleration = JointAccelerationConstraint(limits.acceleration)
+    return time_paths(
+        [(q, cap_mm_s)],
+        limits,
+        tip,
+        check_steps=check_steps,
+        max_rounds=max_rounds,
+        knot_speeds=knot_speeds,
+        tip_rate=tip_rate,
+    )[0]
+
+
+class _Stroke:
+    """One path's state while :func:`time_paths` refines its grid."""
+
+    def __init__(self, q, cap_mm_s, limits: AxisLimits, tip, knot_speeds):
+        q = np.asarray(q, float)
+        n = len(q)
+        cap = np.asarray(cap_mm_s, float)
+        # knots spaced by the least time each segment can take (the tip, by forward kinematics, at the fastest
+        # planned speed; every axis at its limit): the spline then does not overshoot where the joints move much
+        # over a short stretch of the tip's path (a wrist turning near a singularity), and sd stays near 1 or
+        # below (toppra's LP solver loses the feasible set where sd^2 grows large)
+        axis_speed, tip_speed = (limits.velocity, float(cap.max())) if knot_speeds is None else knot_speeds
+        tip_step = np.linalg.norm(np.diff(tip(q), axis=0), axis=1) / tip_speed
+        axis_step = (np.abs(np.diff(q, axis=0)) / np.asarray(axis_speed, float)).max(axis=1)
+        step = np.maximum(np.maximum(tip_step, axis_step), MIN_STEP_S)
+        self.s_way = np.concatenate([[0.0], np.cumsum(step)])
+        self.path = toppra.SplineInterpolator(self.s_way, q)
+        # grid: the waypoints, the middle of every segment, and points closing in on the two ends (from rest,
+        # the first interval's constant sdd takes twice the time of the same stretch at speed: small intervals
+        # there keep that to what the acceleration limits really cost)
+        grid = np.empty(2 * n - 1)
+        grid[0::2] = self.s_way
+        grid[1::2] = 0.5 * (self.s_way[:-1] + self.s_way[1:])
+        head = grid[1] * END_FRACTIONS
+        tail = grid[-1] - (grid[-1] - grid[-2]) * END_FRACTIONS[::-1]
+        self.grid = np.concatenate([grid[:1], head, grid[1:-1], tail, grid[-1:]])
+        self.cap = cap
+        self.n = n
+        self.rounds = 0
+        self.done = False
+
+
+def time_paths(
+    paths,
+    limits: AxisLimits,
+    tip: Callable[[np.ndarray], np.ndarray],
+    *,
+    check_steps: int = 4,
+    max_rounds: int = 2,
+    knot_speeds: tuple | None = None,
+    tip_rate: Callable | None = None,
+) -> list[PathTiming]:
+    """:func:`time_path` for many joint paths ``[(q, cap_mm_s), ...]``, each timed on its own (the same answer
+    as one at a time); toppra's reachability analysis runs on all the paths of a refinement round together
+    (``timing.reach``)."""
+    slope = _slope_function(tip, tip_rate)
+    strokes = [_Stroke(q, cap, limits, tip, knot_speeds) for q, cap in paths]
     frac = np.linspace(0.0, 1.0, check_steps + 1)
-    rounds = 0
     while True:
-        base_x, cap_interval = _bounds(path, tip, grid, s_way, cap, limits)
-        ds = np.diff(grid)
-        constraints = [_SpeedBound(base_x, dof), acceleration]
-        algorithm = toppra.algorithm.TOPPRA(constraints, path, gridpoints=grid, solver_wrapper="seidel")
-        _, sd, _, _ = algorithm.compute_parameterization(0.0, 0.0, return_data=True)
-        if sd is None or not np.isfinite(sd).all():
-            raise RuntimeError(f"toppra found no parameterisation of a {n}-waypoint stroke from rest to rest")
-        sd = np.maximum(np.asarray(sd, float), 0.0)
-        dt = 2.0 * ds / np.maximum(sd[:-1] + sd[1:], 1e-300)
-        sdd = (sd[1:] ** 2 - sd[:-1] ** 2) / (2.0 * ds)
-        ratios = _dense_check(path, tip, grid[:-1], grid[1:], sd[:-1], sdd, dt, frac, limits, cap_interval)
-        worst = [float(r.max(initial=0.0)) for r in ratios]
-        if max(worst) <= 1.0 + CHECK_SLACK or rounds >= max_rounds:
+        todo = [st for st in strokes if not st.done]
+        if not todo:
             break
-        rounds += 1
-        # a limit exceeded between two grid points: the interval split at its middle (a new grid point, where
-        # toppra holds every limit too)
-        bad = np.maximum(np.maximum(ratios[0], ratios[1]), ratios[2])
-        split = np.flatnonzero(bad > 1.0 + CHECK_SLACK)
-        grid = np.insert(grid, split + 1, 0.5 * (grid[split] + grid[split + 1]))
-    # the final check: the intervals near a limit again, at FINAL_FACTOR times the points
-    near = np.flatnonzero(np.maximum(np.maximum(ratios[0], ratios[1]), ratios[2]) > NEAR_LIMIT)
+        inputs = []
+        for st in todo:
+            d1 = st.path(st.grid, 1)
+            st.base_x, st.cap_interval = _bounds(d1, slope(st.path, st.grid), st.grid, st.s_way, st.cap, limits)
+            inputs.append((st.grid, d1, st.path(st.grid, 2), st.base_x))
+        answers = reach_paths(inputs, limits.acceleration)
+        for st, sd in zip(todo, answers):
+            if sd is None:  # a stage this analysis finds empty: toppra's own answer (or failure)
+                sd = _toppra(st, limits)
+            if sd is None or not np.isfinite(sd).all():
+                raise RuntimeError(f"toppra found no parameterisation of a {st.n}-waypoint stroke from rest to rest")
+            grid = st.grid
+            ds = np.diff(grid)
+            sd = np.maximum(np.asarray(sd, float), 0.0)
+            st.sd = sd
+            st.dt = 2.0 * ds / np.maximum(sd[:-1] + sd[1:], 1e-300)
+            st.sdd = (sd[1:] ** 2 - sd[:-1] ** 2) / (2.0 * ds)
+            st.ratios = _dense_check(
+                st.path, slope, grid[:-1], grid[1:], sd[:-1], st.sdd, st.dt, frac, limits, st.cap_interval
+            )
+            st.worst = [float(r.max(initial=0.0)) for r in st.ratios]
+            if max(st.worst) <= 1.0 + CHECK_SLACK or st.rounds >= max_rounds:
+                st.done = True
+                continue
+            st.rounds += 1
+            # a limit exceeded between two grid points: the interval split at its middle (a new grid point,
+            # where toppra holds every limit too)
+            bad = np.maximum(np.maximum(st.ratios[0], st.ratios[1]), st.ratios[2])
+            split = np.flatnonzero(bad > 1.0 + CHECK_SLACK)
+            st.grid = np.insert(grid, split + 1, 0.5 * (grid[split] + grid[split + 1]))
+    return [_finish(st, slope, check_steps, limits) for st in strokes]
+
+
+def _toppra(st: _Stroke, limits: AxisLimits):
+    """toppra's parameterisation of a stroke's current grid (sd at the grid points, or None)."""
+    constraints = [_SpeedBound(st.base_x, limits.dof), JointAccelerationConstraint(limits.acceleration)]
+    algorithm = toppra.algorithm.TOPPRA(constraints, st.path, gridpoints=st.grid, solver_wrapper="seidel")
+    _, sd, _, _ = algorithm.compute_parameterization(0.0, 0.0, return_data=True)
+    return sd
+
+
+def _finish(st: _Stroke, slope, check_steps: int, limits: AxisLimits) -> PathTiming:
+    """The final check (the intervals near a limit again, at FINAL_FACTOR times the points), the uniform
+    stretch if a limit still does not hold, and the timing at the waypoints."""
+    grid, sd, sdd, dt, worst = st.grid, st.sd, st.sdd, st.dt, st.worst
+    near = np.flatnonzero(np.maximum(np.maximum(st.ratios[0], st.ratios[1]), st.ratios[2]) > NEAR_LIMIT)
     if len(near):
         fine = np.linspace(0.0, 1.0, FINAL_FACTOR * check_steps + 1)
         again = _dense_check(
-            path, tip, grid[near], grid[near + 1], sd[near], sdd[near], dt[near], fine, limits, cap_interval[near]
+            st.path, slope, grid[near], grid[near + 1], sd[near], sdd[near], dt[near], fine, limits, st.cap_interval[near]
         )
         worst = [max(w, float(r.max(initial=0.0))) for w, r in zip(worst, again)]
     stretch = 1.0
@@ -217,16 +300,16 @@ def time_path(
     t_grid = np.concatenate([[0.0], np.cumsum(dt)]) * stretch
     sd = sd / stretch
     sdd = sdd / stretch**2
-    wp = np.flatnonzero(np.isin(grid, s_way))
-    speed = _tip_slope(path, tip, grid[wp]) * sd[wp]
+    wp = np.flatnonzero(np.isin(grid, st.s_way))
+    speed = slope(st.path, grid[wp]) * sd[wp]
     return PathTiming(
         t_s=t_grid[wp],
         speed_mm_s=speed,
         duration_s=float(t_grid[-1]),
-        rounds=rounds,
+        rounds=st.rounds,
         stretch=float(stretch),
         worst={"velocity": worst[0], "acceleration": worst[1], "tip_speed": worst[2]},
-        path=path,
+        path=st.path,
         grid_s=grid,
         grid_t=t_grid,
         grid_sd=sd,
@@ -234,7 +317,7 @@ def time_path(
     )
 
 
-def _dense_check(path, tip, s0, s1, sd0, sdd, dt, frac, limits: AxisLimits, cap_interval):
+def _dense_check(path, slope, s0, s1, sd0, sdd, dt, frac, limits: AxisLimits, cap_interval):
     """Per grid interval (from s0 to s1, starting at speed sd0, accelerating at sdd for dt), the largest ratio of
     joint speed, joint acceleration and tip speed to its limit: over ``frac`` points evenly in time across the
     interval, each local peak refined by the parabola through it and its two neighbours."""
@@ -250,7 +333,7 @@ def _dense_check(path, tip, s0, s1, sd0, sdd, dt, frac, limits: AxisLimits, cap_
     shape = (len(dt), len(frac), -1)
     rv = _peaks((np.abs(vel) / limits.velocity).reshape(shape))
     ra = _peaks((np.abs(acc) / limits.acceleration).reshape(shape))
-    tip_speed = _tip_slope(path, tip, flat) * np.abs(v.reshape(-1))
+    tip_speed = slope(path, flat, d1) * np.abs(v.reshape(-1))
     rc = _peaks((tip_speed.reshape(len(dt), -1) / cap_interval[:, None])[:, :, None])
     return rv, ra, rc
 
