@@ -236,14 +236,19 @@ def fk_point(model: RobotModel, q: np.ndarray, point, dq: np.ndarray | None = No
         dx, dy, dz = np.zeros(n), np.zeros(n), np.zeros(n)
     for i in range(model.dof - 1, -1, -1):
         ca, sa = math.cos(model.alpha[i]), math.sin(model.alpha[i])
-        y, z = ca * y - sa * z, sa * y + ca * z
-        x = x + model.a[i]
+        if sa != 0.0:  # Rot(x, alpha); none at alpha = 0
+            y, z = ca * y - sa * z, sa * y + ca * z
+            if rate:
+                dy, dz = ca * dy - sa * dz, sa * dy + ca * dz
+        if model.a[i] != 0.0:
+            x = x + model.a[i]
         c, s = ct[:, i], st[:, i]
         x, y = c * x - s * y, s * x + c * y
-        z = z + model.d[i]
+        if model.d[i] != 0.0:
+            z = z + model.d[i]
         if rate:
-            dy, dz = ca * dy - sa * dz, sa * dy + ca * dz
-            dx, dy = c * dx - s * dy - y * dq[:, i], s * dx + c * dy + x * dq[:, i]
+            w = dq[:, i]
+            dx, dy = c * dx - s * dy - y * w, s * dx + c * dy + x * w
     position = np.column_stack([x, y, z])
     return (position, np.column_stack([dx, dy, dz])) if rate else position
 

@@ -120,20 +120,25 @@ def _bounds(d1, slope, grid, s_way, cap, limits: AxisLimits):
 
 
 def _slope_function(tip: Callable, tip_rate: Callable | None):
-    """``slope(path, s, d1=None) -> (k,)``: |p'(s)|, the gun tip's distance per unit of s at path positions s
-    (``d1``: q'(s) there when known): from ``tip_rate`` exactly, else central differences of ``tip``."""
+    """``slopes([(path, s, d1), ...]) -> [(k,), ...]``: |p'(s)|, the gun tip's distance per unit of s at path
+    positions s of each path (``d1``: q'(s) there, or None): from ``tip_rate`` exactly, in one call for all
+    the paths, else central differences of ``tip``."""
     if tip_rate is None:
 
-        def slope(path, s, d1=None):
-            return _tip_slope(path, tip, s)
+        def slopes(requests):
+            return [_tip_slope(path, tip, s) for path, s, _ in requests]
 
     else:
 
-        def slope(path, s, d1=None):
-            _, rate = tip_rate(path(s), path(s, 1) if d1 is None else d1)
-            return np.linalg.norm(rate, axis=1)
+        def slopes(requests):
+            if not requests:
+                return []
+            q = np.concatenate([path(s) for path, s, _ in requests])
+            d1 = np.concatenate([path(s, 1) if d1 is None else d1 for path, s, d1 in requests])
+            speed = np.linalg.norm(tip_rate(q, d1)[1], axis=1)
+            return np.split(speed, np.cumsum([len(s) for _, s, _ in requests])[:-1])
 
-    return slope
+    return slopes
 
 
 def _tip_slope(path, tip: Callable, s: np.ndarray, h: float = 1e-7) -> np.ndarray:
@@ -233,33 +238,32 @@ def time_paths(
     """:func:`time_path` for many joint paths ``[(q, cap_mm_s), ...]``, each timed on its own (the same answer
     as one at a time); toppra's reachability analysis runs on all the paths of a refinement round together
     (``timing.reach``)."""
-    slope = _slope_function(tip, tip_rate)
+    slopes = _slope_function(tip, tip_rate)
     strokes = [_Stroke(q, cap, limits, tip, knot_speeds) for q, cap in paths]
     frac = np.linspace(0.0, 1.0, check_steps + 1)
     while True:
         todo = [st for st in strokes if not st.done]
         if not todo:
             break
+        d1 = [st.path(st.grid, 1) for st in todo]
         inputs = []
-        for st in todo:
-            d1 = st.path(st.grid, 1)
-            st.base_x, st.cap_interval = _bounds(d1, slope(st.path, st.grid), st.grid, st.s_way, st.cap, limits)
-            inputs.append((st.grid, d1, st.path(st.grid, 2), st.base_x))
-        answers = reach_paths(inputs, limits.acceleration)
-        for st, sd in zip(todo, answers):
+        for st, d, slope in zip(todo, d1, slopes([(st.path, st.grid, d) for st, d in zip(todo, d1)])):
+            st.base_x, st.cap_interval = _bounds(d, slope, st.grid, st.s_way, st.cap, limits)
+            inputs.append((st.grid, d, st.path(st.grid, 2), st.base_x))
+        samples = []
+        for st, sd in zip(todo, reach_paths(inputs, limits.acceleration)):
             if sd is None:  # a stage this analysis finds empty: toppra's own answer (or failure)
                 sd = _toppra(st, limits)
             if sd is None or not np.isfinite(sd).all():
                 raise RuntimeError(f"toppra found no parameterisation of a {st.n}-waypoint stroke from rest to rest")
             grid = st.grid
             ds = np.diff(grid)
-            sd = np.maximum(np.asarray(sd, float), 0.0)
-            st.sd = sd
+            st.sd = sd = np.maximum(np.asarray(sd, float), 0.0)
             st.dt = 2.0 * ds / np.maximum(sd[:-1] + sd[1:], 1e-300)
             st.sdd = (sd[1:] ** 2 - sd[:-1] ** 2) / (2.0 * ds)
-            st.ratios = _dense_check(
-                st.path, slope, grid[:-1], grid[1:], sd[:-1], st.sdd, st.dt, frac, limits, st.cap_interval
-            )
+            samples.append(_dense_samples(st.path, grid[:-1], grid[1:], sd[:-1], st.sdd, st.dt, frac))
+        for st, sm, slope in zip(todo, samples, slopes([(st.path, sm.s, sm.d1) for st, sm in zip(todo, samples)])):
+            st.ratios = _dense_ratios(sm, slope, st.sdd, len(frac), limits, st.cap_interval)
             st.worst = [float(r.max(initial=0.0)) for r in st.ratios]
             if max(st.worst) <= 1.0 + CHECK_SLACK or st.rounds >= max_rounds:
                 st.done = True
@@ -267,10 +271,25 @@ def time_paths(
             st.rounds += 1
             # a limit exceeded between two grid points: the interval split at its middle (a new grid point,
             # where toppra holds every limit too)
+            grid = st.grid
             bad = np.maximum(np.maximum(st.ratios[0], st.ratios[1]), st.ratios[2])
             split = np.flatnonzero(bad > 1.0 + CHECK_SLACK)
             st.grid = np.insert(grid, split + 1, 0.5 * (grid[split] + grid[split + 1]))
-    return [_finish(st, slope, check_steps, limits) for st in strokes]
+    # the final check: the intervals near a limit again, at FINAL_FACTOR times the points
+    fine = np.linspace(0.0, 1.0, FINAL_FACTOR * check_steps + 1)
+    near = [np.flatnonzero(np.maximum(np.maximum(*st.ratios[:2]), st.ratios[2]) > NEAR_LIMIT) for st in strokes]
+    samples = [
+        _dense_samples(st.path, st.grid[k], st.grid[k + 1], st.sd[k], st.sdd[k], st.dt[k], fine)
+        for st, k in zip(strokes, near)
+    ]
+    again = slopes([(st.path, sm.s, sm.d1) for st, sm in zip(strokes, samples)])
+    for st, k, sm, slope in zip(strokes, near, samples, again):
+        if len(k):
+            ratios = _dense_ratios(sm, slope, st.sdd[k], len(fine), limits, st.cap_interval[k])
+            st.worst = [max(w, float(r.max(initial=0.0))) for w, r in zip(st.worst, ratios)]
+    waypoints = [np.flatnonzero(np.isin(st.grid, st.s_way)) for st in strokes]
+    speeds = slopes([(st.path, st.grid[wp], None) for st, wp in zip(strokes, waypoints)])
+    return [_finish(st, wp, speed) for st, wp, speed in zip(strokes, waypoints, speeds)]
 
 
 def _toppra(st: _Stroke, limits: AxisLimits):
@@ -281,60 +300,65 @@ def _toppra(st: _Stroke, limits: AxisLimits):
     return sd
 
 
-def _finish(st: _Stroke, slope, check_steps: int, limits: AxisLimits) -> PathTiming:
-    """The final check (the intervals near a limit again, at FINAL_FACTOR times the points), the uniform
-    stretch if a limit still does not hold, and the timing at the waypoints."""
-    grid, sd, sdd, dt, worst = st.grid, st.sd, st.sdd, st.dt, st.worst
-    near = np.flatnonzero(np.maximum(np.maximum(st.ratios[0], st.ratios[1]), st.ratios[2]) > NEAR_LIMIT)
-    if len(near):
-        fine = np.linspace(0.0, 1.0, FINAL_FACTOR * check_steps + 1)
-        again = _dense_check(
-            st.path, slope, grid[near], grid[near + 1], sd[near], sdd[near], dt[near], fine, limits, st.cap_interval[near]
-        )
-        worst = [max(w, float(r.max(initial=0.0))) for w, r in zip(worst, again)]
+def _finish(st: _Stroke, wp: np.ndarray, slope: np.ndarray) -> PathTiming:
+    """The uniform stretch if a limit still does not hold after the checks, and the timing at the waypoints
+    (grid points ``wp``, the tip's |p'(s)| there ``slope``)."""
+    worst = st.worst
     stretch = 1.0
     if max(worst) > 1.0 + CHECK_SLACK:
         stretch = max(worst[0], np.sqrt(worst[1]), worst[2]) * (1.0 + CHECK_SLACK)
         log.debug("a stroke's limits held only after stretching its time by %.6g", stretch)
         worst = [worst[0] / stretch, worst[1] / stretch**2, worst[2] / stretch]
-    t_grid = np.concatenate([[0.0], np.cumsum(dt)]) * stretch
-    sd = sd / stretch
-    sdd = sdd / stretch**2
-    wp = np.flatnonzero(np.isin(grid, st.s_way))
-    speed = slope(st.path, grid[wp]) * sd[wp]
+    t_grid = np.concatenate([[0.0], np.cumsum(st.dt)]) * stretch
+    sd = st.sd / stretch
     return PathTiming(
         t_s=t_grid[wp],
-        speed_mm_s=speed,
+        speed_mm_s=slope * sd[wp],
         duration_s=float(t_grid[-1]),
         rounds=st.rounds,
         stretch=float(stretch),
         worst={"velocity": worst[0], "acceleration": worst[1], "tip_speed": worst[2]},
         path=st.path,
-        grid_s=grid,
+        grid_s=st.grid,
         grid_t=t_grid,
         grid_sd=sd,
-        grid_sdd=sdd,
+        grid_sdd=st.sdd / stretch**2,
     )
 
 
-def _dense_check(path, slope, s0, s1, sd0, sdd, dt, frac, limits: AxisLimits, cap_interval):
-    """Per grid interval (from s0 to s1, starting at speed sd0, accelerating at sdd for dt), the largest ratio of
-    joint speed, joint acceleration and tip speed to its limit: over ``frac`` points evenly in time across the
-    interval, each local peak refined by the parabola through it and its two neighbours."""
+@dataclass(frozen=True)
+class _Samples:
+    """A dense check's samples: per grid interval ``len(frac)`` points evenly in time, flattened."""
+
+    s: np.ndarray  # (k * m,) path positions
+    v: np.ndarray  # (k * m,) sd there
+    d1: np.ndarray  # (k * m, dof) q'(s)
+    d2: np.ndarray  # (k * m, dof) q''(s)
+
+
+def _dense_samples(path, s0, s1, sd0, sdd, dt, frac) -> _Samples:
+    """The samples of a dense check over grid intervals from s0 to s1 (starting at speed sd0, accelerating at
+    sdd for dt): ``frac`` points evenly in time across each."""
     tau = dt[:, None] * frac[None, :]
     s = s0[:, None] + sd0[:, None] * tau + 0.5 * sdd[:, None] * tau**2
     s = np.clip(s, s0[:, None], s1[:, None])
     v = sd0[:, None] + sdd[:, None] * tau
     flat = s.reshape(-1)
-    d1 = path(flat, 1)
-    d2 = path(flat, 2)
-    vel = d1 * v.reshape(-1, 1)
-    acc = d1 * np.repeat(sdd, len(frac))[:, None] + d2 * (v.reshape(-1, 1) ** 2)
-    shape = (len(dt), len(frac), -1)
+    return _Samples(flat, v.reshape(-1), path(flat, 1), path(flat, 2))
+
+
+def _dense_ratios(samples: _Samples, slope, sdd, m: int, limits: AxisLimits, cap_interval):
+    """Per grid interval, the largest ratio of joint speed, joint acceleration and tip speed to its limit over
+    its ``m`` samples (``slope``: the tip's |p'(s)| at them), each local peak refined by the parabola through it
+    and its two neighbours."""
+    d1, v = samples.d1, samples.v[:, None]
+    vel = d1 * v
+    acc = d1 * np.repeat(sdd, m)[:, None] + samples.d2 * v**2
+    shape = (len(sdd), m, -1)
     rv = _peaks((np.abs(vel) / limits.velocity).reshape(shape))
     ra = _peaks((np.abs(acc) / limits.acceleration).reshape(shape))
-    tip_speed = slope(path, flat, d1) * np.abs(v.reshape(-1))
-    rc = _peaks((tip_speed.reshape(len(dt), -1) / cap_interval[:, None])[:, :, None])
+    tip_speed = slope * np.abs(samples.v)
+    rc = _peaks((tip_speed.reshape(len(sdd), -1) / cap_interval[:, None])[:, :, None])
     return rv, ra, rc
 
 
