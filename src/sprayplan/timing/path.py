@@ -40,6 +40,8 @@ END_FRACTIONS = np.array([1e-4, 1e-3, 1e-2, 1e-1])
 #: The final check looks again, with this many times the points, at the intervals within NEAR_LIMIT of a limit.
 FINAL_FACTOR = 8
 NEAR_LIMIT = 0.9
+#: Samples per forward-kinematics call of the tip speeds.
+SLOPE_CHUNK = 4096
 #: How much below a violated bound a tightened bound is set (relative).
 TIGHTEN_MARGIN = 0.01
 
@@ -135,7 +137,9 @@ def _slope_function(tip: Callable, tip_rate: Callable | None):
                 return []
             q = np.concatenate([path(s) for path, s, _ in requests])
             d1 = np.concatenate([path(s, 1) if d1 is None else d1 for path, s, d1 in requests])
-            speed = np.linalg.norm(tip_rate(q, d1)[1], axis=1)
+            speed = np.empty(len(q))
+            for k in range(0, len(q), SLOPE_CHUNK):  # chunks that stay in the cache
+                speed[k : k + SLOPE_CHUNK] = np.linalg.norm(tip_rate(q[k : k + SLOPE_CHUNK], d1[k : k + SLOPE_CHUNK])[1], axis=1)
             return np.split(speed, np.cumsum([len(s) for _, s, _ in requests])[:-1])
 
     return slopes

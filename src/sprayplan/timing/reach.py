@@ -94,24 +94,32 @@ def reach_paths(items, a_max: np.ndarray) -> list:
     gamma_lo[:, : 2 * dof] = np.tile(a_max, 2)
     gamma_up[:, 2 * dof + 1] = VAR_MAX
     gamma_lo[:, 2 * dof + 1] = VAR_MAX
-    # eliminating u: upper row j and lower row k give c x <= r with c = alpha_j beta_lo_k + alpha_k beta_up_j
+    # eliminating u: upper row j and lower row k give c x <= r with c = alpha_j beta_lo_k + alpha_k beta_up_j and
+    # r = alpha_j gamma_lo_k + alpha_k gamma_up_j; the pairs without K's rows do not change from stage to stage
+    static_lo, static_hi = _static_bounds(alpha, beta_up, beta_lo, gamma_up, x_max, dof)
+    j = 2 * dof
+    up_rows = np.r_[np.arange(j), j + 1]  # the rows paired with K's lower end (the axes', the u bound)
     k_lo = np.zeros((longest + 1, len(items)))
     k_hi = np.zeros((longest + 1, len(items)))
     failed = np.zeros(len(items), bool)
     for i in range(longest - 1, -1, -1):
         k = active[i]
         sl = slice(start[i], start[i] + k)
-        gamma_up[sl, 2 * dof] = k_hi[i + 1, :k]
-        gamma_lo[sl, 2 * dof] = -k_lo[i + 1, :k]
-        al, bu, bl, gu, gl = alpha[sl], beta_up[sl], beta_lo[sl], gamma_up[sl], gamma_lo[sl]
-        c = al[:, :, None] * bl[:, None, :] + al[:, None, :] * bu[:, :, None]
-        r = al[:, :, None] * gl[:, None, :] + al[:, None, :] * gu[:, :, None]
+        hi_next, lo_next = k_hi[i + 1, :k], k_lo[i + 1, :k]
+        gamma_up[sl, j] = hi_next
+        gamma_lo[sl, j] = -lo_next
+        al, two_d = alpha[sl][:, up_rows], 2.0 * delta[sl][:, None]
+        # K's upper end (alpha 2 D, beta 1, gamma K_hi) with every other lower row (K's own is parallel)
+        c1 = two_d * beta_lo[sl][:, up_rows] + al
+        r1 = two_d * gamma_lo[sl][:, up_rows] + al * hi_next[:, None]
+        # every other upper row with K's lower end (alpha 2 D, beta -1, gamma -K_lo)
+        c2 = two_d * beta_up[sl][:, up_rows] - al
+        r2 = two_d * gamma_up[sl][:, up_rows] - al * lo_next[:, None]
+        c = np.concatenate([c1, c2], axis=1)
         with np.errstate(divide="ignore", invalid="ignore"):
-            bound = r / c
-        c = c.reshape(k, -1)
-        bound = bound.reshape(k, -1)
-        hi = np.minimum(x_max[sl], np.where(c > 0.0, bound, np.inf).min(axis=1))
-        lo = np.maximum(0.0, np.where(c < 0.0, bound, -np.inf).max(axis=1))
+            bound = np.concatenate([r1, r2], axis=1) / c
+        hi = np.minimum(static_hi[sl], np.where(c > 0.0, bound, np.inf).min(axis=1))
+        lo = np.maximum(static_lo[sl], np.where(c < 0.0, bound, -np.inf).max(axis=1))
         failed[:k] |= ~(lo <= hi)
         k_lo[i, :k] = lo
         k_hi[i, :k] = hi
@@ -138,6 +146,32 @@ def reach_paths(items, a_max: np.ndarray) -> list:
         if not failed[p]:
             out[r] = np.sqrt(x[: n_sorted[p] + 1, p])
     return out
+
+
+def _static_bounds(alpha, beta_up, beta_lo, gamma_up, x_max, dof: int, chunk: int = 2048):
+    """Per stage, the bounds on x from the pairs of rows that do not involve K: two axes' rows (an upper row and
+    the other's lower row, both ways round: the pair (j, k) gives c x <= r and (k, j) gives -c x <= r with the
+    same r >= 0, so only the upper bound r / |c| counts, x being >= 0), and an axis's row with a u bound; with
+    ``0 <= x <= x_max``."""
+    j = 2 * dof
+    first, second = np.triu_indices(j, 1)
+    lo = np.zeros(len(alpha))
+    hi = x_max.copy()
+    for b in range(0, len(alpha), chunk):
+        sl = slice(b, b + chunk)
+        a, bu, bl, g = alpha[sl, :j], beta_up[sl, :j], beta_lo[sl, :j], gamma_up[sl, :j]
+        c = np.abs(a[:, first] * bl[:, second] + a[:, second] * bu[:, first])
+        r = a[:, first] * g[:, second] + a[:, second] * g[:, first]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pair = np.where(c > 0.0, r / c, np.inf).min(axis=1, initial=np.inf)
+            # the u bound's upper row (alpha 1, beta 0, gamma VAR_MAX) with each axis's lower row, and each
+            # axis's upper row with the u bound's lower row
+            c = np.concatenate([bl, bu], axis=1)
+            r = np.concatenate([g + a * VAR_MAX, a * VAR_MAX + g], axis=1)
+            bound = r / c
+        hi[sl] = np.minimum(np.minimum(hi[sl], pair), np.where(c > 0.0, bound, np.inf).min(axis=1))
+        lo[sl] = np.maximum(lo[sl], np.where(c < 0.0, bound, -np.inf).max(axis=1))
+    return lo, hi
 
 
 def _largest_u(alpha, beta_up, beta_lo, gamma_up, gamma_lo, x):
