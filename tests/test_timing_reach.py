@@ -94,7 +94,7 @@ def test_batched_reachability_is_toppras(reach):
     problems = _problems(gantry, limits, stretches)
     batched = reach_paths([(g, d1, d2, x) for _, g, d1, d2, x in problems], limits.acceleration)
     assert len({len(p[1]) for p in problems}) > 3  # lengths differ: the lockstep's prefixes are exercised
-    for (path, grid, d1, d2, x_max), sd in zip(problems, batched):
+    for (path, grid, _, _, x_max), sd in zip(problems, batched):
         assert sd is not None
         old = _toppra_sd(path, grid, x_max, limits)
         t_new, t_old = _times(grid, sd), _times(grid, np.maximum(old, 0.0))
@@ -173,7 +173,7 @@ def test_limits_hold_on_the_resampled_batched_timing(reach):
     gantry, limits, stretches = reach
     tip = _tip(gantry)
     fd_slack = 2e-3  # the finite differences' own error over steps of 1/20000 of a stretch (test_timing.py's)
-    for timed, (q, cap) in zip(timing_path.time_paths(stretches[:8], limits, tip, tip_rate=gantry.gun_tip), stretches):
+    for timed, (_, cap) in zip(timing_path.time_paths(stretches[:8], limits, tip, tip_rate=gantry.gun_tip), stretches):
         assert max(timed.worst.values()) <= 1.0 + 1e-9
         t = np.linspace(0.0, timed.duration_s, 20001)
         qs, _, _ = timed.sample(t)

@@ -14,6 +14,11 @@ against all three limits; an interval where one is exceeded is split at its midd
 toppra then holds the limits too), and toppra runs again on the finer grid (at most ``max_rounds`` times). If limits are still exceeded
 after that, the whole stroke is slowed uniformly in time by the factor that makes them hold: stretching time
 by k divides speeds by k and accelerations by k^2, so every check then holds (``PathTiming.stretch``).
+
+:func:`time_paths` times many paths at once, each as :func:`time_path` would alone: toppra's problem of every
+path still refining is solved together in each round (``timing.reach``, toppra itself where that finds a stage
+empty), and the tip speeds ``|p'(s)|`` of all their samples come from one call of ``tip_rate`` (the forward
+kinematics differentiated along q'(s)) when it is given, else from central differences of ``tip``.
 """
 
 from __future__ import annotations
@@ -139,7 +144,9 @@ def _slope_function(tip: Callable, tip_rate: Callable | None):
             d1 = np.concatenate([path(s, 1) if d1 is None else d1 for path, s, d1 in requests])
             speed = np.empty(len(q))
             for k in range(0, len(q), SLOPE_CHUNK):  # chunks that stay in the cache
-                speed[k : k + SLOPE_CHUNK] = np.linalg.norm(tip_rate(q[k : k + SLOPE_CHUNK], d1[k : k + SLOPE_CHUNK])[1], axis=1)
+                speed[k : k + SLOPE_CHUNK] = np.linalg.norm(
+                    tip_rate(q[k : k + SLOPE_CHUNK], d1[k : k + SLOPE_CHUNK])[1], axis=1
+                )
             return np.split(speed, np.cumsum([len(s) for _, s, _ in requests])[:-1])
 
     return slopes

@@ -2,8 +2,9 @@
 
 The robot runs the plan in order: from home (the arm at ``robots.stage.HOME_JOINTS``, the gantry at the
 plan's ``home_mm``) to each station, through its strokes, and back home. Every stretch of a spray stroke
-whose waypoints are reachable is timed along its joint path (:func:`sprayplan.timing.path.time_path`: from
-rest to rest, within the axes' limits and never faster than the planned tip speed); everything between them
+whose waypoints are reachable is timed along its joint path (:func:`sprayplan.timing.path.time_paths`, all
+of them together: from rest to rest, within the axes' limits and never faster than the planned tip speed);
+everything between them
 is a point-to-point joint move from rest to rest (:func:`sprayplan.timing.moves.point_to_point`):
 
 - a transfer (spray off) goes from the last joints before it to its own last reachable waypoint's joints, as
