@@ -167,6 +167,19 @@ def test_time_paths_give_the_old_timing(reach, monkeypatch):
         np.testing.assert_allclose(a.speed_mm_s, b.speed_mm_s, rtol=SAME_SPEED, atol=SAME_SPEED * b.speed_mm_s.max())
 
 
+def test_dense_checks_in_groups_change_nothing(reach, monkeypatch):
+    """The dense checks' samples taken a group of strokes at a time (bounded memory) give the same timing as all
+    at once: here every stroke in a group of its own against the default groups."""
+    gantry, limits, stretches = reach
+    together = timing_path.time_paths(stretches, limits, gantry.gun_tip, tip_rate=gantry.gun_tip)
+    monkeypatch.setattr(timing_path, "CHECK_BATCH", 1)
+    alone = timing_path.time_paths(stretches, limits, gantry.gun_tip, tip_rate=gantry.gun_tip)
+    for a, b in zip(alone, together):
+        np.testing.assert_array_equal(a.t_s, b.t_s)
+        np.testing.assert_array_equal(a.speed_mm_s, b.speed_mm_s)
+        assert a.worst == b.worst
+
+
 def test_limits_hold_on_the_resampled_batched_timing(reach):
     """The batched timing resampled 20000 times per stretch and differentiated numerically: every axis within its
     speed and acceleration limits, the tip within its planned speed (the dense check is as strict as before)."""

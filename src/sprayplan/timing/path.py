@@ -47,6 +47,8 @@ FINAL_FACTOR = 8
 NEAR_LIMIT = 0.9
 #: Samples per forward-kinematics call of the tip speeds.
 SLOPE_CHUNK = 4096
+#: Most dense-check samples held at once (over the strokes of a group; about 300 bytes each).
+CHECK_BATCH = 50_000
 #: How much below a violated bound a tightened bound is set (relative).
 TIGHTEN_MARGIN = 0.01
 
@@ -261,7 +263,6 @@ def time_paths(
         for st, d, slope in zip(todo, d1, slopes([(st.path, st.grid, d) for st, d in zip(todo, d1)])):
             st.base_x, st.cap_interval = _bounds(d, slope, st.grid, st.s_way, st.cap, limits)
             inputs.append((st.grid, d, st.path(st.grid, 2), st.base_x))
-        samples = []
         for st, sd in zip(todo, reach_paths(inputs, limits.acceleration)):
             if sd is None:  # a stage this analysis finds empty: toppra's own answer (or failure)
                 sd = _toppra(st, limits)
@@ -272,9 +273,15 @@ def time_paths(
             st.sd = sd = np.maximum(np.asarray(sd, float), 0.0)
             st.dt = 2.0 * ds / np.maximum(sd[:-1] + sd[1:], 1e-300)
             st.sdd = (sd[1:] ** 2 - sd[:-1] ** 2) / (2.0 * ds)
-            samples.append(_dense_samples(st.path, grid[:-1], grid[1:], sd[:-1], st.sdd, st.dt, frac))
-        for st, sm, slope in zip(todo, samples, slopes([(st.path, sm.s, sm.d1) for st, sm in zip(todo, samples)])):
-            st.ratios = _dense_ratios(sm, slope, st.sdd, len(frac), limits, st.cap_interval)
+        for group in _groups(todo, [(len(st.grid) - 1) * len(frac) for st in todo]):
+            samples = [
+                _dense_samples(st.path, st.grid[:-1], st.grid[1:], st.sd[:-1], st.sdd, st.dt, frac) for st in group
+            ]
+            for st, sm, slope in zip(
+                group, samples, slopes([(st.path, sm.s, sm.d1) for st, sm in zip(group, samples)])
+            ):
+                st.ratios = _dense_ratios(sm, slope, st.sdd, len(frac), limits, st.cap_interval)
+        for st in todo:
             st.worst = [float(r.max(initial=0.0)) for r in st.ratios]
             if max(st.worst) <= 1.0 + CHECK_SLACK or st.rounds >= max_rounds:
                 st.done = True
@@ -288,19 +295,34 @@ def time_paths(
             st.grid = np.insert(grid, split + 1, 0.5 * (grid[split] + grid[split + 1]))
     # the final check: the intervals near a limit again, at FINAL_FACTOR times the points
     fine = np.linspace(0.0, 1.0, FINAL_FACTOR * check_steps + 1)
-    near = [np.flatnonzero(np.maximum(np.maximum(*st.ratios[:2]), st.ratios[2]) > NEAR_LIMIT) for st in strokes]
-    samples = [
-        _dense_samples(st.path, st.grid[k], st.grid[k + 1], st.sd[k], st.sdd[k], st.dt[k], fine)
-        for st, k in zip(strokes, near)
-    ]
-    again = slopes([(st.path, sm.s, sm.d1) for st, sm in zip(strokes, samples)])
-    for st, k, sm, slope in zip(strokes, near, samples, again):
-        if len(k):
-            ratios = _dense_ratios(sm, slope, st.sdd[k], len(fine), limits, st.cap_interval[k])
+    for st in strokes:
+        st.near = np.flatnonzero(np.maximum(np.maximum(*st.ratios[:2]), st.ratios[2]) > NEAR_LIMIT)
+    again = [st for st in strokes if len(st.near)]
+    for group in _groups(again, [len(st.near) * len(fine) for st in again]):
+        samples = []
+        for st in group:
+            k = st.near
+            samples.append(_dense_samples(st.path, st.grid[k], st.grid[k + 1], st.sd[k], st.sdd[k], st.dt[k], fine))
+        for st, sm, slope in zip(group, samples, slopes([(st.path, sm.s, sm.d1) for st, sm in zip(group, samples)])):
+            ratios = _dense_ratios(sm, slope, st.sdd[st.near], len(fine), limits, st.cap_interval[st.near])
             st.worst = [max(w, float(r.max(initial=0.0))) for w, r in zip(st.worst, ratios)]
     waypoints = [np.flatnonzero(np.isin(st.grid, st.s_way)) for st in strokes]
     speeds = slopes([(st.path, st.grid[wp], None) for st, wp in zip(strokes, waypoints)])
     return [_finish(st, wp, speed) for st, wp, speed in zip(strokes, waypoints, speeds)]
+
+
+def _groups(strokes: list, sizes: list):
+    """The strokes in consecutive groups of at most ``CHECK_BATCH`` samples in all (a larger stroke alone): the dense
+    checks' samples of one group at a time, so that their memory stays bounded on a large plan."""
+    group, total = [], 0
+    for st, size in zip(strokes, sizes):
+        if group and total + size > CHECK_BATCH:
+            yield group
+            group, total = [], 0
+        group.append(st)
+        total += size
+    if group:
+        yield group
 
 
 def _toppra(st: _Stroke, limits: AxisLimits):
