@@ -49,6 +49,8 @@ NEAR_LIMIT = 0.9
 SLOPE_CHUNK = 4096
 #: Most dense-check samples held at once (over the strokes of a group; about 300 bytes each).
 CHECK_BATCH = 50_000
+#: Most grid points in one batch of the reachability analysis (about 1.2 kB each).
+REACH_BATCH = 20_000
 #: How much below a violated bound a tightened bound is set (relative).
 TIGHTEN_MARGIN = 0.01
 
@@ -263,7 +265,10 @@ def time_paths(
         for st, d, slope in zip(todo, d1, slopes([(st.path, st.grid, d) for st, d in zip(todo, d1)])):
             st.base_x, st.cap_interval = _bounds(d, slope, st.grid, st.s_way, st.cap, limits)
             inputs.append((st.grid, d, st.path(st.grid, 2), st.base_x))
-        for st, sd in zip(todo, reach_paths(inputs, limits.acceleration)):
+        answers = []
+        for group in _groups(inputs, [len(grid) for grid, _, _, _ in inputs], REACH_BATCH):
+            answers += reach_paths(group, limits.acceleration)
+        for st, sd in zip(todo, answers):
             if sd is None:  # a stage this analysis finds empty: toppra's own answer (or failure)
                 sd = _toppra(st, limits)
             if sd is None or not np.isfinite(sd).all():
@@ -311,12 +316,13 @@ def time_paths(
     return [_finish(st, wp, speed) for st, wp, speed in zip(strokes, waypoints, speeds)]
 
 
-def _groups(strokes: list, sizes: list):
-    """The strokes in consecutive groups of at most ``CHECK_BATCH`` samples in all (a larger stroke alone): the dense
-    checks' samples of one group at a time, so that their memory stays bounded on a large plan."""
+def _groups(strokes: list, sizes: list, most: int | None = None):
+    """The strokes in consecutive groups of at most ``most`` samples in all (``CHECK_BATCH`` unless given; a
+    larger stroke alone): the dense checks' samples (and the reachability analysis's rows, ``REACH_BATCH``
+    grid points) of one group at a time, so that their memory stays bounded on a large plan."""
     group, total = [], 0
     for st, size in zip(strokes, sizes):
-        if group and total + size > CHECK_BATCH:
+        if group and total + size > (CHECK_BATCH if most is None else most):
             yield group
             group, total = [], 0
         group.append(st)
