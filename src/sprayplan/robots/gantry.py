@@ -36,7 +36,7 @@ from scipy.optimize import minimize
 
 from sprayplan.checks import check_points, check_poses
 from sprayplan.errors import ConfigError, DataError
-from sprayplan.robots.model import RobotModel, fk, load_robot
+from sprayplan.robots.model import RobotModel, fk, fk_point, load_robot
 from sprayplan.types import read_only
 
 log = logging.getLogger(__name__)
@@ -158,6 +158,18 @@ class Gantry:
         """The gun's pose (without T_dis), (n, 4, 4)."""
         q9 = np.atleast_2d(np.asarray(q9, dtype=float))
         return self.base2world(q9[:, 6:9]) @ fk(self.robot, q9[:, :6]) @ self.gun.gun2flange
+
+    def gun_tip(self, q9: np.ndarray, dq9: np.ndarray | None = None):
+        """The gun's origin in the world, ``gun2world(q9)[:, :3, 3]`` without the 4x4 products, (n, 3) mm; with
+        joint rates ``dq9`` (n, 9) also its rate of change, (n, 3) (``robots.model.fk_point``)."""
+        q9 = np.atleast_2d(np.asarray(q9, dtype=float))
+        offset = self.gun.gun2flange[:3, 3]
+        flip = ROT_X_PI[:3, :3].diagonal()
+        if dq9 is None:
+            return fk_point(self.robot, q9[:, :6], offset) * flip + q9[:, 6:9]
+        dq9 = np.atleast_2d(np.asarray(dq9, dtype=float))
+        p, dp = fk_point(self.robot, q9[:, :6], offset, dq9[:, :6])
+        return p * flip + q9[:, 6:9], dp * flip + dq9[:, 6:9]
 
     def flange_targets(self, gun2world: np.ndarray, platform: np.ndarray) -> np.ndarray:
         """The flange poses in the robot base frame that put the gun at ``gun2world`` (eq. 14), (n, 4, 4)."""

@@ -204,6 +204,55 @@ def fk(model: RobotModel, q: np.ndarray) -> np.ndarray:
     return out
 
 
+def fk_point(model: RobotModel, q: np.ndarray, point, dq: np.ndarray | None = None):
+    """Where a point fixed on the flange lies in the robot base frame, ``(flange2base @ [point, 1])[:3]``, for
+    many joint vectors, and (with ``dq``) its rate of change along joint directions ``dq``.
+
+    The same transform as :func:`fk` applied to one point, link by link from the flange inwards (a rotation
+    about x by alpha, the shift a along x, the rotation about z by theta, the shift d along z), without forming
+    4x4 matrices; the rate is the same chain differentiated (forward mode), exact rather than a finite
+    difference.
+
+    Parameters
+    ----------
+    model : RobotModel
+    q : (n, dof) float, rad
+    point : (3,) float, mm, in the flange frame
+    dq : (n, dof) float or None
+        Joint rates (any unit per unit of the curve's parameter).
+
+    Returns
+    -------
+    (n, 3) float, mm; with ``dq`` also (n, 3), mm per unit of the parameter
+    """
+    q = np.asarray(q, dtype=float).reshape(-1, model.dof)
+    theta = q + model.theta_offset
+    ct, st = np.cos(theta), np.sin(theta)
+    n = len(q)
+    x, y, z = (np.full(n, float(v)) for v in np.asarray(point, dtype=float))
+    rate = dq is not None
+    if rate:
+        dq = np.asarray(dq, dtype=float).reshape(-1, model.dof)
+        dx, dy, dz = np.zeros(n), np.zeros(n), np.zeros(n)
+    for i in range(model.dof - 1, -1, -1):
+        ca, sa = math.cos(model.alpha[i]), math.sin(model.alpha[i])
+        if sa != 0.0:  # Rot(x, alpha); none at alpha = 0
+            y, z = ca * y - sa * z, sa * y + ca * z
+            if rate:
+                dy, dz = ca * dy - sa * dz, sa * dy + ca * dz
+        if model.a[i] != 0.0:
+            x = x + model.a[i]
+        c, s = ct[:, i], st[:, i]
+        x, y = c * x - s * y, s * x + c * y
+        if model.d[i] != 0.0:
+            z = z + model.d[i]
+        if rate:
+            w = dq[:, i]
+            dx, dy = c * dx - s * dy - y * w, s * dx + c * dy + x * w
+    position = np.column_stack([x, y, z])
+    return (position, np.column_stack([dx, dy, dz])) if rate else position
+
+
 def fk_world(model: RobotModel, q: np.ndarray) -> np.ndarray:
     """The tool's pose in the world, ``tool2world = base2world @ flange2base @ tool2flange``, (n, 4, 4)."""
     return model.base2world @ fk(model, q) @ model.tool2flange

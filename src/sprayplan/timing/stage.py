@@ -2,8 +2,9 @@
 
 The robot runs the plan in order: from home (the arm at ``robots.stage.HOME_JOINTS``, the gantry at the
 plan's ``home_mm``) to each station, through its strokes, and back home. Every stretch of a spray stroke
-whose waypoints are reachable is timed along its joint path (:func:`sprayplan.timing.path.time_path`: from
-rest to rest, within the axes' limits and never faster than the planned tip speed); everything between them
+whose waypoints are reachable is timed along its joint path (:func:`sprayplan.timing.path.time_paths`, all
+of them together: from rest to rest, within the axes' limits and never faster than the planned tip speed);
+everything between them
 is a point-to-point joint move from rest to rest (:func:`sprayplan.timing.moves.point_to_point`):
 
 - a transfer (spray off) goes from the last joints before it to its own last reachable waypoint's joints, as
@@ -35,7 +36,7 @@ from sprayplan.progress import Progress, counted
 from sprayplan.robots.stage import HOME_JOINTS
 from sprayplan.timing.limits import AxisLimits, gantry_limits
 from sprayplan.timing.moves import point_to_point
-from sprayplan.timing.path import time_path
+from sprayplan.timing.path import time_paths
 from sprayplan.types import Plan
 
 log = logging.getLogger(__name__)
@@ -137,9 +138,20 @@ def time_plan(plan: Plan, job, gantry, progress: Progress | None = None) -> Plan
     config = job.timing
     motion = job.motion
 
-    def tip(q):
-        return gantry.gun2world(q)[:, :3, 3]
-
+    # every timed stretch of every spray stroke at once (toppra's analysis runs on them together), in the
+    # order the loop below takes them
+    jump = np.radians(config.joint_jump_deg)
+    stretches = [(st.q9[idx[run]], cap[run[:-1]]) for st, idx, cap, run in _spray_runs(plan, motion, jump)]
+    timings = iter(
+        time_paths(
+            stretches,
+            limits,
+            gantry.gun_tip,
+            check_steps=config.check_steps,
+            max_rounds=config.max_rounds,
+            tip_rate=gantry.gun_tip,
+        )
+    )
     step = counted(progress, "timing", len(plan.stations))
     current = np.concatenate([HOME_JOINTS, plan.home_mm])
     clock = 0.0
@@ -185,9 +197,7 @@ def time_plan(plan: Plan, job, gantry, progress: Progress | None = None) -> Plan
                     current = st.q9[last]
                 stroke_time.append(clock - began)
                 continue
-            cap = segment_speeds(
-                s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio, s.dwell
-            )
+            cap = _planned_speeds(s, motion)
             seg_len = np.linalg.norm(np.diff(s.tcp, axis=0), axis=1)
             planned_time.append(float((seg_len / cap).sum()) if len(cap) else 0.0)
             if len(cap):
@@ -195,19 +205,12 @@ def time_plan(plan: Plan, job, gantry, progress: Progress | None = None) -> Plan
             else:
                 bound[idx] = motion.gun_speed_mm_s
             local_t = np.full(len(s), np.nan)
-            for run in _runs(ok, st.q9[idx], np.radians(config.joint_jump_deg)):
+            for run in _runs(ok, st.q9[idx], jump):
                 move = point_to_point(current, st.q9[idx[run[0]]], limits)
                 clock += move.duration_s
                 totals["transfer"] += move.duration_s
                 if len(run) >= 2:
-                    timed = time_path(
-                        st.q9[idx[run]],
-                        cap[run[:-1]],
-                        limits,
-                        tip,
-                        check_steps=config.check_steps,
-                        max_rounds=config.max_rounds,
-                    )
+                    timed = next(timings)
                     local_t[run] = clock + timed.t_s
                     speed[idx[run]] = timed.speed_mm_s
                     clock += timed.duration_s
@@ -245,6 +248,27 @@ def time_plan(plan: Plan, job, gantry, progress: Progress | None = None) -> Plan
         float(clock),
         worst,
     )
+
+
+def _planned_speeds(s, motion) -> np.ndarray:
+    """A spray stroke's planned tip speed on each segment (its time factors included), mm/s."""
+    return segment_speeds(s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio, s.dwell)
+
+
+def _spray_runs(plan: Plan, motion, jump_rad: float):
+    """Every stretch :func:`time_plan` times along its joint path, in its order: ``(station, waypoint indices
+    of the stroke, the stroke's planned segment speeds, the stretch's run of indices into the stroke)``."""
+    for st in plan.stations:
+        start = 0
+        for s in st.strokes:
+            idx = np.arange(start, start + len(s))
+            start += len(s)
+            if not s.spray_on:
+                continue
+            cap = _planned_speeds(s, motion)
+            for run in _runs(st.reachable[idx], st.q9[idx], jump_rad):
+                if len(run) >= 2:
+                    yield st, idx, cap, run
 
 
 def _runs(ok: np.ndarray, q: np.ndarray, jump_rad: float) -> list[np.ndarray]:
