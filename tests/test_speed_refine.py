@@ -1,7 +1,8 @@
 """The refine stage's speed work keeps the same plans (issue 17): each faster computation against the one it
 replaced, which is kept here as the reference.
 
-- the reach of many gantry positions in one inverse-kinematics call equals one call a position, and the new
+- the reach of many gantry positions in one inverse-kinematics call (poses beyond the arm's length left out)
+  equals one call a position, and the new
   stations placed from it (``stations_for_strokes``) and the touch-ups' reach (``reach_share``) are the same;
 """
 
@@ -138,3 +139,16 @@ def test_stations_for_strokes_scores_and_places_as_before(seed):
     for station, (best, taken, reached) in zip(placed, expected):
         assert np.array_equal(station.platform_mm, platforms[best])
         assert (station.strokes, station.reached) == (taken, reached)
+
+
+@pytest.mark.parametrize("name", ["ur5", "ur5e", "ur5-seed"])
+def test_no_joint_vector_puts_the_flange_beyond_the_arm_length(name):
+    from sprayplan.robots.model import fk, load_robot
+
+    robot = load_robot(name)
+    rng = np.random.default_rng(0)
+    q = rng.uniform(robot.lower, robot.upper, (20000, 6))
+    reach = np.linalg.norm(fk(robot, q)[:, :3, 3], axis=1)
+    length = added_stations.arm_length_mm(robot)
+    assert reach.max() <= length - 1.0
+    assert reach.max() > 0.8 * (length - 1.0)  # and the bound is not loose enough to keep everything

@@ -63,16 +63,25 @@ def _reached(gantry: Gantry, gun2world: np.ndarray, platforms: np.ndarray) -> np
     world2base = np.linalg.inv(gantry.base2world(platforms))  # (k, 4, 4)
     to_flange = np.linalg.inv(gantry.gun.gun2flange)
     per_block = max(1, _POSES // n)
+    length = arm_length_mm(gantry.robot)
     for start in range(0, len(platforms), per_block):
         block = slice(start, start + per_block)
         # eq. 14 for every pair, the products in the order of Gantry.flange_targets
         flange = ((world2base[block, None] @ gun2world[None]) @ to_flange).reshape(-1, 4, 4)
-        solutions = ur_ik(gantry.robot, flange)
+        # only poses within the arm's length can be reached: the others need no inverse kinematics
+        near = np.flatnonzero(np.einsum("ij,ij->i", flange[:, :3, 3], flange[:, :3, 3]) <= length * length)
+        solutions = ur_ik(gantry.robot, flange[near])
+        within = gantry.robot.within_limits(solutions.q)  # (poses, branches)
         ok = np.zeros(len(flange), dtype=bool)
-        for b in range(solutions.q.shape[1]):
-            ok |= solutions.valid[:, b] & gantry.robot.within_limits(solutions.q[:, b])
+        ok[near] = (solutions.valid & within).any(axis=1)
         out[block] = ok.reshape(-1, n)
     return out
+
+
+def arm_length_mm(robot) -> float:
+    """An upper bound of the distance between the base frame's origin and the flange's over every joint
+    vector: each D-H link moves the origin by sqrt(d^2 + a^2), plus 1 mm for rounding."""
+    return float(np.hypot(robot.d, robot.a).sum()) + 1.0
 
 
 #: Poses given to the inverse kinematics at once by ``_reached`` (its temporaries: about 1 kB a pose).
