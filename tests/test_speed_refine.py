@@ -99,6 +99,9 @@ def test_the_reach_of_many_positions_at_once_is_each_positions_reach(seed, monke
     monkeypatch.setattr(added_stations, "_POSES", 7 * len(poses) + 3)  # blocks of 7 positions
     assert np.array_equal(_reached(gantry, poses, platforms), expected)
     assert _reached(gantry, poses, np.zeros((0, 3))).shape == (0, len(poses))
+    far = poses + np.pad(np.full((len(poses), 3, 1), 1e5), ((0, 0), (0, 1), (3, 0)))  # every pose out of reach
+    assert not _reached(gantry, far, platforms).any()
+    assert not any(_reference_reached(gantry, far, p).any() for p in platforms[:3])
 
 
 @pytest.mark.parametrize("seed", [0, 3])
