@@ -69,10 +69,10 @@ def child(name: str, cache: str | None, profile: str | None) -> None:
         import cProfile
 
         prof = cProfile.Profile()
-        plan, summary, film, tuning = prof.runcall(tune_plan, state.part, state.plan, state.job)
+        plan, summary, *_ = prof.runcall(tune_plan, state.part, state.plan, state.job)
         prof.dump_stats(profile)
     else:
-        plan, summary, film, tuning = tune_plan(state.part, state.plan, state.job)
+        plan, summary, *_ = tune_plan(state.part, state.plan, state.job)
     wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
     digest = hashlib.sha1()
     for st in plan.stations:
@@ -149,9 +149,7 @@ def main() -> None:
             )
         if "base" in runs:
             for key in ("wall_s", "cpu_s"):
-                ratio = statistics.median(r[key] for r in runs["new"]) / statistics.median(
-                    r[key] for r in runs["base"]
-                )
+                ratio = statistics.median(r[key] for r in runs["new"]) / statistics.median(r[key] for r in runs["base"])
                 print(f"new / base, {key}: {ratio:.3f}")
 
 
