@@ -365,8 +365,8 @@ def _residuals(system: sparse.csr_matrix, target_vec: np.ndarray, n_fit: int, ba
     # compacted once, and each call keeps the runs of the rows outside the band
     fit = system[:n_fit]
     nonzero = system.data != 0.0
-    lengths = np.bincount(np.repeat(np.arange(system.shape[0]), np.diff(system.indptr))[nonzero],
-                          minlength=system.shape[0])  # fmt: skip
+    row_of_value = np.repeat(np.arange(system.shape[0]), np.diff(system.indptr))
+    lengths = np.bincount(row_of_value[nonzero], minlength=system.shape[0])
     data, indices = system.data[nonzero], system.indices[nonzero]
     outside = np.ones(system.shape[0], bool)
 
