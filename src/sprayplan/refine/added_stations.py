@@ -49,15 +49,43 @@ class AddedStation:
     reached: int
 
 
-def _reached(gantry: Gantry, gun2world: np.ndarray, platform: np.ndarray) -> np.ndarray:
-    """(n,) bool: waypoints with an exact analytic solution within the joint limits from ``platform``."""
+def _reached(gantry: Gantry, gun2world: np.ndarray, platforms: np.ndarray) -> np.ndarray:
+    """(k, n) bool: for each of k gantry positions (k, 3), the waypoints with an exact analytic solution within
+    the joint limits from there. All (position, waypoint) pairs go to ``ur_ik`` together, in blocks of about
+    ``_POSES`` poses (each pose is solved on its own: the answer does not depend on the blocks)."""
     from sprayplan.robots.ur_ik import ur_ik
 
-    solutions = ur_ik(gantry.robot, gantry.flange_targets(gun2world, platform))
-    ok = np.zeros(len(gun2world), dtype=bool)
-    for k in range(solutions.q.shape[1]):
-        ok |= solutions.valid[:, k] & gantry.robot.within_limits(solutions.q[:, k])
-    return ok
+    platforms = np.asarray(platforms, dtype=float).reshape(-1, 3)
+    n = len(gun2world)
+    out = np.zeros((len(platforms), n), dtype=bool)
+    if not (n and len(platforms)):
+        return out
+    world2base = np.linalg.inv(gantry.base2world(platforms))  # (k, 4, 4)
+    to_flange = np.linalg.inv(gantry.gun.gun2flange)
+    per_block = max(1, _POSES // n)
+    length = arm_length_mm(gantry.robot)
+    for start in range(0, len(platforms), per_block):
+        block = slice(start, start + per_block)
+        # eq. 14 for every pair, the products in the order of Gantry.flange_targets
+        flange = ((world2base[block, None] @ gun2world[None]) @ to_flange).reshape(-1, 4, 4)
+        # only poses within the arm's length can be reached: the others need no inverse kinematics
+        near = np.flatnonzero(np.einsum("ij,ij->i", flange[:, :3, 3], flange[:, :3, 3]) <= length * length)
+        solutions = ur_ik(gantry.robot, flange[near])
+        within = gantry.robot.within_limits(solutions.q)  # (poses, branches)
+        ok = np.zeros(len(flange), dtype=bool)
+        ok[near] = (solutions.valid & within).any(axis=1)
+        out[block] = ok.reshape(-1, n)
+    return out
+
+
+def arm_length_mm(robot) -> float:
+    """An upper bound of the distance between the base frame's origin and the flange's over every joint
+    vector: each D-H link moves the origin by sqrt(d^2 + a^2), plus 1 mm for rounding."""
+    return float(np.hypot(robot.d, robot.a).sum()) + 1.0
+
+
+#: Poses given to the inverse kinematics at once by ``_reached`` (its temporaries: about 1 kB a pose).
+_POSES = 32_768
 
 
 def _candidates(centre: np.ndarray, radius: float, max_radius: float) -> np.ndarray:
@@ -79,12 +107,9 @@ def reach_share(
         centre = (gun2world @ np.linalg.inv(gantry.gun.gun2flange))[:, :2, 3].mean(axis=0)
         rings = _candidates(centre, gantry.workspace.radius_mm, max_radius)
         platforms = np.vstack([platforms, np.column_stack([rings, np.full(len(rings), float(height_mm))])])
-    best = 0.0
-    for platform in platforms:
-        best = max(best, float(_reached(gantry, gun2world, platform).mean()))
-        if best == 1.0:
-            break
-    return best
+    if not len(platforms) or not len(gun2world):
+        return 0.0
+    return float(_reached(gantry, gun2world, platforms).mean(axis=1).max())
 
 
 def stations_for_strokes(
@@ -116,28 +141,11 @@ def stations_for_strokes(
     """
     if max_stations <= 0 or not gun2world:
         return []
-    radius = gantry.workspace.radius_mm
-    to_flange = np.linalg.inv(gantry.gun.gun2flange)
-    flange = [poses @ to_flange for poses in gun2world]
-    centres = np.array([f[:, :2, 3].mean(axis=0) for f in flange])
-    spans = np.array([np.linalg.norm(f[:, :2, 3] - c, axis=1).max() for f, c in zip(flange, centres)])
-    candidates = np.vstack([_candidates(c, radius, max_radius) for c in centres])
-    platforms = np.column_stack([candidates, np.full(len(candidates), float(height_mm))])
-    # score[c, s]: waypoints of stroke s reached from candidate c (recommended ones count 1.5)
-    counts = np.zeros((len(candidates), len(flange)))
-    score = np.zeros_like(counts)
-    for s, (poses, f) in enumerate(zip(gun2world, flange)):
-        near = np.flatnonzero(np.linalg.norm(candidates - centres[s], axis=1) <= max_radius * radius + spans[s])
-        for c in near:
-            ok = _reached(gantry, poses, platforms[c])
-            if ok.any():
-                recommended = gantry.region(f[:, :3, 3], platforms[c]) == 2
-                counts[c, s] = ok.sum()
-                score[c, s] = ok.sum() + 0.5 * (ok & recommended).sum()
+    platforms, counts, score = _scores(gantry, gun2world, height_mm, max_radius)
     sizes = np.array([len(p) for p in gun2world], dtype=float)
     useful = counts >= 0.5 * sizes  # a candidate takes a stroke it reaches at least half of
     out: list[AddedStation] = []
-    left = np.ones(len(flange), dtype=bool)
+    left = np.ones(len(gun2world), dtype=bool)
     while left.any() and len(out) < max_stations:
         gain = np.where(useful & left, score, 0.0).sum(axis=1)
         best = int(np.argmax(gain))
@@ -147,3 +155,26 @@ def stations_for_strokes(
         left[taken] = False
         out.append(AddedStation(platforms[best].copy(), tuple(int(s) for s in taken), int(counts[best, taken].sum())))
     return out
+
+
+def _scores(gantry: Gantry, gun2world: list[np.ndarray], height_mm: float, max_radius: float):
+    """The candidate positions (k, 3) of :func:`stations_for_strokes` and, per candidate and stroke (k, s),
+    the stroke's waypoints reached from there and their score (recommended ones count 1.5)."""
+    radius = gantry.workspace.radius_mm
+    to_flange = np.linalg.inv(gantry.gun.gun2flange)
+    flange = [poses @ to_flange for poses in gun2world]
+    centres = np.array([f[:, :2, 3].mean(axis=0) for f in flange])
+    spans = np.array([np.linalg.norm(f[:, :2, 3] - c, axis=1).max() for f, c in zip(flange, centres)])
+    candidates = np.vstack([_candidates(c, radius, max_radius) for c in centres])
+    platforms = np.column_stack([candidates, np.full(len(candidates), float(height_mm))])
+    counts = np.zeros((len(candidates), len(flange)))
+    score = np.zeros_like(counts)
+    for s, (poses, f) in enumerate(zip(gun2world, flange)):
+        near = np.flatnonzero(np.linalg.norm(candidates - centres[s], axis=1) <= max_radius * radius + spans[s])
+        ok = _reached(gantry, poses, platforms[near])  # (near, waypoints)
+        points = f[:, :3, 3]
+        region = gantry.region(np.tile(points, (len(near), 1)), np.repeat(platforms[near], len(points), axis=0))
+        recommended = region.reshape(len(near), len(points)) == 2
+        counts[near, s] = ok.sum(axis=1)
+        score[near, s] = ok.sum(axis=1) + 0.5 * (ok & recommended).sum(axis=1)
+    return platforms, counts, score

@@ -361,15 +361,21 @@ def _residuals(system: sparse.csr_matrix, target_vec: np.ndarray, n_fit: int, ba
     if band <= 0:
         return residual, lambda x: system
     # the film rows sliced once; the slope (0 or 1 a row) keeps or drops whole rows of ``system``, which is
-    # ``diags(slope) @ system`` without the product
+    # ``diags(slope) @ system`` without the product (and without its explicit zeros): the entries are
+    # compacted once, and each call keeps the runs of the rows outside the band
     fit = system[:n_fit]
+    nonzero = system.data != 0.0
     row_of_value = np.repeat(np.arange(system.shape[0]), np.diff(system.indptr))
+    lengths = np.bincount(row_of_value[nonzero], minlength=system.shape[0])
+    data, indices = system.data[nonzero], system.indices[nonzero]
+    outside = np.ones(system.shape[0], bool)
 
     def jacobian(x):
         f = fit @ x - target_vec[:n_fit]
-        outside = np.r_[np.abs(f) > band, np.ones(system.shape[0] - n_fit, bool)]
-        kept = outside[row_of_value] & (system.data != 0.0)
-        indptr = np.r_[0, np.cumsum(np.bincount(row_of_value[kept], minlength=system.shape[0]))]
-        return sparse.csr_matrix((system.data[kept], system.indices[kept], indptr), shape=system.shape)
+        np.greater(np.abs(f), band, out=outside[:n_fit])
+        kept = np.repeat(outside, lengths)
+        indptr = np.zeros(system.shape[0] + 1, dtype=system.indptr.dtype)
+        np.cumsum(np.where(outside, lengths, 0), out=indptr[1:])
+        return sparse.csr_matrix((data[kept], indices[kept], indptr), shape=system.shape)
 
     return residual, jacobian
