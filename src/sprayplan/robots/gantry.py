@@ -37,6 +37,7 @@ from scipy.optimize import minimize
 from sprayplan.checks import check_points, check_poses
 from sprayplan.errors import ConfigError, DataError
 from sprayplan.robots.model import RobotModel, fk, load_robot
+from sprayplan.robots.sqp_newton import newton_sqp
 from sprayplan.types import read_only
 
 log = logging.getLogger(__name__)
@@ -277,6 +278,7 @@ def solve_sqp(
     axis_tol_rad: float = math.radians(5.0),
     max_iter: int = 150,
     reference_q9: np.ndarray | None = None,
+    newton_first: bool = True,
 ) -> SQPResult:
     """Seed 000 section 4.2: SQP from the previous solution for a pose the analytic IK cannot serve.
 
@@ -291,6 +293,14 @@ def solve_sqp(
     ``start_q9`` is the optimiser's first guess; ``reference_q9`` (default: the guess) holds the theta_i^0 and
     t^0 of eq. 20: the previous solution and the station's gantry position.
 
+    With ``newton_first`` (the default), Newton's method on the KKT conditions with exact derivatives
+    (:func:`sprayplan.robots.sqp_newton.newton_sqp`) is tried first, from the reference: about a tenth of an
+    SLSQP solve's cost where the reference is one waypoint step from the tolerance boundary, as it is along a
+    stroke. Its answer is kept when it is a strict local minimum within the joint limits whose eq. 20 cost is
+    at most ``NEWTON_COST_LIMIT`` (a small move from the reference; a larger one may be a worse local
+    minimum than SLSQP's, so SLSQP decides); otherwise SLSQP with finite-difference gradients runs from
+    ``start_q9`` as without it.
+
     Returns
     -------
     SQPResult
@@ -300,6 +310,10 @@ def solve_sqp(
     guess = np.asarray(start_q9, dtype=float).reshape(9)
     start = guess if reference_q9 is None else np.asarray(reference_q9, dtype=float).reshape(9)
     wanted = np.asarray(target2world, dtype=float).reshape(4, 4)
+    if newton_first:
+        found = _newton_try(gantry, wanted, start, k_d, position_tol_mm, axis_tol_rad)
+        if found is not None:
+            return found
     step = np.array([1e-7] * 6 + [1e-5] * 3)  # rad, mm
     cache: dict = {}
 
@@ -342,6 +356,38 @@ def solve_sqp(
     position, axis = errors(result.x)
     ok = bool(position <= position_tol_mm * (1 + 1e-6) and axis <= axis_tol_rad * (1 + 1e-6))
     return SQPResult(result.x, ok, float(position), float(axis), int(result.nit), str(result.message))
+
+
+#: The largest eq. 20 cost (rad^2; mm^2 of gantry weighted by K_d) of a Newton answer that
+#: :func:`solve_sqp` keeps without SLSQP: joints moved by about 0.7 rad in all.
+NEWTON_COST_LIMIT = 0.5
+
+
+def _newton_try(gantry: Gantry, wanted, reference, k_d, position_tol_mm, axis_tol_rad) -> SQPResult | None:
+    """:func:`solve_sqp`'s Newton first try, as an SQPResult whose errors are checked by forward kinematics;
+    None where SLSQP is to decide."""
+    offset2flange = gantry.gun.gun2flange @ gantry.gun.target2gun
+    found = newton_sqp(
+        gantry.robot,
+        offset2flange,
+        wanted[:3, 3],
+        wanted[:3, 2],
+        reference,
+        k_d=k_d,
+        position_tol_mm=position_tol_mm,
+        axis_tol_rad=axis_tol_rad,
+    )
+    if found is None:
+        return None
+    x, steps = found
+    dq, dt = x[:6] - reference[:6], x[6:] - reference[6:]
+    if float(dq @ dq + k_d * dt @ dt) > NEWTON_COST_LIMIT:
+        return None
+    position, axis = pose_errors(gantry.target2world(x), wanted)
+    ok = bool(position[0] <= position_tol_mm * (1 + 1e-6) and axis[0] <= axis_tol_rad * (1 + 1e-6))
+    if not ok:
+        return None
+    return SQPResult(x, True, float(position[0]), float(axis[0]), steps, "Newton on the KKT conditions")
 
 
 #: How many SQP solves :func:`solve_gantry_path` remembers (about 1 kB each).
