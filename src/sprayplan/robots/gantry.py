@@ -256,6 +256,10 @@ def pose_errors(achieved: np.ndarray, wanted: np.ndarray) -> tuple[np.ndarray, n
     return position, np.arccos(cos)
 
 
+#: Whether :func:`solve_sqp` tries Newton's method first (see there).
+NEWTON_FIRST = True
+
+
 @dataclass(frozen=True)
 class SQPResult:
     """One SQP solve: the nine axes, whether the constraints hold, and the errors."""
@@ -278,7 +282,7 @@ def solve_sqp(
     axis_tol_rad: float = math.radians(5.0),
     max_iter: int = 150,
     reference_q9: np.ndarray | None = None,
-    newton_first: bool = True,
+    newton_first: bool = NEWTON_FIRST,
 ) -> SQPResult:
     """Seed 000 section 4.2: SQP from the previous solution for a pose the analytic IK cannot serve.
 
@@ -539,7 +543,7 @@ def solve_gantry_path(
     GantryPath
         Unreachable waypoints are data (``reachable = False``), never exceptions.
     """
-    from sprayplan.robots.ur_ik import nearest_equivalent, ur_ik
+    from sprayplan.robots.ur_ik import _turn_range, nearest_in_turns, ur_ik
 
     gun2world = check_poses(np.asarray(gun2world, dtype=float).reshape(-1, 4, 4), "gun2world")
     n = len(gun2world)
@@ -571,14 +575,20 @@ def solve_gantry_path(
     previous = np.array([0.0, -math.pi / 2, 0.0, -math.pi / 2, 0.0, 0.0]) if seed_q is None else np.asarray(seed_q)
     previous_branch = -1
     gantry_key = _gantry_key(gantry)
+    # each joint's whole turns within the limits, for every branch of every waypoint at once
+    k_lo, k_hi = _turn_range(solutions.q, robot.lower, robot.upper)
+    low, high = robot.lower - 1e-9, robot.upper + 1e-9  # RobotModel.within_limits
+    analytic_here = (region == 2) | ((region == 0) & (outside_policy == "analytic"))
+    too_far = (region == 0) & (beyond > sqp_reach_mm)
     for i in range(n):
-        candidates = nearest_equivalent(solutions.q[i], np.broadcast_to(previous, (8, 6)), robot.lower, robot.upper)
-        valid = solutions.valid[i] & robot.within_limits(candidates)
-        use_analytic = valid.any() and (region[i] == 2 or (region[i] == 0 and outside_policy == "analytic"))
-        if region[i] == 0 and not valid.any() and beyond[i] > sqp_reach_mm:
+        candidates = nearest_in_turns(solutions.q[i], previous, k_lo[i], k_hi[i])
+        valid = solutions.valid[i] & ((candidates >= low) & (candidates <= high)).all(axis=-1)
+        any_valid = bool(valid.any())
+        if too_far[i] and not any_valid:
             continue  # far outside the cylinder and no analytic solution: unreachable from this station
-        if use_analytic:
-            distance = np.where(valid, np.linalg.norm(candidates - previous, axis=1), np.inf)
+        if any_valid and analytic_here[i]:
+            offset = candidates - previous
+            distance = np.where(valid, np.sqrt((offset * offset).sum(axis=1)), np.inf)
             best = int(np.argmin(distance))
             q9[i, :6], q9[i, 6:] = candidates[best], platform[i]
             method[i], branch[i] = "analytic", best
