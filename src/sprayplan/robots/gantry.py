@@ -408,32 +408,58 @@ def _gantry_key(gantry: Gantry) -> bytes:
     return b"".join(np.ascontiguousarray(p, dtype=np.float64).tobytes() for p in parts)
 
 
-def remembered_sqp(gantry: Gantry, target2world, start_q9, *, gantry_key: bytes | None = None, **options) -> SQPResult:
-    """:func:`solve_sqp`, remembered: the same problem (gantry, pose, start, reference and options, bit for bit)
-    gives the remembered result instead of a new solve. The touch-ups solve a station's appended strokes
-    again after each cut (``refine.extend``): the waypoints before a cut repeat their problems exactly, so
-    their answers are the same as solving them again. The last ``SQP_MEMO_SIZE`` problems are kept."""
+def _problem_key(gantry, gantry_key, target2world, arrays, options) -> bytes:
+    """The bytes that identify an SQP problem: the gantry, the pose, the given arrays and the other options."""
     key_parts = [gantry_key if gantry_key is not None else _gantry_key(gantry)]
     key_parts += [np.ascontiguousarray(target2world, dtype=np.float64).tobytes()]
-    key_parts += [np.ascontiguousarray(start_q9, dtype=np.float64).tobytes()]
-    reference = options.get("reference_q9")
-    key_parts += [b"" if reference is None else np.ascontiguousarray(reference, dtype=np.float64).tobytes()]
+    key_parts += [b"" if a is None else np.ascontiguousarray(a, dtype=np.float64).tobytes() for a in arrays]
     key_parts += [repr(sorted((k, v) for k, v in options.items() if k != "reference_q9")).encode()]
-    key = b"|".join(key_parts)
+    return b"|".join(key_parts)
+
+
+_MISSING = object()
+
+
+def _remember(key: bytes, solve):
+    """``solve()``'s answer (an SQPResult or None), from the memory when ``key`` is in it."""
     with _sqp_memo_lock:
-        found = _sqp_memo.get(key)
-        if found is not None:
+        found = _sqp_memo.get(key, _MISSING)
+        if found is not _MISSING:
             _sqp_memo.move_to_end(key)
             return found
-    result = solve_sqp(gantry, target2world, start_q9, **options)
-    q9 = np.array(result.q9, dtype=float)
-    q9.flags.writeable = False
-    result = dataclasses.replace(result, q9=q9)
+    result = solve()
+    if result is not None:
+        q9 = np.array(result.q9, dtype=float)
+        q9.flags.writeable = False
+        result = dataclasses.replace(result, q9=q9)
     with _sqp_memo_lock:
         _sqp_memo[key] = result
         while len(_sqp_memo) > SQP_MEMO_SIZE:
             _sqp_memo.popitem(last=False)
     return result
+
+
+def remembered_sqp(gantry: Gantry, target2world, start_q9, *, gantry_key: bytes | None = None, **options) -> SQPResult:
+    """:func:`solve_sqp`, remembered: the same problem (gantry, pose, start, reference and options, bit for bit)
+    gives the remembered result instead of a new solve. The touch-ups solve a station's appended strokes
+    again after each cut (``refine.extend``): the waypoints before a cut repeat their problems exactly, so
+    their answers are the same as solving them again. The last ``SQP_MEMO_SIZE`` problems are kept."""
+    arrays = (start_q9, options.get("reference_q9"))
+    key = b"sqp|" + _problem_key(gantry, gantry_key, target2world, arrays, options)
+    return _remember(key, lambda: solve_sqp(gantry, target2world, start_q9, **options))
+
+
+def remembered_newton(
+    gantry: Gantry, target2world, reference_q9, *, k_d, position_tol_mm, axis_tol_rad, gantry_key=None
+) -> SQPResult | None:
+    """:func:`solve_sqp`'s Newton first try alone (None where SLSQP is to decide), remembered as
+    :func:`remembered_sqp` is. It needs no starting point: :func:`solve_gantry_path` looks for one (an
+    exact solution with the gantry stepped aside) only where SLSQP runs."""
+    options = dict(k_d=k_d, position_tol_mm=position_tol_mm, axis_tol_rad=axis_tol_rad)
+    key = b"newton|" + _problem_key(gantry, gantry_key, target2world, (reference_q9,), options)
+    wanted = np.asarray(target2world, dtype=float).reshape(4, 4)
+    reference = np.asarray(reference_q9, dtype=float).reshape(9)
+    return _remember(key, lambda: _newton_try(gantry, wanted, reference, **options))
 
 
 #: Gantry steps tried (mm, in the plane) to find an exact starting point for SQP when the station has none.
@@ -514,6 +540,7 @@ def solve_gantry_path(
     outside_policy: str = "analytic",
     sqp_reach_mm: float = 150.0,
     max_gantry_move_mm: float = 200.0,
+    newton_first: bool = NEWTON_FIRST,
 ) -> GantryPath:
     """Joint values for a sequence of gun poses, with the gantry at the given positions.
 
@@ -537,6 +564,9 @@ def solve_gantry_path(
     max_gantry_move_mm : float
         The seed lets SQP move the gantry "slightly": a solution that moves it farther from the station is
         rejected and the waypoint reported unreachable.
+    newton_first : bool
+        Try Newton's method on the KKT conditions from the reference before SLSQP (see :func:`solve_sqp`);
+        False: SLSQP alone, as before it was added.
 
     Returns
     -------
@@ -595,24 +625,29 @@ def solve_gantry_path(
             branch_change[i] = previous_branch >= 0 and best != previous_branch
             previous_branch = best
         else:
-            start = np.concatenate([previous, platform[i]])
-            if valid.any():  # an analytic solution exists (near the core): start SQP from it
-                best = int(np.argmin(np.where(valid, np.linalg.norm(candidates - previous, axis=1), np.inf)))
-                start = np.concatenate([candidates[best], platform[i]])
-            else:  # none here: start from an exact solution with the gantry stepped aside, SQP brings it back
-                shifted = _shifted_start(gantry, gun2world[i], platform[i], previous)
-                if shifted is not None:
-                    start = shifted
-            result = remembered_sqp(
-                gantry,
-                wanted_target[i],
-                start,
-                gantry_key=gantry_key,
-                k_d=k_d,
-                position_tol_mm=position_tol_mm,
-                axis_tol_rad=axis_tol_rad,
-                reference_q9=np.concatenate([previous, platform[i]]),
-            )
+            reference = np.concatenate([previous, platform[i]])
+            options = dict(k_d=k_d, position_tol_mm=position_tol_mm, axis_tol_rad=axis_tol_rad)
+            result = None
+            if newton_first:
+                result = remembered_newton(gantry, wanted_target[i], reference, gantry_key=gantry_key, **options)
+            if result is None:
+                start = reference
+                if valid.any():  # an analytic solution exists (near the core): start SQP from it
+                    best = int(np.argmin(np.where(valid, np.linalg.norm(candidates - previous, axis=1), np.inf)))
+                    start = np.concatenate([candidates[best], platform[i]])
+                else:  # none here: start from an exact solution with the gantry stepped aside, SQP brings it back
+                    shifted = _shifted_start(gantry, gun2world[i], platform[i], previous)
+                    if shifted is not None:
+                        start = shifted
+                result = remembered_sqp(
+                    gantry,
+                    wanted_target[i],
+                    start,
+                    gantry_key=gantry_key,
+                    reference_q9=reference,
+                    newton_first=False,
+                    **options,
+                )
             if not result.success:
                 log.info("waypoint %d: SQP failed (%s)", i, result.message)
                 continue
