@@ -34,7 +34,7 @@ _FLIP = np.array([1.0, -1.0, -1.0])
 #: Newton steps before giving up.
 MAX_STEPS = 25
 #: The longest step (rad, mm) taken: the quadratic model is local.
-MAX_STEP = (0.2, 20.0)
+MAX_STEP = (0.5, 100.0)
 #: Converged when the step is below this (rad, mm) and the KKT residual below GRADIENT_TOL.
 STEP_TOL = 1e-9
 GRADIENT_TOL = 1e-6
@@ -132,6 +132,7 @@ def newton_sqp(
     hess_f = np.diag(2.0 * weights)
     lower, upper = robot.lower, robot.upper
     mu = np.zeros(2)
+    penalty = np.zeros(2)
     active: tuple = ()
     jac_e = np.zeros((3, 9))
     jac_e[:, 6:] = np.eye(3)
@@ -188,9 +189,21 @@ def newton_sqp(
         mu = multipliers[:2]
         if converged:
             break
-        if np.abs(step[:6]).max() > MAX_STEP[0] or np.abs(step[6:]).max() > MAX_STEP[1]:
-            return None  # too far for the quadratic model: SLSQP's line search is the better tool
-        x = x + step
+        longest = max(np.abs(step[:6]).max() / MAX_STEP[0], np.abs(step[6:]).max() / MAX_STEP[1])
+        if longest > 1.0:
+            step = step / longest  # the quadratic model is local
+        # a line search on the l1 merit function f + sum rho_i max(h_i, 0), rho_i above the multipliers
+        penalty = np.maximum(penalty, 2.0 * mu + 1e-6)
+        merit = _cost(x, reference, weights) + penalty @ np.maximum(values[:2], 0.0)
+        alpha = 1.0
+        for _ in range(LINE_SEARCH_HALVINGS):
+            trial = x + alpha * step
+            if _merit(robot, offset2flange, wanted_p, flip_wanted_z, trial, reference, weights, penalty, position_tol_mm, axis_tol_rad) <= merit + 1e-12 * abs(merit):
+                break
+            alpha *= 0.5
+        else:
+            return None
+        x = trial
         # a joint near a limit carries it as an equality once it is active: keep the active set's meaning
         active = tuple(i for i in active if i < 2)
     else:
@@ -199,6 +212,25 @@ def newton_sqp(
     if not _positive_on_tangent(hess, rows[multipliers > 0.0]):
         return None
     return x, steps
+
+
+#: Halvings of a step before the line search gives up.
+LINE_SEARCH_HALVINGS = 12
+
+
+def _cost(x, reference, weights) -> float:
+    """Eq. 20."""
+    d = x - reference
+    return float(d @ (weights * d))
+
+
+def _merit(robot, offset2flange, wanted_p, flip_wanted_z, x, reference, weights, penalty, position_tol_mm, axis_tol_rad):
+    """The l1 merit function at x: eq. 20 plus the penalised violations of eqs. 21 and 22."""
+    _, _, end = chain_frames(robot.d, robot.a, robot.alpha, robot.theta_offset, x[:6], offset2flange)
+    error = x[6:] + _FLIP * end[:3, 3] - wanted_p
+    position = math.sqrt(error @ error) - position_tol_mm
+    axis = math.acos(min(max(float(flip_wanted_z @ end[:3, 2]), -1.0), 1.0)) - axis_tol_rad
+    return _cost(x, reference, weights) + penalty[0] * max(position, 0.0) + penalty[1] * max(axis, 0.0)
 
 
 #: Below this (mm, rad) the error's direction is not defined: the constraint is far from active.
