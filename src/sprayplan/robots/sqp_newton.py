@@ -25,6 +25,7 @@ a saddle) returns None, and the caller runs SLSQP as before.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -71,27 +72,27 @@ def chain_frames(d, a, alpha, theta_offset, q, offset2flange):
     end : (4, 4) float
         ``offset2base``.
     """
+    fixed, with_cos, with_sin = _link_parts(np.concatenate([d, a, alpha]).tobytes())
     theta = q + theta_offset
-    ct, st = np.cos(theta), np.sin(theta)
-    ca, sa = np.cos(alpha), np.sin(alpha)
-    links = np.zeros((6, 4, 4))
-    links[:, 0, 0] = ct
-    links[:, 0, 1] = -st * ca
-    links[:, 0, 2] = st * sa
-    links[:, 0, 3] = a * ct
-    links[:, 1, 0] = st
-    links[:, 1, 1] = ct * ca
-    links[:, 1, 2] = -ct * sa
-    links[:, 1, 3] = a * st
-    links[:, 2, 1] = sa
-    links[:, 2, 2] = ca
-    links[:, 2, 3] = d
-    links[:, 3, 3] = 1.0
+    links = fixed + np.cos(theta)[:, None, None] * with_cos + np.sin(theta)[:, None, None] * with_sin
     frames = np.empty((7, 4, 4))
     frames[0] = np.eye(4)
     for i in range(6):
-        frames[i + 1] = frames[i] @ links[i]
+        np.matmul(frames[i], links[i], out=frames[i + 1])
     return frames[:6, :3, 2], frames[:6, :3, 3], frames[6] @ offset2flange
+
+
+@functools.lru_cache(maxsize=16)
+def _link_parts(table: bytes):
+    """The D-H link transforms of eq. 10 as ``fixed + cos(theta) with_cos + sin(theta) with_sin``, (6, 4, 4)
+    each, for a table given as the bytes of ``d, a, alpha``."""
+    d, a, alpha = np.frombuffer(table).reshape(3, -1)
+    ca, sa = np.cos(alpha), np.sin(alpha)
+    fixed, with_cos, with_sin = np.zeros((3, len(d), 4, 4))
+    with_cos[:, 0, 0], with_sin[:, 0, 1], with_sin[:, 0, 2], with_cos[:, 0, 3] = 1.0, -ca, sa, a
+    with_sin[:, 1, 0], with_cos[:, 1, 1], with_cos[:, 1, 2], with_sin[:, 1, 3] = 1.0, ca, -sa, a
+    fixed[:, 2, 1], fixed[:, 2, 2], fixed[:, 2, 3], fixed[:, 3, 3] = sa, ca, d, 1.0
+    return fixed, with_cos, with_sin
 
 
 def second_derivative_along(axes, rows, v):
@@ -316,3 +317,4 @@ def _positive_on_tangent(hess, active_grads) -> bool:
         basis = vt[len(active_grads):].T
         hess = basis.T @ hess @ basis
     return bool(np.linalg.eigvalsh(hess).min() > 0.0)
+
