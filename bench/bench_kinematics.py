@@ -143,7 +143,10 @@ def main() -> None:
                 line += f", base {statistics.median(cpu['base']):.2f}, new / base {ratio:.2f}"
                 line += f" (runs: new {[round(c, 2) for c in cpu['new']]}, base {[round(c, 2) for c in cpu['base']]})"
                 print(line)
-                print(f"{name}: plans, new against base:", json.dumps(compare(stations(outs["new"]), stations(outs["base"]))))
+                print(
+                    f"{name}: plans, new against base:",
+                    json.dumps(compare(stations(outs["new"]), stations(outs["base"]))),
+                )
             else:
                 print(line)
 

@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 import sprayplan.robots.gantry as gantry_module
 from sprayplan.robots.gantry import Gantry, pose_errors, solve_gantry_path, solve_sqp
@@ -33,7 +34,8 @@ def _offset(gantry):
 
 
 def _target_and_axis(gantry, q):
-    axes, origins, end = chain_frames(*(getattr(gantry.robot, k) for k in ("d", "a", "alpha", "theta_offset")), q, _offset(gantry))
+    robot = gantry.robot
+    axes, origins, end = chain_frames(robot.d, robot.a, robot.alpha, robot.theta_offset, q, _offset(gantry))
     return axes, origins, end[:3, 3], end[:3, 2]
 
 
@@ -55,8 +57,15 @@ def test_the_chain_and_its_derivatives_match_forward_kinematics(seed):
         _, _, p_minus, z_minus = _target_and_axis(gantry, q - step)
         np.testing.assert_allclose(jp[i], (p_plus - p_minus) / (2 * h), atol=1e-5)
         np.testing.assert_allclose(jz[i], (z_plus - z_minus) / (2 * h), atol=1e-8)
+
     # second derivatives along v: the central difference of the first derivatives along v
-    for rows_of, which, atol in ((lambda a, o, p, z: _cross(a, p - o), 0, 1e-4), (lambda a, o, p, z: _cross(a, np.broadcast_to(z, (6, 3))), 1, 1e-7)):
+    def point_rows(a, o, p, z):
+        return _cross(a, p - o)
+
+    def axis_rows(a, o, p, z):
+        return _cross(a, np.broadcast_to(z, (6, 3)))
+
+    for rows_of, atol in ((point_rows, 1e-4), (axis_rows, 1e-7)):
         rows = rows_of(axes, origins, p, z)
         exact = second_derivative_along(axes, rows, v)
         numeric = np.empty((6, 6))
@@ -87,8 +96,6 @@ def _stroke_like_problems(count, seed=3):
         wanted[:3, 3] += direction / np.linalg.norm(direction) * rng.uniform(8.0, 15.0)
         axis = rng.normal(size=3)
         angle = math.radians(rng.uniform(1.0, 6.0))
-        from scipy.spatial.transform import Rotation
-
         wanted[:3, :3] = Rotation.from_rotvec(axis / np.linalg.norm(axis) * angle).as_matrix() @ achieved[:3, :3]
         out.append((wanted, reference))
     return gantry, out

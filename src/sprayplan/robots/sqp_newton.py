@@ -1,26 +1,26 @@
 """A Newton first try for the SQP of seed 000 section 4.2 (eqs. 20-22), with exact derivatives.
 
 The problem of :func:`sprayplan.robots.gantry.solve_sqp`: over the six joints and the gantry position
-``x = (q, t)``, minimise eq. 20, ``f(x) = |q - q0|^2 + K_d |t - t0|^2``, with the spray target within
-``P`` mm of the wanted one (eq. 21) and the gun axis within ``A`` rad of the wanted one (eq. 22). The two
-constraints are written here in a form that is smooth everywhere and has the same feasible set::
+``x = (q, t)``, minimise eq. 20, ``f(x) = |q - q0|^2 + K_d |t - t0|^2``, subject to::
 
-    h1(x) = |p(x) - p*|^2 - P^2 <= 0
-    h2(x) = cos A - z(x) . z* <= 0
+    h1(x) = |p(x) - p*| - P <= 0            (eq. 21: the spray target within P mm)
+    h2(x) = arccos(z(x) . z*) - A <= 0      (eq. 22: the gun axis within A rad)
 
-with ``p`` the spray target's position and ``z`` the gun's axis in the world. Where the reference ``x0`` is
-nearly feasible (the previous waypoint's joints, one waypoint step away), the minimum lies on the tolerance
-boundary close to it, and Newton's method on the Karush-Kuhn-Tucker conditions finds it in a few steps:
-each step solves the quadratic model (the Lagrangian's exact Hessian, the constraints linearised) with the
-active set chosen among the four subsets of {h1, h2}. The derivatives come from the geometric Jacobian of
-the D-H chain: for revolute joint i with axis ``a_i`` through ``o_i`` (frame i-1's z axis and origin),
+and the joint limits, with ``p`` the spray target's position and ``z`` the gun's axis in the world. Where
+the reference ``x0`` is near the tolerance (the previous waypoint's joints, one waypoint step away), the
+minimum lies on the tolerance boundary close to it, and Newton's method on the Karush-Kuhn-Tucker
+conditions, started at ``x0``, finds it in a few steps: each step solves the quadratic model (the
+Lagrangian's exact Hessian, the constraints linearised) with the active set chosen among the subsets of
+{h1, h2, the nearer limit of each joint within ``LIMIT_MARGIN`` of one}, and a line search on the l1 merit
+function keeps the steps from cycling. The derivatives come from the geometric Jacobian of the D-H chain:
+for revolute joint i with axis ``a_i`` through ``o_i`` (frame i-1's z axis and origin),
 ``dp/dq_i = a_i x (p - o_i)``, ``dz/dq_i = a_i x z``, and for ``i <= j``
 ``d2p/dq_i dq_j = a_i x (a_j x (p - o_j))``, ``d2z/dq_i dq_j = a_i x (a_j x z)``.
 
-The answer is accepted only as a strict local minimum: the KKT conditions hold to a tight tolerance, the
+The answer is given only as a strict local minimum: the KKT conditions hold to a tight tolerance, the
 multipliers are not negative, the Lagrangian's Hessian is positive definite on the active constraints'
-tangent space, and the joints are inside their limits. Anything else (no convergence, a limit in the way,
-a saddle) returns None, and the caller runs SLSQP as before.
+tangent space, and the joints are inside their limits. Anything else (no convergence in ``MAX_STEPS``, no
+active set, a saddle) returns None, and the caller runs SLSQP as before.
 """
 
 from __future__ import annotations
@@ -41,7 +41,6 @@ STEP_TOL = 1e-9
 GRADIENT_TOL = 1e-6
 #: How far the answer may lie outside eqs. 21 and 22 (mm, rad).
 FEASIBLE_TOL = (1e-9, 1e-12)
-
 
 
 def _cross(a, b):
@@ -103,9 +102,7 @@ def second_derivative_along(axes, rows, v):
     return np.where(_UPPER, out, out.T)
 
 
-def newton_sqp(
-    robot, offset2flange, wanted_p, wanted_z, reference, *, k_d, position_tol_mm, axis_tol_rad
-):
+def newton_sqp(robot, offset2flange, wanted_p, wanted_z, reference, *, k_d, position_tol_mm, axis_tol_rad):
     """The minimum of eq. 20 under eqs. 21-22 and the joint limits by Newton's method on the KKT
     conditions, started at the reference; or None.
 
@@ -137,7 +134,9 @@ def newton_sqp(
     active: tuple = ()
     jac_e = np.zeros((3, 9))
     jac_e[:, 6:] = np.eye(3)
-    for steps in range(1, MAX_STEPS + 1):
+    steps = 0
+    for _ in range(MAX_STEPS):
+        steps += 1
         axes, origins, end = chain_frames(robot.d, robot.a, robot.alpha, robot.theta_offset, x[:6], offset2flange)
         p_b, z_b = end[:3, 3], end[:3, 2]
         jac = _cross(axes, np.stack([p_b - origins, np.broadcast_to(z_b, (6, 3))]))
@@ -199,7 +198,18 @@ def newton_sqp(
         alpha = 1.0
         for _ in range(LINE_SEARCH_HALVINGS):
             trial = x + alpha * step
-            if _merit(robot, offset2flange, wanted_p, flip_wanted_z, trial, reference, weights, penalty, position_tol_mm, axis_tol_rad) <= merit + 1e-12 * abs(merit):
+            if _merit(
+                robot,
+                offset2flange,
+                wanted_p,
+                flip_wanted_z,
+                trial,
+                reference,
+                weights,
+                penalty,
+                position_tol_mm,
+                axis_tol_rad,
+            ) <= merit + 1e-12 * abs(merit):
                 break
             alpha *= 0.5
         else:
@@ -225,7 +235,9 @@ def _cost(x, reference, weights) -> float:
     return float(d @ (weights * d))
 
 
-def _merit(robot, offset2flange, wanted_p, flip_wanted_z, x, reference, weights, penalty, position_tol_mm, axis_tol_rad):
+def _merit(
+    robot, offset2flange, wanted_p, flip_wanted_z, x, reference, weights, penalty, position_tol_mm, axis_tol_rad
+):
     """The l1 merit function at x: eq. 20 plus the penalised violations of eqs. 21 and 22."""
     _, _, end = chain_frames(robot.d, robot.a, robot.alpha, robot.theta_offset, x[:6], offset2flange)
     error = x[6:] + _FLIP * end[:3, 3] - wanted_p
@@ -314,7 +326,6 @@ def _positive_on_tangent(hess, active_grads) -> bool:
         _, s, vt = np.linalg.svd(active_grads)
         if s.min() <= 1e-12 * max(s.max(), 1.0):
             return False
-        basis = vt[len(active_grads):].T
+        basis = vt[len(active_grads) :].T
         hess = basis.T @ hess @ basis
     return bool(np.linalg.eigvalsh(hess).min() > 0.0)
-
