@@ -171,8 +171,9 @@ def test_a_path_solved_again_after_a_cut_is_the_same_with_and_without_the_memory
     whole = np.concatenate([stroke_poses(_line(0.0)), stroke_poses(_line(200.0))])
     cut = stroke_poses(_line(0.0))
     calls = []
-    solve = gantry_module.solve_sqp
+    solve, newton = gantry_module.solve_sqp, gantry_module._newton_try
     monkeypatch.setattr(gantry_module, "solve_sqp", lambda *a, **k: calls.append(1) or solve(*a, **k))
+    monkeypatch.setattr(gantry_module, "_newton_try", lambda *a, **k: calls.append(1) or newton(*a, **k))
     monkeypatch.setattr(gantry_module, "_sqp_memo", type(gantry_module._sqp_memo)())
     monkeypatch.setattr(gantry_module, "SQP_MEMO_SIZE", 0)  # no memory: every problem solved
     gantry_module.solve_gantry_path(gantry, whole, platform)

@@ -37,6 +37,7 @@ from scipy.optimize import minimize
 from sprayplan.checks import check_points, check_poses
 from sprayplan.errors import ConfigError, DataError
 from sprayplan.robots.model import RobotModel, fk, fk_point, load_robot
+from sprayplan.robots.sqp_newton import newton_sqp
 from sprayplan.types import read_only
 
 log = logging.getLogger(__name__)
@@ -267,6 +268,10 @@ def pose_errors(achieved: np.ndarray, wanted: np.ndarray) -> tuple[np.ndarray, n
     return position, np.arccos(cos)
 
 
+#: Whether :func:`solve_sqp` tries Newton's method first (see there).
+NEWTON_FIRST = True
+
+
 @dataclass(frozen=True)
 class SQPResult:
     """One SQP solve: the nine axes, whether the constraints hold, and the errors."""
@@ -289,6 +294,7 @@ def solve_sqp(
     axis_tol_rad: float = math.radians(5.0),
     max_iter: int = 150,
     reference_q9: np.ndarray | None = None,
+    newton_first: bool = NEWTON_FIRST,
 ) -> SQPResult:
     """Seed 000 section 4.2: SQP from the previous solution for a pose the analytic IK cannot serve.
 
@@ -303,6 +309,14 @@ def solve_sqp(
     ``start_q9`` is the optimiser's first guess; ``reference_q9`` (default: the guess) holds the theta_i^0 and
     t^0 of eq. 20: the previous solution and the station's gantry position.
 
+    With ``newton_first`` (the default), Newton's method on the KKT conditions with exact derivatives
+    (:func:`sprayplan.robots.sqp_newton.newton_sqp`) is tried first, from the reference: about a tenth of an
+    SLSQP solve's cost where the reference is one waypoint step from the tolerance boundary, as it is along a
+    stroke. Its answer is kept when it is a strict local minimum within the joint limits whose eq. 20 cost is
+    at most ``NEWTON_COST_LIMIT`` (a moderate move from the reference; a larger one may be a worse local
+    minimum than SLSQP's, so SLSQP decides); otherwise SLSQP with finite-difference gradients runs from
+    ``start_q9`` as without it.
+
     Returns
     -------
     SQPResult
@@ -312,6 +326,10 @@ def solve_sqp(
     guess = np.asarray(start_q9, dtype=float).reshape(9)
     start = guess if reference_q9 is None else np.asarray(reference_q9, dtype=float).reshape(9)
     wanted = np.asarray(target2world, dtype=float).reshape(4, 4)
+    if newton_first:
+        found = _newton_try(gantry, wanted, start, k_d, position_tol_mm, axis_tol_rad)
+        if found is not None:
+            return found
     step = np.array([1e-7] * 6 + [1e-5] * 3)  # rad, mm
     cache: dict = {}
 
@@ -356,6 +374,40 @@ def solve_sqp(
     return SQPResult(result.x, ok, float(position), float(axis), int(result.nit), str(result.message))
 
 
+#: The largest eq. 20 cost (rad^2, and mm^2 of gantry travel weighted by K_d) of a Newton answer that
+#: :func:`solve_sqp` keeps without SLSQP: joints moved by about 3 rad in all, or the gantry by 10 mm. On the
+#: demo roof's and the DTC hull's 1,654 SQP problems no kept answer cost more than SLSQP's; the first one that
+#: did (with no limit) cost 57 against SLSQP's 27 (docs/benchmarks.md, "The kinematics stage").
+NEWTON_COST_LIMIT = 10.0
+
+
+def _newton_try(gantry: Gantry, wanted, reference, k_d, position_tol_mm, axis_tol_rad) -> SQPResult | None:
+    """:func:`solve_sqp`'s Newton first try, as an SQPResult whose errors are checked by forward kinematics;
+    None where SLSQP is to decide."""
+    offset2flange = gantry.gun.gun2flange @ gantry.gun.target2gun
+    found = newton_sqp(
+        gantry.robot,
+        offset2flange,
+        wanted[:3, 3],
+        wanted[:3, 2],
+        reference,
+        k_d=k_d,
+        position_tol_mm=position_tol_mm,
+        axis_tol_rad=axis_tol_rad,
+    )
+    if found is None:
+        return None
+    x, steps = found
+    dq, dt = x[:6] - reference[:6], x[6:] - reference[6:]
+    if float(dq @ dq + k_d * dt @ dt) > NEWTON_COST_LIMIT:
+        return None
+    position, axis = pose_errors(gantry.target2world(x), wanted)
+    ok = bool(position[0] <= position_tol_mm * (1 + 1e-6) and axis[0] <= axis_tol_rad * (1 + 1e-6))
+    if not ok:
+        return None
+    return SQPResult(x, True, float(position[0]), float(axis[0]), steps, "Newton on the KKT conditions")
+
+
 #: How many SQP solves :func:`solve_gantry_path` remembers (about 1 kB each).
 SQP_MEMO_SIZE = 20_000
 _sqp_memo: OrderedDict = OrderedDict()
@@ -370,32 +422,58 @@ def _gantry_key(gantry: Gantry) -> bytes:
     return b"".join(np.ascontiguousarray(p, dtype=np.float64).tobytes() for p in parts)
 
 
-def remembered_sqp(gantry: Gantry, target2world, start_q9, *, gantry_key: bytes | None = None, **options) -> SQPResult:
-    """:func:`solve_sqp`, remembered: the same problem (gantry, pose, start, reference and options, bit for bit)
-    gives the remembered result instead of a new solve. The touch-ups solve a station's appended strokes
-    again after each cut (``refine.extend``): the waypoints before a cut repeat their problems exactly, so
-    their answers are the same as solving them again. The last ``SQP_MEMO_SIZE`` problems are kept."""
+def _problem_key(gantry, gantry_key, target2world, arrays, options) -> bytes:
+    """The bytes that identify an SQP problem: the gantry, the pose, the given arrays and the other options."""
     key_parts = [gantry_key if gantry_key is not None else _gantry_key(gantry)]
     key_parts += [np.ascontiguousarray(target2world, dtype=np.float64).tobytes()]
-    key_parts += [np.ascontiguousarray(start_q9, dtype=np.float64).tobytes()]
-    reference = options.get("reference_q9")
-    key_parts += [b"" if reference is None else np.ascontiguousarray(reference, dtype=np.float64).tobytes()]
+    key_parts += [b"" if a is None else np.ascontiguousarray(a, dtype=np.float64).tobytes() for a in arrays]
     key_parts += [repr(sorted((k, v) for k, v in options.items() if k != "reference_q9")).encode()]
-    key = b"|".join(key_parts)
+    return b"|".join(key_parts)
+
+
+_MISSING = object()
+
+
+def _remember(key: bytes, solve):
+    """``solve()``'s answer (an SQPResult or None), from the memory when ``key`` is in it."""
     with _sqp_memo_lock:
-        found = _sqp_memo.get(key)
-        if found is not None:
+        found = _sqp_memo.get(key, _MISSING)
+        if found is not _MISSING:
             _sqp_memo.move_to_end(key)
             return found
-    result = solve_sqp(gantry, target2world, start_q9, **options)
-    q9 = np.array(result.q9, dtype=float)
-    q9.flags.writeable = False
-    result = dataclasses.replace(result, q9=q9)
+    result = solve()
+    if result is not None:
+        q9 = np.array(result.q9, dtype=float)
+        q9.flags.writeable = False
+        result = dataclasses.replace(result, q9=q9)
     with _sqp_memo_lock:
         _sqp_memo[key] = result
         while len(_sqp_memo) > SQP_MEMO_SIZE:
             _sqp_memo.popitem(last=False)
     return result
+
+
+def remembered_sqp(gantry: Gantry, target2world, start_q9, *, gantry_key: bytes | None = None, **options) -> SQPResult:
+    """:func:`solve_sqp`, remembered: the same problem (gantry, pose, start, reference and options, bit for bit)
+    gives the remembered result instead of a new solve. The touch-ups solve a station's appended strokes
+    again after each cut (``refine.extend``): the waypoints before a cut repeat their problems exactly, so
+    their answers are the same as solving them again. The last ``SQP_MEMO_SIZE`` problems are kept."""
+    arrays = (start_q9, options.get("reference_q9"))
+    key = b"sqp|" + _problem_key(gantry, gantry_key, target2world, arrays, options)
+    return _remember(key, lambda: solve_sqp(gantry, target2world, start_q9, **options))
+
+
+def remembered_newton(
+    gantry: Gantry, target2world, reference_q9, *, k_d, position_tol_mm, axis_tol_rad, gantry_key=None
+) -> SQPResult | None:
+    """:func:`solve_sqp`'s Newton first try alone (None where SLSQP is to decide), remembered as
+    :func:`remembered_sqp` is. It needs no starting point: :func:`solve_gantry_path` looks for one (an
+    exact solution with the gantry stepped aside) only where SLSQP runs."""
+    options = dict(k_d=k_d, position_tol_mm=position_tol_mm, axis_tol_rad=axis_tol_rad)
+    key = b"newton|" + _problem_key(gantry, gantry_key, target2world, (reference_q9,), options)
+    wanted = np.asarray(target2world, dtype=float).reshape(4, 4)
+    reference = np.asarray(reference_q9, dtype=float).reshape(9)
+    return _remember(key, lambda: _newton_try(gantry, wanted, reference, **options))
 
 
 #: Gantry steps tried (mm, in the plane) to find an exact starting point for SQP when the station has none.
@@ -476,6 +554,7 @@ def solve_gantry_path(
     outside_policy: str = "analytic",
     sqp_reach_mm: float = 150.0,
     max_gantry_move_mm: float = 200.0,
+    newton_first: bool = NEWTON_FIRST,
 ) -> GantryPath:
     """Joint values for a sequence of gun poses, with the gantry at the given positions.
 
@@ -499,13 +578,16 @@ def solve_gantry_path(
     max_gantry_move_mm : float
         The seed lets SQP move the gantry "slightly": a solution that moves it farther from the station is
         rejected and the waypoint reported unreachable.
+    newton_first : bool
+        Try Newton's method on the KKT conditions from the reference before SLSQP (see :func:`solve_sqp`);
+        False: SLSQP alone, as before it was added.
 
     Returns
     -------
     GantryPath
         Unreachable waypoints are data (``reachable = False``), never exceptions.
     """
-    from sprayplan.robots.ur_ik import nearest_equivalent, ur_ik
+    from sprayplan.robots.ur_ik import _turn_range, nearest_in_turns, ur_ik
 
     gun2world = check_poses(np.asarray(gun2world, dtype=float).reshape(-1, 4, 4), "gun2world")
     n = len(gun2world)
@@ -537,38 +619,49 @@ def solve_gantry_path(
     previous = np.array([0.0, -math.pi / 2, 0.0, -math.pi / 2, 0.0, 0.0]) if seed_q is None else np.asarray(seed_q)
     previous_branch = -1
     gantry_key = _gantry_key(gantry)
+    # each joint's whole turns within the limits, for every branch of every waypoint at once
+    k_lo, k_hi = _turn_range(solutions.q, robot.lower, robot.upper)
+    low, high = robot.lower - 1e-9, robot.upper + 1e-9  # RobotModel.within_limits
+    analytic_here = (region == 2) | ((region == 0) & (outside_policy == "analytic"))
+    too_far = (region == 0) & (beyond > sqp_reach_mm)
     for i in range(n):
-        candidates = nearest_equivalent(solutions.q[i], np.broadcast_to(previous, (8, 6)), robot.lower, robot.upper)
-        valid = solutions.valid[i] & robot.within_limits(candidates)
-        use_analytic = valid.any() and (region[i] == 2 or (region[i] == 0 and outside_policy == "analytic"))
-        if region[i] == 0 and not valid.any() and beyond[i] > sqp_reach_mm:
+        candidates = nearest_in_turns(solutions.q[i], previous, k_lo[i], k_hi[i])
+        valid = solutions.valid[i] & ((candidates >= low) & (candidates <= high)).all(axis=-1)
+        any_valid = bool(valid.any())
+        if too_far[i] and not any_valid:
             continue  # far outside the cylinder and no analytic solution: unreachable from this station
-        if use_analytic:
-            distance = np.where(valid, np.linalg.norm(candidates - previous, axis=1), np.inf)
+        if any_valid and analytic_here[i]:
+            offset = candidates - previous
+            distance = np.where(valid, np.sqrt((offset * offset).sum(axis=1)), np.inf)
             best = int(np.argmin(distance))
             q9[i, :6], q9[i, 6:] = candidates[best], platform[i]
             method[i], branch[i] = "analytic", best
             branch_change[i] = previous_branch >= 0 and best != previous_branch
             previous_branch = best
         else:
-            start = np.concatenate([previous, platform[i]])
-            if valid.any():  # an analytic solution exists (near the core): start SQP from it
-                best = int(np.argmin(np.where(valid, np.linalg.norm(candidates - previous, axis=1), np.inf)))
-                start = np.concatenate([candidates[best], platform[i]])
-            else:  # none here: start from an exact solution with the gantry stepped aside, SQP brings it back
-                shifted = _shifted_start(gantry, gun2world[i], platform[i], previous)
-                if shifted is not None:
-                    start = shifted
-            result = remembered_sqp(
-                gantry,
-                wanted_target[i],
-                start,
-                gantry_key=gantry_key,
-                k_d=k_d,
-                position_tol_mm=position_tol_mm,
-                axis_tol_rad=axis_tol_rad,
-                reference_q9=np.concatenate([previous, platform[i]]),
-            )
+            reference = np.concatenate([previous, platform[i]])
+            options = dict(k_d=k_d, position_tol_mm=position_tol_mm, axis_tol_rad=axis_tol_rad)
+            result = None
+            if newton_first:
+                result = remembered_newton(gantry, wanted_target[i], reference, gantry_key=gantry_key, **options)
+            if result is None:
+                start = reference
+                if valid.any():  # an analytic solution exists (near the core): start SQP from it
+                    best = int(np.argmin(np.where(valid, np.linalg.norm(candidates - previous, axis=1), np.inf)))
+                    start = np.concatenate([candidates[best], platform[i]])
+                else:  # none here: start from an exact solution with the gantry stepped aside, SQP brings it back
+                    shifted = _shifted_start(gantry, gun2world[i], platform[i], previous)
+                    if shifted is not None:
+                        start = shifted
+                result = remembered_sqp(
+                    gantry,
+                    wanted_target[i],
+                    start,
+                    gantry_key=gantry_key,
+                    reference_q9=reference,
+                    newton_first=False,
+                    **options,
+                )
             if not result.success:
                 log.info("waypoint %d: SQP failed (%s)", i, result.message)
                 continue

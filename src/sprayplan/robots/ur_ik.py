@@ -200,6 +200,13 @@ def nearest_equivalent(q, seed, lower, upper) -> np.ndarray:
     seed = np.asarray(seed, dtype=float)
     q, seed = np.broadcast_arrays(q, seed)
     k_lo, k_hi = _turn_range(q, np.asarray(lower, dtype=float), np.asarray(upper, dtype=float))
+    return nearest_in_turns(q, seed, k_lo, k_hi)
+
+
+def nearest_in_turns(q, seed, k_lo, k_hi) -> np.ndarray:
+    """:func:`nearest_equivalent` with the turn counts' range (``_turn_range`` of ``q`` and the limits) given:
+    a path's ranges are computed once for all its waypoints, and each waypoint's seed (the previous joints)
+    costs three small operations."""
     k = np.clip(np.rint((seed - q) / TAU), k_lo, k_hi)
     k = np.where(k_lo <= k_hi, k, 0.0)
     return q + TAU * k
