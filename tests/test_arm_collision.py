@@ -274,3 +274,17 @@ def test_a_cell_plan_with_collisions_flags_each_waypoint_as_its_own_check_does(t
     assert report["waypoints_in_collision"] == total
     gap = report["robot_gap_mm"]["left-right"]
     assert (gap > 0) == (report["robots_kept_apart"].startswith("in space"))
+
+
+def test_collisions_asked_for_an_arm_without_link_sizes_is_one_line_and_no_output(tmp_path, capsys):
+    """`plan --robot ur5 --collisions`: refused before planning, exit 2, one line naming the robot, no folder."""
+    from sprayplan.cli import main
+    from sprayplan.export.stl import write_stl_binary
+
+    part_file = tmp_path / "box.stl"
+    part_file.write_bytes(write_stl_binary(grid_box(n=4, size=(300.0, 300.0, 100.0)).triangles))
+    out = tmp_path / "out"
+    assert main(["-q", "plan", str(part_file), "--robot", "ur5", "--collisions", "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "'ur5' has no link sizes" in err[0]
+    assert not out.exists()

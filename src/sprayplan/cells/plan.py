@@ -638,6 +638,11 @@ def plan_cell(
         raise ConfigError(f"cell {cell.name!r} is the gantry cell: `sprayplan plan` without --cell plans it")
     if not part.is_mesh:
         raise ConfigError(f"{part.name}: a cell plan needs a mesh (areas are found on meshes)")
+    if job.collision.check:  # before the work: every arm needs its link sizes
+        from sprayplan.collision.arms import arm_radii
+
+        for r in cell.robots:
+            arm_radii(r.model)
     timings: dict[str, float] = {}
     running: list = [None, time.perf_counter()]
 
