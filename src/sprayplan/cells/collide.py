@@ -16,8 +16,6 @@ import dataclasses
 import itertools
 import math
 
-import numpy as np
-
 from sprayplan.collision.arms import (
     COVER_MM,
     ArmCollision,
@@ -78,8 +76,3 @@ def check_cell(plan, config, repair=None) -> tuple[tuple, dict]:
         "robots_kept_apart": "in space (the swept spaces do not meet)" if apart else "not proven: work spaces overlap",
     }
     return tuple(robots), report
-
-
-def flags_of(work) -> np.ndarray:
-    """(n,) the robot's waypoint collision flags, all False where the plan was not checked."""
-    return np.zeros(work.waypoints, bool) if work.collides is None else work.collides

@@ -157,6 +157,8 @@ class ArmCollision:
         As ``[collision]``.
     samples : SurfaceSamples, optional
         The part's surface samples, to share them between the robots of a cell.
+    mesh : coal.BVHModelOBBRSS, optional
+        The part's BVH (:func:`part_mesh`), to share it between the robots of a cell.
 
     Raises
     ------
