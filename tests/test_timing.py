@@ -22,6 +22,7 @@ from sprayplan.timing.limits import AxisLimits
 from sprayplan.timing.moves import point_to_point
 from sprayplan.timing.path import time_path
 from sprayplan.timing.stage import real_plan
+from tests.helpers import spray_stretches
 
 REACH = {"units": "m", "region": "x > -250"}
 #: Slack of a limit in the finite-difference checks below: the differences of a sampled trajectory over steps
@@ -42,24 +43,9 @@ def _tip(gantry):
 
 
 def _spray_runs(state, count=6):
-    """The first ``count`` stretches of spray strokes of the reach plan the timing follows (reachable, no joint
-    jump; ``timing.stage._runs``) of more than 3 waypoints, with their planned tip speeds."""
-    from sprayplan.timing.stage import _runs
-
-    motion = state.job.motion
-    out = []
-    for st in state.plan.stations:
-        start = 0
-        for s in st.strokes:
-            idx = np.arange(start, start + len(s))
-            start += len(s)
-            if not s.spray_on:
-                continue
-            cap = segment_speeds(s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio)
-            for run in _runs(st.reachable[idx], st.q9[idx], math.radians(state.job.timing.joint_jump_deg)):
-                if len(run) > 3:
-                    out.append((st.q9[idx[run]], cap[run[:-1]]))
-    return out[:count]
+    """The first ``count`` stretches of spray strokes of the reach plan the timing follows, of more than 3
+    waypoints, with their planned tip speeds."""
+    return spray_stretches(state.plan, state.job, min_waypoints=4, count=count)
 
 
 def _limits(state, gantry):

@@ -3,7 +3,6 @@ differences gave (issue 17: the same plans), with the limits still holding betwe
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest
@@ -12,12 +11,12 @@ from toppra.constraint import JointAccelerationConstraint
 
 from sprayplan.config import JobConfig
 from sprayplan.job import run_job
-from sprayplan.paths.speed import segment_speeds
 from sprayplan.robots.gantry import Gantry
 from sprayplan.timing import path as timing_path
 from sprayplan.timing.limits import AxisLimits
 from sprayplan.timing.reach import reach_paths
-from sprayplan.timing.stage import _runs, plan_limits
+from sprayplan.timing.stage import plan_limits
+from tests.helpers import spray_stretches
 
 #: The relative agreement of time stamps asked of the batched analysis against toppra (issue 17's "the same
 #: plans"): both solve the same LPs, toppra's seidel solver to a row tolerance of 1e-10, this one exactly; on
@@ -34,21 +33,7 @@ def reach(testdata):
     job = JobConfig().replace(load={"units": "m", "region": "x > -250"}, output={"viewer": False, "report": False})
     state = run_job(testdata / "meshes" / "reach_curved_part.ply", job, until="kinematics")
     gantry = state.gantry()
-    motion = job.motion
-    stretches = []
-    for st in state.plan.stations:
-        start = 0
-        for s in st.strokes:
-            idx = np.arange(start, start + len(s))
-            start += len(s)
-            if not s.spray_on:
-                continue
-            cap = segment_speeds(
-                s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio, s.dwell
-            )
-            for run in _runs(st.reachable[idx], st.q9[idx], math.radians(job.timing.joint_jump_deg)):
-                if len(run) >= 2:
-                    stretches.append((st.q9[idx[run]], cap[run[:-1]]))
+    stretches = spray_stretches(state.plan, job)
     assert len(stretches) >= 10
     return gantry, plan_limits(gantry, job), stretches
 
