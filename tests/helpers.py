@@ -98,30 +98,18 @@ def grid_box(n: int = 6, size=(400.0, 200.0, 100.0)) -> Part:
     return Part(part.vertices[first], fixed, name="box")
 
 
+
 def spray_stretches(plan, job, min_waypoints=2, count=None):
-    """The stretches of spray strokes the timing stage times (reachable, no joint jump: ``timing.stage._runs``)
-    of at least ``min_waypoints`` waypoints, in plan order, each as (joints (n, 9), planned tip speeds (n - 1,)),
-    the speeds as the stage caps them (``paths.speed.segment_speeds`` with the stroke's dwell); the first
-    ``count`` of them, or all."""
+    """The stretches of spray strokes the timing stage times (``timing.stage._spray_runs``: reachable, no joint
+    jump) of at least ``min_waypoints`` waypoints, in plan order, each as (joints (n, 9), planned tip speeds
+    (n - 1,)); the first ``count`` of them, or all."""
     import math
 
-    from sprayplan.paths.speed import segment_speeds
-    from sprayplan.timing.stage import _runs
+    from sprayplan.timing.stage import _spray_runs
 
-    motion = job.motion
-    jump = math.radians(job.timing.joint_jump_deg)
-    out = []
-    for st in plan.stations:
-        start = 0
-        for s in st.strokes:
-            idx = np.arange(start, start + len(s))
-            start += len(s)
-            if not s.spray_on:
-                continue
-            cap = segment_speeds(
-                s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio, s.dwell
-            )
-            for run in _runs(st.reachable[idx], st.q9[idx], jump):
-                if len(run) >= min_waypoints:
-                    out.append((st.q9[idx[run]], cap[run[:-1]]))
+    out = [
+        (st.q9[idx[run]], cap[run[:-1]])
+        for st, idx, cap, run in _spray_runs(plan, job.motion, math.radians(job.timing.joint_jump_deg))
+        if len(run) >= min_waypoints
+    ]
     return out if count is None else out[:count]
