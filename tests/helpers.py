@@ -98,7 +98,6 @@ def grid_box(n: int = 6, size=(400.0, 200.0, 100.0)) -> Part:
     return Part(part.vertices[first], fixed, name="box")
 
 
-
 def spray_stretches(plan, job, min_waypoints=2, count=None):
     """The stretches of spray strokes the timing stage times (``timing.stage._spray_runs``: reachable, no joint
     jump) of at least ``min_waypoints`` waypoints, in plan order, each as (joints (n, 9), planned tip speeds

@@ -3,7 +3,6 @@ differences gave (issue 17: the same plans), with the limits still holding betwe
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 import toppra
