@@ -6,8 +6,11 @@ With ``--transfers`` each plan is also run with the transfer routes off (``retra
 ``via_height_mm`` none, ``detour`` false), so that the routes' cost is the difference of the two medians;
 "motions flagged before" counts them after the waypoint repairs, before the motion repairs and the routes.
 
-Each part is planned to the ``refine`` stage once (no film target, so no tuning), then the collision stage is
-timed ``--runs`` times on that plan (median wall and CPU time). Before the stage, the check of every reachable
+Each part is planned to the ``refine`` stage once per way of choosing the stations' heights (no film target,
+so no tuning): at seed 000's mid-cylinder height (``platform_search_mm = 0``) and at the heights the collision
+model chooses (``collision.heights``, the default with the check on; its cost is in the ``stations`` column);
+then the collision stage is timed ``--runs`` times on each plan (median wall and CPU time). ``--heights seed``
+or ``chosen`` runs one of the two. Before the stage, the check of every reachable
 waypoint of the plan (``CellCollision.check``: the gun, the links, the carriage and the column against the
 part, the floor and each other) is timed on its own: waypoints checked per second, and part queries per second
 (nine capsules, the gun and the eight links, against the part at each). Parts: the demo roof (``z > 1000``),
@@ -57,18 +60,23 @@ def main(argv=None) -> int:
     parser.add_argument("--large", action="store_true")
     parser.add_argument("--transfers", action="store_true", help="the transfer table (routes on and off)")
     parser.add_argument("--only", default=None, help="only the parts whose name starts with this")
+    parser.add_argument("--heights", choices=("seed", "chosen", "both"), default="both")
     args = parser.parse_args(argv)
     if args.transfers:
         return transfer_table(args)
     print(
-        "| part | waypoints | check waypoints/s | part queries/s | in collision before | repaired (branch/roll/tilt/platform) "
-        "| flagged | motions | flagged motions | stage wall s (median) | stage CPU s (median) | load |"
+        "| part | heights | stations s | waypoints | unreachable | check waypoints/s | part queries/s | in collision before "
+        "| repaired (branch/roll/tilt/platform) | flagged | motions | flagged motions | stage wall s (median) "
+        "| stage CPU s (median) | load |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
-    for name, source, job in cases(args.large):
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    kinds = ("seed", "chosen") if args.heights == "both" else (args.heights,)
+    for (name, source, job), heights in ((c, h) for c in cases(args.large) for h in kinds):
         if args.only and not name.startswith(args.only):
             continue
-        state = run_job(source, job.replace(collision={"check": False}), until="refine")
+        search = {} if heights == "chosen" else {"platform_search_mm": 0.0}
+        state = run_job(source, job.replace(collision={"check": True, **search}), until="refine")
+        unreachable = sum(int((~st.reachable).sum()) for st in state.plan.stations)
         cell = CellCollision(state.gantry(), state.whole, state.job.collision)
         q9 = [st.q9[st.reachable] for st in state.plan.stations]
         cell.check(q9[0][:1])  # the surface samples and the grid, made once per plan
@@ -84,7 +92,8 @@ def main(argv=None) -> int:
             cpu.append(time.process_time() - began_cpu)
         by = summary["repaired_by"]
         print(
-            f"| {name} | {summary['waypoints_checked']} | {rate:,.0f} | {9 * rate:,.0f} | "
+            f"| {name} | {heights} | {state.timings_s['stations']:.1f} | {summary['waypoints_checked']} | {unreachable} | "
+            f"{rate:,.0f} | {9 * rate:,.0f} | "
             f"{summary['in_collision_before_repair']} | "
             f"{summary['repaired']} ({by['branch']}/{by['roll']}/{by['tilt']}/{by['platform']}) | "
             f"{summary['flagged_waypoints']} | {summary['motions_checked']} | {summary['flagged_motions']} | "

@@ -742,7 +742,8 @@ class CollisionConfig(Section):
     ----------
     check : bool
         Check every waypoint and every motion of the plan against the part, the floor and the cell
-        (``sprayplan plan --collisions``). Off by default for now: the check takes minutes on a car roof
+        (``sprayplan plan --collisions``); the stations' heights are then chosen with the collision model too
+        (``platform_search_mm``). Off by default for now: the check takes a minute or more on a car roof
         (docs/benchmarks.md, "The collision stage"), longer than the rest of the plan.
     repair : bool
         Free waypoints found in collision (another IK branch, a roll about the gun axis, a tilt within the
@@ -768,6 +769,13 @@ class CollisionConfig(Section):
         0 to 90 degrees below the horizontal.
     tilt_deg : float or None
         How far the tilt repair turns the gun axis; default 80 % of ``[kinematics] axis_tol_deg``.
+    platform_search_mm : float
+        Before the kinematics, each station is tried at the seed's height raised by up to this much, in steps
+        of ``platform_search_step_mm``, and goes to the lowest height at which about as many of its waypoints
+        have a collision-free IK branch as at the best (``collision.heights``); 0: the seed's height. Only
+        with ``check`` on and ``[stations] platform_z_mm`` unset.
+    platform_search_step_mm : float
+        The step of that search, at least 1 mm.
     platform_raise_mm : float
         The gantry repair tries the station this much higher, then twice and three times as high.
     retract_mm : list of float
@@ -801,6 +809,8 @@ class CollisionConfig(Section):
     skip_floor_facing: bool = True
     floor_facing_deg: float = 45.0
     tilt_deg: float | None = None
+    platform_search_mm: float = 600.0
+    platform_search_step_mm: float = 50.0
     platform_raise_mm: float = 150.0
     retract_mm: tuple = (50.0, 100.0, 200.0)
     via_height_mm: float | None = 100.0
@@ -828,6 +838,8 @@ class CollisionConfig(Section):
         _at_least(CollisionConfig, "motion_step_mm", self.motion_step_mm, 0, strict=True)
         _within(CollisionConfig, "floor_facing_deg", self.floor_facing_deg, 0, 90)
         _at_least(CollisionConfig, "tilt_deg", self.tilt_deg, 0)
+        _within(CollisionConfig, "platform_search_mm", self.platform_search_mm, 0, MAX_COORDINATE_MM)
+        _at_least(CollisionConfig, "platform_search_step_mm", self.platform_search_step_mm, 1)
         _at_least(CollisionConfig, "platform_raise_mm", self.platform_raise_mm, 0)
         _at_least(CollisionConfig, "cloud_radius_mm", self.cloud_radius_mm, 0, strict=True)
         if self.clearance_mm > 0 and self.motion_step_mm > 2 * self.clearance_mm:

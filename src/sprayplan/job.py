@@ -79,6 +79,9 @@ class JobState:
         The last speed tuning (its samples and deposit matrix), when the speeds were tuned.
     collisions : dict
         The collision stage's summary ({} when it did not run).
+    cell : collision.cell.CellCollision or None
+        The cell's collision model, made by the stations stage when it chooses the stations' heights with it
+        (``collision.heights``) and used again by the collision stage.
     timing : timing.stage.PlanTiming or None
         The plan's time stamps and achievable speeds (None with ``[timing] enabled = false``).
     film : coating.CoatingResult or None
@@ -102,6 +105,7 @@ class JobState:
     tuning: dict = field(default_factory=dict)
     tuned: object = None
     collisions: dict = field(default_factory=dict)
+    cell: object = None
     timing: object = None
     film: object = None
     totals: dict = field(default_factory=dict)
@@ -185,7 +189,18 @@ def _paths(state: JobState, progress: Progress) -> JobState:
 def _stations(state: JobState, progress: Progress) -> JobState:
     from sprayplan.stations.stage import stations_stage
 
-    return dataclasses.replace(state, layout=stations_stage(state.strokes, state.job, state.gantry(), state.name))
+    job, gantry = state.job, state.gantry()
+    layout = stations_stage(state.strokes, job, gantry, state.name)
+    if not (job.collision.check and job.stations.platform_z_mm is None and job.collision.platform_search_mm > 0):
+        return dataclasses.replace(state, layout=layout)
+    # the heights chosen with the collision model (the part as a whole, as the collision stage checks it)
+    from sprayplan.collision.cell import CellCollision
+    from sprayplan.collision.heights import choose_heights
+
+    cell = CellCollision(gantry, state.whole if state.whole is not None else state.part, job.collision)
+    layout, choice = choose_heights(layout, cell, gantry, job.collision)
+    totals = {**state.totals, "station_heights": choice.summary()}
+    return dataclasses.replace(state, layout=layout, cell=cell, totals=totals)
 
 
 def _ordering(state: JobState, progress: Progress) -> JobState:
@@ -214,7 +229,7 @@ def _collision(state: JobState, progress: Progress) -> JobState:
     from sprayplan.collision.repair import collision_stage
 
     whole = state.whole if state.whole is not None else state.part
-    plan, summary = collision_stage(state.plan, whole, state.job, state.gantry(), progress)
+    plan, summary = collision_stage(state.plan, whole, state.job, state.gantry(), progress, cell=state.cell)
     return dataclasses.replace(state, plan=plan, collisions=summary)
 
 

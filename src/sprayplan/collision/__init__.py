@@ -2,5 +2,6 @@
 
 :mod:`~sprayplan.collision.bodies` the bodies as data, :mod:`~sprayplan.collision.settings` the settings,
 :mod:`~sprayplan.collision.cell` the model built once per plan (``CellCollision``),
-:mod:`~sprayplan.collision.motion` the step bound between waypoints.
+:mod:`~sprayplan.collision.motion` the step bound between waypoints, :mod:`~sprayplan.collision.heights` the
+stations' heights chosen with the model.
 """

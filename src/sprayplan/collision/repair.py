@@ -494,12 +494,20 @@ def _reroute(
     return tuple(strokes), work, motion
 
 
-def collision_stage(plan: Plan, whole, job: JobConfig, gantry: Gantry, progress: Progress | None = None):
+def collision_stage(
+    plan: Plan,
+    whole,
+    job: JobConfig,
+    gantry: Gantry,
+    progress: Progress | None = None,
+    cell: CellCollision | None = None,
+):
     """The plan with every waypoint and motion checked against ``whole`` (the part before its region was cut,
     so the arm does not pass through the unpainted rest), the floor and the cell, waypoints in collision
-    repaired first (module docstring). Returns the plan and a summary dict for the totals."""
+    repaired first (module docstring). Returns the plan and a summary dict for the totals. ``cell``: the
+    collision model of ``whole`` and ``gantry`` with ``job.collision``'s settings, when one was made before."""
     config = job.collision
-    cell = CellCollision(gantry, whole, config)
+    cell = CellCollision(gantry, whole, config) if cell is None else cell
     repairer = Repairer(cell, gantry, job.kinematics, config)
     step = counted(progress, "collision", len(plan.stations))
     works, before = [], 0
