@@ -140,6 +140,44 @@ def test_the_floor_counts_every_body_but_the_base():
     np.testing.assert_array_equal(found.collides, expected)
 
 
+def test_the_yes_no_check_gives_the_full_checks_answers():
+    """``ArmCollision.collides`` (the repairs' screen: floor first, then only the bodies bounded below the
+    clearance, a row done at its first hit) answers as ``check(...).collides`` does, part and floor alike."""
+    part = grid_box(n=10, size=(600.0, 600.0, 600.0))
+    part = type(part)(part.vertices + [0.0, 0.0, 400.0], part.faces, name="raised box")
+    _cell_robot, arm = _arm(part, floor=0.0)
+    q = _random_q(arm.params, 2000, 11)
+    track = np.random.default_rng(12).uniform(-400.0, 400.0, len(q))
+    full = arm.check(q, track)
+    np.testing.assert_array_equal(arm.collides(q, track), full.collides)
+    kinds = set(full.other[full.collides])
+    assert {"part", "floor"} <= kinds and (~full.collides).sum() > 50
+
+
+def test_screened_repairs_are_the_repairs_of_the_whole_search(tmp_path, monkeypatch):
+    """Screening the candidates in batches drops only candidates the full check would refuse: the repaired
+    joints, track positions, rolls and counts are the same as without the screen."""
+    import sprayplan.cells.plan as cells_plan
+    from sprayplan.cells import load_cell
+    from sprayplan.cells.collide import check_cell
+    from sprayplan.config import JobConfig
+    from tests.test_cell_plan import CELL as SMALL_CELL
+    from tests.test_cell_plan import SIZE
+
+    cell_file = tmp_path / "small2.toml"
+    cell_file.write_text(SMALL_CELL)
+    plan = cells_plan.plan_cell(grid_box(n=8, size=SIZE), load_cell(cell_file), JobConfig())
+    config = JobConfig().collision
+    screened, report = check_cell(plan, config, cells_plan.repaired_work)
+    monkeypatch.setattr(cells_plan, "_screened", lambda arm, ordered, colliding: ordered)
+    whole, report_whole = check_cell(plan, config, cells_plan.repaired_work)
+    assert report == report_whole
+    assert sum(r["strokes_repaired"] for r in report["robots"].values()) >= 1
+    for a, b in zip(screened, whole):
+        for name in ("q", "track_mm", "roll_deg", "reachable", "collides"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+
+
 def test_motions_are_checked_at_most_one_step_apart():
     """Between consecutive configurations of a motion's grid (waypoints included) no body end moves more than
     the motion step."""

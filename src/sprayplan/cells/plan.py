@@ -776,6 +776,37 @@ def plan_cell(
     return dataclasses.replace(plan, report=report, timings_s=timings)
 
 
+#: The waypoints of a stroke at which every repair candidate is screened before any is checked in full: up to
+#: this many of those in collision before, then up to :data:`SCREEN_SPREAD` spread along the stroke.
+SCREEN_QUICK = 16
+SCREEN_SPREAD = 64
+
+
+def _screened(arm, ordered: list, colliding: np.ndarray) -> list:
+    """The candidates of ``ordered`` (``(joints (n, 6), reached (n,), track (n,), roll)``, in the order tried)
+    whose waypoints are free at a few rows (:data:`SCREEN_QUICK` of the stroke's ``colliding`` waypoints, then
+    :data:`SCREEN_SPREAD` spread along it), by one batched yes/no check (``ArmCollision.collides``) per round:
+    a candidate dropped here would fail the full check, so the first to pass that is the same."""
+    n = len(colliding)
+    hit_rows = np.flatnonzero(colliding)
+    quick = hit_rows[np.linspace(0, len(hit_rows) - 1, min(SCREEN_QUICK, len(hit_rows))).astype(int)]
+    spread = np.unique(np.linspace(0, n - 1, min(SCREEN_SPREAD, n)).astype(int))
+    for rows in (quick, spread):
+        if not ordered or not len(rows):
+            continue
+        picked = [rows[ok[rows]] for _, ok, _, _ in ordered]
+        joints = np.concatenate([qb[p] for (qb, _, _, _), p in zip(ordered, picked)])
+        tracks = np.concatenate([t[p] for (_, _, t, _), p in zip(ordered, picked)])
+        if not len(joints):
+            continue
+        hit = arm.collides(joints, tracks)
+        owner = np.repeat(np.arange(len(ordered)), [len(p) for p in picked])
+        bad = np.zeros(len(ordered), bool)
+        bad[owner[hit]] = True
+        ordered = [c for c, h in zip(ordered, bad) if not h]
+    return ordered
+
+
 def repaired_work(cell_robot, work: RobotWork, arm) -> tuple[RobotWork, dict]:
     """A robot's plan with its strokes in collision solved again, as a programmer would: every (track
     position, roll) try of the stroke (:func:`_tries`) and every IK branch, the branches of a try in the order of
@@ -813,6 +844,7 @@ def repaired_work(cell_robot, work: RobotWork, arm) -> tuple[RobotWork, dict]:
             blocks.append(moved)
         sols = robot.ik(np.concatenate(blocks))
         n = b - a
+        ordered = []  # (joints, reached, track, roll) in the order tried
         for k, (t, r) in enumerate(tries):
             valid = sols.valid[k * n : (k + 1) * n]  # (n, branches)
             joints = sols.q[k * n : (k + 1) * n]
@@ -827,19 +859,17 @@ def repaired_work(cell_robot, work: RobotWork, arm) -> tuple[RobotWork, dict]:
                     prev = qb[j] = nearest_turns(robot, joints[j, branch], prev)
                 first = qb[np.flatnonzero(ok)[0]]
                 candidates.append((float(((first - seed) ** 2).sum()), branch, qb, ok))
-            for _, _, qb, ok in sorted(candidates, key=lambda c: c[0]):
-                lead = [] if before is None else [before]
-                test_q = np.concatenate([q[lead], qb])
-                test_t = np.concatenate([track[lead], t])
-                test_ok = np.concatenate([reach[lead], ok])
-                again = check_robot(arm, test_q, test_t, test_ok)
-                if again.waypoint.collides.any() or again.motion_collides.any():
-                    continue
-                q[a:b], track[a:b], reach[a:b], roll[i] = qb, t, ok, r
-                repaired += 1
-                break
-            else:
+            ordered += [(qb, ok, t, r) for _, _, qb, ok in sorted(candidates, key=lambda c: c[0])]
+        lead = [] if before is None else [before]
+        for qb, ok, t, r in _screened(arm, ordered, found.waypoint.collides[a:b]):
+            test_q = np.concatenate([q[lead], qb])
+            test_t = np.concatenate([track[lead], t])
+            test_ok = np.concatenate([reach[lead], ok])
+            again = check_robot(arm, test_q, test_t, test_ok)
+            if again.waypoint.collides.any() or again.motion_collides.any():
                 continue
+            q[a:b], track[a:b], reach[a:b], roll[i] = qb, t, ok, r
+            repaired += 1
             break
     work = dataclasses.replace(work, q=q, track_mm=track, roll_deg=roll, reachable=reach)
     return work, {"strokes_in_collision": flagged, "strokes_repaired": repaired}
