@@ -168,6 +168,41 @@ def test_a_seeded_search_repeats_and_its_path_is_free():
     assert states_free(first).all() and edges_free(first[:-1], first[1:]).all()
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_shortcut_keeps_the_farthest_free_node_as_checking_every_leg_would(seed):
+    # a winding 2-D path among three walls; legs checked exactly; the reference checks every later leg
+    walls = [(0.2, 0.3, 0.0, 0.7), (0.45, 0.55, 0.3, 1.0), (0.7, 0.8, 0.0, 0.7)]
+
+    def states_free(q):
+        q = np.atleast_2d(q)
+        inside = [(q[:, 0] > x0) & (q[:, 0] < x1) & (q[:, 1] > y0) & (q[:, 1] < y1) for x0, x1, y0, y1 in walls]
+        return ~np.any(inside, axis=0)
+
+    checked = []
+
+    def edges_free(a, b):
+        checked.append(len(a))
+        s = np.linspace(0.0, 1.0, 401)[None, :, None]
+        pts = a[:, None] + s * (b - a)[:, None]
+        return states_free(pts.reshape(-1, 2)).reshape(len(a), -1).all(axis=1)
+
+    args = ([0.1, 0.1], [0.9, 0.1], np.zeros(2), np.ones(2), states_free, edges_free, np.ones(2), 0.03, 3000)
+    path = rrt_connect(*args, np.random.default_rng(seed))
+    assert path is not None and len(path) > 20
+    checked.clear()
+    short = transfers.shortcut(path, edges_free)
+    calls = sum(checked)
+    out, i = [0], 0
+    while i < len(path) - 1:
+        later = np.arange(i + 1, len(path))
+        ok = edges_free(np.repeat(path[i][None], len(later), axis=0), path[later])
+        i = int(later[np.flatnonzero(ok)[-1]])
+        out.append(i)
+    assert np.array_equal(short, path[out])
+    assert edges_free(short[:-1], short[1:]).all() and len(short) < len(path)
+    assert calls < sum(len(path) - 1 - k for k in out[:-1])  # fewer legs checked than the reference
+
+
 def test_the_stage_with_a_detour_repeats(plan, gantry, detoured):
     _, _, a, summary_a = detoured
     _, _, b, summary_b = run(plan, gantry, 300.0, detour_iterations=300)

@@ -53,6 +53,8 @@ DETOUR_MARGIN_RAD = math.pi / 2
 DETOUR_STEP_MM = 150.0
 #: The states of a walk toward the other tree checked at once (the walk stops at the first one blocked).
 WALK_CHUNK = 8
+#: The legs from a node of a detour that :func:`shortcut` checks in one call, from the path's end backwards.
+SHORTCUT_CHUNK = 8
 
 
 @dataclasses.dataclass(frozen=True)
@@ -354,14 +356,20 @@ def rrt_connect(q_a, q_b, lower, upper, states_free, edges_free, weights, step, 
     return None
 
 
-def shortcut(path: np.ndarray, edges_free) -> np.ndarray:
+def shortcut(path: np.ndarray, edges_free, chunk: int = SHORTCUT_CHUNK) -> np.ndarray:
     """``path`` with the nodes a direct leg can skip removed: from each kept node, the farthest node along the
-    path with a free leg to it (all legs from it checked in one call)."""
+    path with a free leg to it. The legs from a node are checked ``chunk`` at a time from the path's end
+    backwards (one call each), stopping at the first chunk with a free leg: the same nodes as checking every leg,
+    without the legs nearer than the farthest free one."""
     out, i = [0], 0
     while i < len(path) - 1:
-        later = np.arange(i + 1, len(path))
-        ok = edges_free(np.repeat(path[i][None], len(later), axis=0), path[later])
-        j = int(later[np.flatnonzero(ok)[-1]]) if ok.any() else i + 1
+        j = i + 1
+        for stop in range(len(path), i + 1, -chunk):
+            later = np.arange(max(i + 1, stop - chunk), stop)
+            ok = edges_free(np.repeat(path[i][None], len(later), axis=0), path[later])
+            if ok.any():
+                j = int(later[np.flatnonzero(ok)[-1]])
+                break
         out.append(j)
         i = j
     return path[out]
