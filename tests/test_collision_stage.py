@@ -318,3 +318,19 @@ def test_the_distance_grid_and_the_tree_bound_the_true_distance_from_below(testd
     assert (bound <= np.minimum(true, 60.0) + 1e-6).all()
     near = true < 40.0
     assert near.any() and (bound[near] >= true[near] - 6.0 - 1e-6).all()  # within the cover where it counts
+
+
+def test_the_summary_line_says_when_collisions_were_not_checked():
+    from types import SimpleNamespace
+
+    from sprayplan.cli.plan import summary_line
+
+    totals = {"stations": 1, "strokes": 2, "waypoints": 3, "unreachable_waypoints": 0, "unassigned_points": 0,
+              "spray_length_mm": 1000.0, "transfer_length_mm": 10.0, "platform_travel_mm": 0.0,
+              "cycle_time_s": 5.0, "planning_time_s": 1.0}  # fmt: skip
+    unchecked = summary_line(SimpleNamespace(totals=totals, film=None), "out").splitlines()
+    assert unchecked[1] == "collisions: not checked (--collisions checks them)"
+    counts = {"flagged_waypoints": 4, "flagged_motions": 5, "repaired": 6, "in_collision_before_repair": 10,
+              "clearance_mm": 30.0}  # fmt: skip
+    checked = summary_line(SimpleNamespace(totals={**totals, "collisions": counts}, film=None), "out").splitlines()
+    assert checked[1].startswith("collisions: 4 waypoints and 5 motions flagged, 6 of 10 repaired")

@@ -109,7 +109,9 @@ def summary_line(result, outdir) -> str:
         f"{totals['planning_time_s']:.1f} s -> {outdir}/plan.json"
     )
     collisions = totals.get("collisions")
-    if collisions and collisions.get("checked") is False:
+    if not collisions:
+        line += "\ncollisions: not checked (--collisions checks them)"
+    elif collisions.get("checked") is False:
         line += f"\ncollisions: not checked ({collisions['reason']})"
     elif collisions:
         line += (
