@@ -203,6 +203,48 @@ def test_shortcut_keeps_the_farthest_free_node_as_checking_every_leg_would(seed)
     assert calls < sum(len(path) - 1 - k for k in out[:-1])  # fewer legs checked than the reference
 
 
+def test_unwound_takes_out_whole_turns_only_within_the_limits(gantry):
+    from sprayplan.collision.repair import unwound
+    from sprayplan.robots.model import TAU
+
+    robot = gantry.robot
+    q_a = np.array([0.1, -1.0, 1.5, -0.5, 1.0, 0.2, 0.0, 0.0, 900.0])
+    after = np.tile(q_a, (3, 1)) + [[0.0, 0.0, -TAU + 0.05, TAU, 0.0, 0.0, 0.0, 0.0, 0.0]]
+    turns = unwound(robot, q_a, after)
+    assert np.array_equal(turns, [0.0, 0.0, TAU, -TAU, 0.0, 0.0, 0.0, 0.0, 0.0])
+    assert np.allclose(after[0] + turns, q_a + [0.0, 0.0, 0.05, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    assert unwound(robot, q_a, after + [0.0, 0.0, 0.0, 0.3, 0.0, 0.0, 0.0, 0.0, 0.0]) is not None
+    assert unwound(robot, q_a, np.tile(q_a, (2, 1))) is None  # nothing to take out
+    beyond = after.copy()
+    beyond[1, 2] = robot.upper[2] - 0.5 * TAU  # this row would leave the limits shifted by a whole turn
+    assert unwound(robot, q_a, beyond) is None
+
+
+def test_a_transfer_that_turns_a_joint_round_is_unwound(plan, gantry):
+    """The stroke after the transfer given its elbow a whole turn on (the same poses): the transfer's move then
+    turns the elbow round through the plate; the stage takes the turn back out and routes the transfer."""
+    from sprayplan.robots.model import TAU
+
+    st = plan.stations[0]
+    after = slice(len(st) - len(st.strokes[-1]), len(st))
+    q9 = st.q9.copy()
+    q9[after, 2] += -TAU if q9[after, 2].max() > 0 else TAU
+    assert gantry.robot.within_limits(q9[:, :6]).all()
+    assert np.allclose(gantry.target2world(q9), gantry.target2world(st.q9), atol=1e-9)  # the same poses
+    whirled = Plan((dataclasses.replace(st, q9=q9),), plan.home_mm, plan.unassigned)
+    whole = plate_with_post(1.0)
+    job = JobConfig()
+    _, summary = collision_stage(plan, whole, job, gantry)
+    assert summary["transfers_in_collision"] == 0  # as planned, the transfer is free
+    result, summary = collision_stage(whirled, whole, job, gantry)
+    assert summary["transfers_in_collision"] == 1 and summary["transfers_unwound"] == 1
+    assert summary["transfers_flagged"] == 0 and summary["flagged_motions"] == 0
+    new = result.stations[0]
+    # the stroke after has its elbow back where the plan had it, and every spray waypoint keeps its pose
+    np.testing.assert_allclose(new.q9[len(new) - len(new.strokes[-1]) :], st.q9[after], atol=1e-12)
+    np.testing.assert_array_equal(new.q9[: len(st.strokes[0])], st.q9[: len(st.strokes[0])])
+
+
 def test_the_stage_with_a_detour_repeats(plan, gantry, detoured):
     _, _, a, summary_a = detoured
     _, _, b, summary_b = run(plan, gantry, 300.0, detour_iterations=300)

@@ -441,10 +441,18 @@ def _reroute(
     A transfer is in collision when a waypoint of it, a motion into one or the motion into the stroke after
     it is. Its route runs from the last reached joints of the stroke before to the first of the stroke after
     (both must be free); the route's legs are proven free, so no motion of it, nor the one into the stroke
-    after, is flagged. Transfers are taken last to first, so that the rows of those before stay put."""
+    after, is flagged. Transfers are taken last to first, so that the rows of those before stay put.
+
+    A transfer whose ends differ by whole turns of a joint (the arm turning a joint round, through the part,
+    between two strokes that need no such turn) is first routed with those turns taken out of the station's
+    rows after it, or else out of all those before it, or else out of the stroke before it, whose own transfer
+    in is taken next (:func:`unwound`: the same poses, within the joint limits); the shift is kept only with a
+    route found (``transfers_unwound`` counts them)."""
     strokes = list(st.strokes)
     slices = _slices(st)
     standoff = job.paths.standoff_mm
+    work = work.copy()
+    shifted = [False]
     for k in range(len(strokes) - 2, 0, -1):
         if strokes[k].spray_on:
             continue
@@ -461,7 +469,30 @@ def _reroute(
         if work.collision[ia] or work.collision[ib]:  # no route can free an end
             counts["end_in_collision"] += 1
         else:
-            found = router.route(work.q9[ia], work.q9[ib], seed=[job.collision.seed, place, k])
+            # the same poses on one side of the transfer, without its whole turns of a joint: the rows after it
+            # shifted, or else all the rows before it, or else the stroke before it (whose own transfer in is
+            # taken next)
+            later = ib + np.flatnonzero(work.reachable[ib:])
+            earlier = np.flatnonzero(work.reachable[: ia + 1])
+            stroke_before = slices[k - 1].start + before
+            robot = repairer.gantry.robot
+            for rows, turns in (
+                (later, unwound(robot, work.q9[ia], work.q9[later])),
+                (earlier, unwound(robot, work.q9[ib], work.q9[earlier[::-1]])),
+                (stroke_before, unwound(robot, work.q9[ib], work.q9[stroke_before[::-1]])),
+            ):
+                if turns is None:
+                    continue
+                q_a, q_b = (work.q9[ia], work.q9[ib] + turns) if rows is later else (work.q9[ia] + turns, work.q9[ib])
+                found = router.route(q_a, q_b, seed=[job.collision.seed, place, k])
+                if found is not None:
+                    work.q9[rows] += turns
+                    work.changed[rows] = True
+                    shifted[0] = True
+                    counts["unwound"] += 1
+                    break
+            if found is None:
+                found = router.route(work.q9[ia], work.q9[ib], seed=[job.collision.seed, place, k])
         if found is None:
             counts["flagged"] += 1
             continue
@@ -491,7 +522,22 @@ def _reroute(
         strokes[k] = route_stroke(repairer.gantry, q9[0], found.nodes, q9[-1], standoff)
     if any(a is not b for a, b in zip(strokes, st.strokes)):
         repairer.errors(work, SimpleNamespace(strokes=strokes))
-    return tuple(strokes), work, motion
+    return tuple(strokes), work, motion, shifted[0]
+
+
+def unwound(robot, q_a: np.ndarray, after: np.ndarray) -> np.ndarray | None:
+    """The whole turns (9,) (multiples of 2 pi on the arm's joints, 0 on the gantry's axes) that bring the first of
+    the joint vectors ``after`` (n, 9) nearest ``q_a`` (9,), when they are not all 0 and every row of ``after``
+    shifted by them stays in ``robot``'s joint limits; else None. A revolute joint turned a whole turn puts its
+    links where they were, so the shifted rows keep their poses and their motions among themselves: only the
+    move from ``q_a`` into them changes (a transfer that turned a joint round, through the part, no longer does)."""
+    k = np.rint((q_a[:6] - after[0, :6]) / TAU)
+    if not k.any():
+        return None
+    turns = np.concatenate([TAU * k, np.zeros(3)])
+    if not robot.within_limits(after[:, :6] + turns[:6]).all():
+        return None
+    return turns
 
 
 def collision_stage(
@@ -551,13 +597,23 @@ def collision_stage(
         "rerouted_by": dict.fromkeys(TRANSFER_REPAIRS, 0),
         "flagged": 0,
         "end_in_collision": 0,
+        "unwound": 0,
     }
     if config.repair:
         router = Router(cell, whole)
+        moved = []
         for place, st in enumerate(plan.stations):
-            strokes[place], works[place], motion_flags[place] = _reroute(
+            strokes[place], works[place], motion_flags[place], shifted = _reroute(
                 router, repairer, st, works[place], motion_flags[place], job, place, transfers
             )
+            # whole turns taken out of a station's first or last rows change its moves from the station before and
+            # to the one after: checked again
+            ends = np.zeros(len(works[place].q9), bool)
+            if shifted and works[place].reachable.any():
+                ends[np.flatnonzero(works[place].reachable)[[0, -1]]] = True
+            moved.append(ends)
+        if any(m.any() for m in moved):
+            motion_flags, _, _ = flag_motions(cell, works, (motion_flags, moved))
     stations = tuple(w.plan(st, m, s) for w, st, m, s in zip(works, plan.stations, motion_flags, strokes))
     by_repair = {name: sum(int(((w.repair == name) & ~w.motion_repaired).sum()) for w in works) for name in REPAIRS}
     flagged = sum(int(w.collision.sum()) for w in works)
@@ -582,6 +638,7 @@ def collision_stage(
         "transfers_rerouted_by": transfers["rerouted_by"],
         "transfers_flagged": transfers["flagged"],
         "transfers_end_in_collision": transfers["end_in_collision"],
+        "transfers_unwound": transfers["unwound"],
     }
     if job.export.strict and (flagged or motion_hits):
         first = next((i, w) for i, w in enumerate(works) if w.collision.any()) if flagged else None
