@@ -66,10 +66,11 @@ def main(argv=None) -> int:
         return transfer_table(args)
     print(
         "| part | heights | stations s | waypoints | unreachable | check waypoints/s | part queries/s | in collision before "
-        "| repaired (branch/roll/tilt/platform) | flagged | motions | flagged motions | stage wall s (median) "
+        "| repaired (branch/roll/tilt/platform) | flagged | motions | flagged motions "
+        "| transfers in collision / re-routed (of them unwound) / flagged | stage wall s (median) "
         "| stage CPU s (median) | load |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     kinds = ("seed", "chosen") if args.heights == "both" else (args.heights,)
     for (name, source, job), heights in ((c, h) for c in cases(args.large) for h in kinds):
         if args.only and not name.startswith(args.only):
@@ -97,6 +98,8 @@ def main(argv=None) -> int:
             f"{summary['in_collision_before_repair']} | "
             f"{summary['repaired']} ({by['branch']}/{by['roll']}/{by['tilt']}/{by['platform']}) | "
             f"{summary['flagged_waypoints']} | {summary['motions_checked']} | {summary['flagged_motions']} | "
+            f"{summary['transfers_in_collision']} / {summary['transfers_rerouted']} "
+            f"({summary.get('transfers_unwound', 0)}) / {summary['transfers_flagged']} | "
             f"{statistics.median(times):.1f} | {statistics.median(cpu):.1f} | {os.getloadavg()[0]:.1f} |",
             flush=True,
         )
