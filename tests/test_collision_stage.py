@@ -246,6 +246,9 @@ def test_strict_refuses_a_plan_left_in_collision(testdata, tmp_path, capsys):
         ("[collision]\nfloor_facing_deg = 120\n", "collision.floor_facing_deg"),
         ("[collision]\ntilt_deg = nan\n", "collision.tilt_deg"),
         ("[collision]\nrepair = 1\n", "collision.repair"),
+        ("[collision]\nplatform_search_mm = -50\n", "collision.platform_search_mm"),
+        ("[collision]\nplatform_search_mm = nan\n", "collision.platform_search_mm"),
+        ("[collision]\nplatform_search_step_mm = 0\n", "collision.platform_search_step_mm"),
     ],
 )
 def test_bad_collision_settings_exit_2_naming_the_key(testdata, tmp_path, capsys, text, key):

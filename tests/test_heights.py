@@ -7,7 +7,6 @@ import pytest
 
 pytest.importorskip("coal")
 
-from sprayplan.cli.main import main
 from sprayplan.collision.heights import SAMPLES, SLACK, pick, raises
 from sprayplan.config import CollisionConfig, JobConfig
 from sprayplan.job import run_job
@@ -95,23 +94,3 @@ def test_a_set_gantry_height_is_kept(testdata):
     state = run_job(path, job, until="stations")
     assert np.all(state.layout.platform_mm[:, 2] == 1400.0)
     assert "station_heights" not in state.totals and state.cell is None
-
-
-@pytest.mark.parametrize(
-    "text, key",
-    [
-        ("[collision]\nplatform_search_mm = -50\n", "collision.platform_search_mm"),
-        ("[collision]\nplatform_search_mm = nan\n", "collision.platform_search_mm"),
-        ("[collision]\nplatform_search_step_mm = 0\n", "collision.platform_search_step_mm"),
-    ],
-)
-def test_bad_search_settings_exit_2_naming_the_key(testdata, tmp_path, capsys, text, key):
-    config = tmp_path / "c.toml"
-    config.write_text(text)
-    out = tmp_path / "o"
-    code = main(
-        ["plan", str(testdata / "meshes" / "tray_bottom_mm_ascii.stl"), "-o", str(out), "--config", str(config)]
-    )
-    err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and len(err) == 1 and key in err[0]
-    assert not out.exists()
