@@ -110,7 +110,7 @@ def summary_line(result, outdir) -> str:
     )
     collisions = totals.get("collisions")
     if not collisions:
-        line += "\ncollisions: not checked (--collisions checks them)"
+        line += "; collisions not checked (--collisions checks them)"
     elif collisions.get("checked") is False:
         line += f"\ncollisions: not checked ({collisions['reason']})"
     elif collisions:
