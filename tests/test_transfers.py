@@ -209,26 +209,27 @@ def test_unwound_takes_out_whole_turns_only_within_the_limits(gantry):
 
     robot = gantry.robot
     q_a = np.array([0.1, -1.0, 1.5, -0.5, 1.0, 0.2, 0.0, 0.0, 900.0])
-    after = np.tile(q_a, (3, 1)) + [[0.0, 0.0, -TAU + 0.05, TAU, 0.0, 0.0, 0.0, 0.0, 0.0]]
+    after = np.tile(q_a, (3, 1)) + [[0.0, 0.0, 0.0, TAU, 0.0, -TAU + 0.05, 0.0, 0.0, 0.0]]
     turns = unwound(robot, q_a, after)
-    assert np.array_equal(turns, [0.0, 0.0, TAU, -TAU, 0.0, 0.0, 0.0, 0.0, 0.0])
-    assert np.allclose(after[0] + turns, q_a + [0.0, 0.0, 0.05, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    assert np.array_equal(turns, [0.0, 0.0, 0.0, -TAU, 0.0, TAU, 0.0, 0.0, 0.0])
+    assert np.allclose(after[0] + turns, q_a + [0.0, 0.0, 0.0, 0.0, 0.0, 0.05, 0.0, 0.0, 0.0])
     assert unwound(robot, q_a, after + [0.0, 0.0, 0.0, 0.3, 0.0, 0.0, 0.0, 0.0, 0.0]) is not None
     assert unwound(robot, q_a, np.tile(q_a, (2, 1))) is None  # nothing to take out
     beyond = after.copy()
-    beyond[1, 2] = robot.upper[2] - 0.5 * TAU  # this row would leave the limits shifted by a whole turn
+    beyond[1, 5] = robot.upper[5] - 0.5 * TAU  # this row would leave the limits shifted by a whole turn
     assert unwound(robot, q_a, beyond) is None
 
 
 def test_a_transfer_that_turns_a_joint_round_is_unwound(plan, gantry):
-    """The stroke after the transfer given its elbow a whole turn on (the same poses): the transfer's move then
-    turns the elbow round through the plate; the stage takes the turn back out and routes the transfer."""
+    """The stroke after the transfer given its shoulder a whole turn on (the same poses): the transfer's move then
+    swings the arm round through the plate; the stage takes the turn back out and routes the
+    transfer. (The elbow cannot take a whole turn: its limits are +-pi.)"""
     from sprayplan.robots.model import TAU
 
     st = plan.stations[0]
     after = slice(len(st) - len(st.strokes[-1]), len(st))
     q9 = st.q9.copy()
-    q9[after, 2] += -TAU if q9[after, 2].max() > 0 else TAU
+    q9[after, 1] += -TAU if q9[after, 1].max() > 0 else TAU
     assert gantry.robot.within_limits(q9[:, :6]).all()
     assert np.allclose(gantry.target2world(q9), gantry.target2world(st.q9), atol=1e-9)  # the same poses
     whirled = Plan((dataclasses.replace(st, q9=q9),), plan.home_mm, plan.unassigned)
@@ -240,7 +241,7 @@ def test_a_transfer_that_turns_a_joint_round_is_unwound(plan, gantry):
     assert summary["transfers_in_collision"] == 1 and summary["transfers_unwound"] == 1
     assert summary["transfers_flagged"] == 0 and summary["flagged_motions"] == 0
     new = result.stations[0]
-    # the stroke after has its elbow back where the plan had it, and every spray waypoint keeps its pose
+    # the stroke after has its shoulder back where the plan had it, and every spray waypoint keeps its pose
     np.testing.assert_allclose(new.q9[len(new) - len(new.strokes[-1]) :], st.q9[after], atol=1e-12)
     np.testing.assert_array_equal(new.q9[: len(st.strokes[0])], st.q9[: len(st.strokes[0])])
 

@@ -480,14 +480,15 @@ def remembered_newton(
 ASIDE_STEPS = np.array([[150.0, 0, 0], [-150.0, 0, 0], [0, 150.0, 0], [0, -150.0, 0], [0, 0, 150.0], [0, 0, -150.0]])
 
 
-def _shifted_start(gantry: Gantry, gun2world: np.ndarray, platform: np.ndarray, previous: np.ndarray):
-    """(9,) q9 that reaches the pose exactly from a gantry position stepped aside, nearest the previous joints."""
+def _shifted_starts(gantry: Gantry, gun2world: np.ndarray, platform: np.ndarray, previous: np.ndarray) -> list:
+    """(9,) q9 starts that reach the pose exactly from a gantry position stepped aside (one per position, its
+    branch nearest the previous joints), nearest the previous joints first."""
     from sprayplan.robots.ur_ik import nearest_equivalent, ur_ik
 
     trial = platform + ASIDE_STEPS
     flange = gantry.flange_targets(np.broadcast_to(gun2world, (len(trial), 4, 4)), trial)
     solutions = ur_ik(gantry.robot, flange)
-    best, best_cost = None, np.inf
+    found = []
     for k in range(len(trial)):
         q = nearest_equivalent(
             solutions.q[k], np.broadcast_to(previous, (8, 6)), gantry.robot.lower, gantry.robot.upper
@@ -497,9 +498,12 @@ def _shifted_start(gantry: Gantry, gun2world: np.ndarray, platform: np.ndarray, 
             continue
         cost = np.where(ok, np.linalg.norm(q - previous, axis=1), np.inf)
         j = int(np.argmin(cost))
-        if cost[j] < best_cost:
-            best, best_cost = np.concatenate([q[j], trial[k]]), cost[j]
-    return best
+        found.append((float(cost[j]), k, np.concatenate([q[j], trial[k]])))
+    return [start for _, _, start in sorted(found, key=lambda f: (f[0], f[1]))]
+
+
+#: SLSQP is started from at most this many of the stepped-aside starts, the next only when one fails.
+SHIFTED_TRIES = 3
 
 
 @dataclass(frozen=True)
@@ -645,23 +649,23 @@ def solve_gantry_path(
             if newton_first:
                 result = remembered_newton(gantry, wanted_target[i], reference, gantry_key=gantry_key, **options)
             if result is None:
-                start = reference
                 if valid.any():  # an analytic solution exists (near the core): start SQP from it
                     best = int(np.argmin(np.where(valid, np.linalg.norm(candidates - previous, axis=1), np.inf)))
-                    start = np.concatenate([candidates[best], platform[i]])
-                else:  # none here: start from an exact solution with the gantry stepped aside, SQP brings it back
-                    shifted = _shifted_start(gantry, gun2world[i], platform[i], previous)
-                    if shifted is not None:
-                        start = shifted
-                result = remembered_sqp(
-                    gantry,
-                    wanted_target[i],
-                    start,
-                    gantry_key=gantry_key,
-                    reference_q9=reference,
-                    newton_first=False,
-                    **options,
-                )
+                    starts = [np.concatenate([candidates[best], platform[i]])]
+                else:  # none here: start from exact solutions with the gantry stepped aside, SQP brings it back
+                    starts = _shifted_starts(gantry, gun2world[i], platform[i], previous)[:SHIFTED_TRIES]
+                for start in starts or [reference]:  # the next start only where the one before failed
+                    result = remembered_sqp(
+                        gantry,
+                        wanted_target[i],
+                        start,
+                        gantry_key=gantry_key,
+                        reference_q9=reference,
+                        newton_first=False,
+                        **options,
+                    )
+                    if result.success and np.linalg.norm(result.q9[6:] - platform[i]) <= max_gantry_move_mm:
+                        break
             if not result.success:
                 log.info("waypoint %d: SQP failed (%s)", i, result.message)
                 continue

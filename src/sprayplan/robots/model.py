@@ -5,7 +5,7 @@ Trans(z, d) Trans(x, a) Rot(x, alpha)`` per joint), joint offsets and limits. Pr
 
 ``ur5``
     Universal Robots' published table (d1 89.159, a2 -425, a3 -392.25, d4 109.15, d5 94.65, d6 82.3 mm;
-    alpha = [pi/2, 0, 0, pi/2, -pi/2, 0]); joints -2 pi .. 2 pi.
+    alpha = [pi/2, 0, 0, pi/2, -pi/2, 0]); joints -2 pi .. 2 pi but the elbow, -pi .. pi (below).
 ``ur5-seed``
     Seed 000's table 1: the same robot with rounded values and a2 = 425, a3 = 392.3 (the opposite sign
     convention). Its joint vector q' reaches the pose of the ``ur5`` joint vector q when
@@ -31,6 +31,13 @@ R5150
     Seed 001 gives no speeds and the maker's (Lab-Volt) data sheet was not available: 90 deg/s and
     180 deg/s^2 on every joint are an assumption (a small, geared, stepper-driven teaching arm), marked as such;
     give a real arm's figures in a robot TOML.
+
+Joint position limits of the UR arms: Universal Robots' specifications give +-360 degrees on every joint, but
+near +-180 degrees the elbow folds the forearm onto the upper arm and the arm is in self-collision whatever the
+other joints do, so the elbow's free range is -pi .. pi and an elbow past it can only be reached through that
+fold (the ROS-Industrial UR descriptions limit it the same way for that reason). The collision model has no
+upper-arm-against-forearm pair, so the presets limit the elbow (``ELBOW_LIMIT``) instead: every plan's elbow
+stays on the side of the fold it starts on.
 
 A user model is a TOML file (see :func:`load_robot`).
 """
@@ -283,23 +290,34 @@ UR_RATES = dict(max_velocity=[math.pi] * 6, max_acceleration=[1.4] * 6)
 #: R5150: assumed (seed 001 gives no speeds; see the module docstring).
 R5150_RATES = dict(max_velocity=_deg([90.0] * 5), max_acceleration=_deg([180.0] * 5))
 
+#: The UR arms' elbow limits (joint 3), rad: the fold at +-pi is a self-collision (module docstring).
+ELBOW_LIMIT = math.pi
+#: UR5 / UR5e joint position limits: +-2 pi but the elbow's +-pi.
+UR_LIMITS = dict(
+    lower=[-2 * math.pi, -2 * math.pi, -ELBOW_LIMIT, -2 * math.pi, -2 * math.pi, -2 * math.pi],
+    upper=[2 * math.pi, 2 * math.pi, ELBOW_LIMIT, 2 * math.pi, 2 * math.pi, 2 * math.pi],
+)
+
 PRESETS = {
     "ur5": dict(
         d=[89.159, 0, 0, 109.15, 94.65, 82.3],
         a=[0, -425.0, -392.25, 0, 0, 0],
         alpha=[math.pi / 2, 0, 0, math.pi / 2, -math.pi / 2, 0],
+        **UR_LIMITS,
         **UR_RATES,
     ),
     "ur5-seed": dict(
         d=[89.2, 0, 0, 109.2, 94.7, 82.3],
         a=[0, 425.0, 392.3, 0, 0, 0],
         alpha=[math.pi / 2, 0, 0, math.pi / 2, -math.pi / 2, 0],
+        **UR_LIMITS,
         **UR_RATES,
     ),
     "ur5e": dict(
         d=[162.5, 0, 0, 133.3, 99.7, 99.6],
         a=[0, -425.0, -392.2, 0, 0, 0],
         alpha=[math.pi / 2, 0, 0, math.pi / 2, -math.pi / 2, 0],
+        **UR_LIMITS,
         **UR_RATES,
     ),
     "r5150": dict(
