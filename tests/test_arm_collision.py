@@ -169,7 +169,9 @@ def test_screened_repairs_are_the_repairs_of_the_whole_search(tmp_path, monkeypa
     plan = cells_plan.plan_cell(grid_box(n=8, size=SIZE), load_cell(cell_file), JobConfig())
     config = JobConfig().collision
     screened, report = check_cell(plan, config, cells_plan.repaired_work)
-    monkeypatch.setattr(cells_plan, "_screened", lambda arm, ordered, colliding: ordered)
+    import sprayplan.cells.repair as cells_repair
+
+    monkeypatch.setattr(cells_repair, "_screened", lambda arm, ordered, colliding: ordered)
     whole, report_whole = check_cell(plan, config, cells_plan.repaired_work)
     assert report == report_whole
     assert sum(r["strokes_repaired"] for r in report["robots"].values()) >= 1

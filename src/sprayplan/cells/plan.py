@@ -62,7 +62,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sprayplan.cells.reach import reach_matrix
+from sprayplan.cells.repair import repaired_work
 from sprayplan.cells.spec import Cell, place_part
+from sprayplan.cells.tries import rot_z, start_joints, stroke_tries
 from sprayplan.config import JobConfig
 from sprayplan.errors import ConfigError, InputError
 from sprayplan.progress import Progress, no_progress, per_stage
@@ -71,18 +73,6 @@ from sprayplan.surface.poses import stroke_poses
 from sprayplan.types import Part, Paths, Stroke
 
 log = logging.getLogger(__name__)
-
-#: Track positions tried about the one nearest a stroke's middle, mm.
-TRACK_TRIES_MM = (0.0, -300.0, 300.0, -600.0, 600.0)
-#: Rolls of the gun about its own axis tried, degrees.
-ROLL_TRIES_DEG = (0.0, 90.0, 180.0, 270.0)
-#: The joints a six-axis robot starts from (rad): the wrist bent (ABB's zero is a straight, singular wrist).
-START_JOINTS = np.radians([0.0, 0.0, 0.0, 0.0, 30.0, 0.0])
-
-
-def start_joints(dof: int) -> np.ndarray:
-    """:data:`START_JOINTS` for an arm of ``dof`` axes (the first ``dof``, zeros beyond six)."""
-    return np.r_[START_JOINTS, np.zeros(max(0, dof - 6))][:dof]
 
 
 def whole_area(part: Part) -> tuple[Areas, AreaAssignment]:
@@ -211,28 +201,6 @@ def _transfer(a: Stroke, b: Stroke) -> Stroke:
     )
 
 
-def _rot_z(angle_deg: float) -> np.ndarray:
-    c, s = math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg))
-    out = np.eye(4)
-    out[:2, :2] = [[c, -s], [s, c]]
-    return out
-
-
-def _tries(cell_robot, stroke: Stroke) -> list[tuple[np.ndarray, float]]:
-    """The (track positions at the waypoints (n,) mm, roll deg) tries of a stroke, in the order they are
-    preferred; offsets that the track's ends make the same as an earlier one are left out."""
-    if cell_robot.track is None:
-        return [(np.zeros(len(stroke)), r) for r in ROLL_TRIES_DEG]
-    lo, hi = cell_robot.track.range_mm
-    along = (stroke.tcp - cell_robot.base2cell[:3, 3]) @ cell_robot.track.axis
-    tracks: list[np.ndarray] = []
-    for d in TRACK_TRIES_MM:
-        s = np.clip(along + d, lo, hi)
-        if not any(np.array_equal(s, t) for t in tracks):
-            tracks.append(s)
-    return [(t, r) for t in tracks for r in ROLL_TRIES_DEG]
-
-
 def _slice(sols, start: int, n: int):
     """Poses ``start .. start + n`` of an IKSolutions."""
     return dataclasses.replace(
@@ -256,7 +224,7 @@ def solve_strokes(cell_robot, strokes) -> list[tuple[np.ndarray, float, np.ndarr
 
     arm = cell_robot.robot(0.0)
     axis = np.zeros(3) if cell_robot.track is None else cell_robot.track.axis
-    tries = [_tries(cell_robot, s) for s in strokes]
+    tries = [stroke_tries(cell_robot, s) for s in strokes]
     poses = [stroke_poses(s) for s in strokes]
     best: list = [None] * len(strokes)  # (count, try index, IKSolutions of the stroke)
     pending = list(range(len(strokes)))
@@ -267,7 +235,7 @@ def solve_strokes(cell_robot, strokes) -> list[tuple[np.ndarray, float, np.ndarr
         blocks = []
         for i in pending:
             track, roll = tries[i][k]
-            moved = poses[i] @ _rot_z(roll)
+            moved = poses[i] @ rot_z(roll)
             moved[:, :3, 3] -= track[:, None] * axis
             blocks.append(moved)
         sols = arm.ik(np.concatenate(blocks))
@@ -774,102 +742,3 @@ def plan_cell(
         plan = dataclasses.replace(plan, robots=robots)
     begin(None)
     return dataclasses.replace(plan, report=report, timings_s=timings)
-
-
-#: The waypoints of a stroke at which every repair candidate is screened before any is checked in full: up to
-#: this many of those in collision before, then up to :data:`SCREEN_SPREAD` spread along the stroke.
-SCREEN_QUICK = 16
-SCREEN_SPREAD = 64
-
-
-def _screened(arm, ordered: list, colliding: np.ndarray) -> list:
-    """The candidates of ``ordered`` (``(joints (n, 6), reached (n,), track (n,), roll)``, in the order tried)
-    whose waypoints are free at a few rows (:data:`SCREEN_QUICK` of the stroke's ``colliding`` waypoints, then
-    :data:`SCREEN_SPREAD` spread along it), by one batched yes/no check (``ArmCollision.collides``) per round:
-    a candidate dropped here would fail the full check, so the first to pass that is the same."""
-    n = len(colliding)
-    hit_rows = np.flatnonzero(colliding)
-    quick = hit_rows[np.linspace(0, len(hit_rows) - 1, min(SCREEN_QUICK, len(hit_rows))).astype(int)]
-    spread = np.unique(np.linspace(0, n - 1, min(SCREEN_SPREAD, n)).astype(int))
-    for rows in (quick, spread):
-        if not ordered or not len(rows):
-            continue
-        picked = [rows[ok[rows]] for _, ok, _, _ in ordered]
-        joints = np.concatenate([qb[p] for (qb, _, _, _), p in zip(ordered, picked)])
-        tracks = np.concatenate([t[p] for (_, _, t, _), p in zip(ordered, picked)])
-        if not len(joints):
-            continue
-        hit = arm.collides(joints, tracks)
-        owner = np.repeat(np.arange(len(ordered)), [len(p) for p in picked])
-        bad = np.zeros(len(ordered), bool)
-        bad[owner[hit]] = True
-        ordered = [c for c, h in zip(ordered, bad) if not h]
-    return ordered
-
-
-def repaired_work(cell_robot, work: RobotWork, arm) -> tuple[RobotWork, dict]:
-    """A robot's plan with its strokes in collision solved again, as a programmer would: every (track
-    position, roll) try of the stroke (:func:`_tries`) and every IK branch, the branches of a try in the order of
-    their first joints' distance from the joints before the stroke, keeping the first that reaches at least the
-    waypoints reached before with no waypoint and no motion in collision (the motion from the joints before
-    the stroke included). What no try frees stays as it was, and is flagged by the check after.
-
-    ``arm`` is the robot's :class:`~sprayplan.collision.arms.ArmCollision`. Returns the work and
-    ``{"strokes_in_collision", "strokes_repaired"}``.
-    """
-    from sprayplan.collision.arms import check_robot
-    from sprayplan.robots.interface import nearest_turns
-
-    robot = cell_robot.robot(0.0)
-    axis = np.zeros(3) if cell_robot.track is None else cell_robot.track.axis
-    found = check_robot(arm, work.q, work.track_mm, work.reachable)
-    starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
-    q, track, roll, reach = work.q.copy(), work.track_mm.copy(), work.roll_deg.copy(), work.reachable.copy()
-    flagged = repaired = 0
-    for i, stroke in enumerate(work.strokes):
-        a, b = starts[i], starts[i + 1]
-        motions = found.motion_collides[max(a - 1, 0) : b - 1]
-        if not (found.waypoint.collides[a:b].any() or motions.any()):
-            continue
-        flagged += 1
-        before = a - 1 if a > 0 and reach[a - 1] else None
-        seed = q[before] if before is not None else start_joints(robot.dof)
-        need = reach[a:b].copy()
-        tries = _tries(cell_robot, stroke)
-        poses = stroke_poses(stroke)
-        blocks = []
-        for t, r in tries:
-            moved = poses @ _rot_z(r)
-            moved[:, :3, 3] -= t[:, None] * axis
-            blocks.append(moved)
-        sols = robot.ik(np.concatenate(blocks))
-        n = b - a
-        ordered = []  # (joints, reached, track, roll) in the order tried
-        for k, (t, r) in enumerate(tries):
-            valid = sols.valid[k * n : (k + 1) * n]  # (n, branches)
-            joints = sols.q[k * n : (k + 1) * n]
-            candidates = []
-            for branch in range(valid.shape[1]):
-                ok = valid[:, branch]
-                if ok.sum() < need.sum() or not ok[need].all() or not ok.any():
-                    continue
-                qb = np.zeros((n, robot.dof))
-                prev = seed
-                for j in np.flatnonzero(ok):
-                    prev = qb[j] = nearest_turns(robot, joints[j, branch], prev)
-                first = qb[np.flatnonzero(ok)[0]]
-                candidates.append((float(((first - seed) ** 2).sum()), branch, qb, ok))
-            ordered += [(qb, ok, t, r) for _, _, qb, ok in sorted(candidates, key=lambda c: c[0])]
-        lead = [] if before is None else [before]
-        for qb, ok, t, r in _screened(arm, ordered, found.waypoint.collides[a:b]):
-            test_q = np.concatenate([q[lead], qb])
-            test_t = np.concatenate([track[lead], t])
-            test_ok = np.concatenate([reach[lead], ok])
-            again = check_robot(arm, test_q, test_t, test_ok)
-            if again.waypoint.collides.any() or again.motion_collides.any():
-                continue
-            q[a:b], track[a:b], reach[a:b], roll[i] = qb, t, ok, r
-            repaired += 1
-            break
-    work = dataclasses.replace(work, q=q, track_mm=track, roll_deg=roll, reachable=reach)
-    return work, {"strokes_in_collision": flagged, "strokes_repaired": repaired}

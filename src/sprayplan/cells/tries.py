@@ -1,0 +1,45 @@
+"""The tries a cell robot makes for a stroke (``cells.plan``'s step 5 and ``cells.repair``): track positions about
+the stroke's middle and rolls of the gun about its own axis, and the joints an arm starts from."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sprayplan.types import Stroke
+
+#: Track positions tried about the one nearest a stroke's middle, mm.
+TRACK_TRIES_MM = (0.0, -300.0, 300.0, -600.0, 600.0)
+#: Rolls of the gun about its own axis tried, degrees.
+ROLL_TRIES_DEG = (0.0, 90.0, 180.0, 270.0)
+#: The joints a six-axis robot starts from (rad): the wrist bent (ABB's zero is a straight, singular wrist).
+START_JOINTS = np.radians([0.0, 0.0, 0.0, 0.0, 30.0, 0.0])
+
+
+def start_joints(dof: int) -> np.ndarray:
+    """:data:`START_JOINTS` for an arm of ``dof`` axes (the first ``dof``, zeros beyond six)."""
+    return np.r_[START_JOINTS, np.zeros(max(0, dof - 6))][:dof]
+
+
+def rot_z(angle_deg: float) -> np.ndarray:
+    """(4, 4): a turn of ``angle_deg`` about z (the gun's roll about its own axis)."""
+    c, s = math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg))
+    out = np.eye(4)
+    out[:2, :2] = [[c, -s], [s, c]]
+    return out
+
+
+def stroke_tries(cell_robot, stroke: Stroke) -> list[tuple[np.ndarray, float]]:
+    """The (track positions at the waypoints (n,) mm, roll deg) tries of a stroke, in the order they are
+    preferred; offsets that the track's ends make the same as an earlier one are left out."""
+    if cell_robot.track is None:
+        return [(np.zeros(len(stroke)), r) for r in ROLL_TRIES_DEG]
+    lo, hi = cell_robot.track.range_mm
+    along = (stroke.tcp - cell_robot.base2cell[:3, 3]) @ cell_robot.track.axis
+    tracks: list[np.ndarray] = []
+    for d in TRACK_TRIES_MM:
+        s = np.clip(along + d, lo, hi)
+        if not any(np.array_equal(s, t) for t in tracks):
+            tracks.append(s)
+    return [(t, r) for t in tracks for r in ROLL_TRIES_DEG]
