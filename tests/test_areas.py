@@ -109,7 +109,7 @@ def test_a_point_cloud_or_a_bad_share_is_refused():
 
 
 def test_presets_load_and_name_their_robots():
-    assert {"gantry-ur5", "line3", "sides2"} <= set(list_cells())
+    assert {"gantry-ur5", "line3", "line3-tall", "sides2"} <= set(list_cells())
     line3 = load_cell("line3")
     assert [r.name for r in line3.robots] == ["roof", "left", "right"]
     assert all(r.track is not None and r.reach_mm > 2000 for r in line3.robots)
@@ -206,6 +206,24 @@ def test_line3_splits_the_bmw_like_the_seed(bmw):
     assert got.robot_area_mm2.sum() + got.unreached_mm2 == pytest.approx(part.area)
     assert got.unreached_mm2 < 0.02 * part.area
     assert np.all(reach[got.face_robot[got.face_robot >= 0], np.flatnonzero(got.face_robot >= 0)] > 0)
+
+
+def test_line3_tall_splits_the_suv_like_the_seed(testdata):
+    """The SUV (about 1.8 m tall; in line3 its roof goes to the side robots, docs/benchmarks.md): with the roof
+    robot hung higher (line3-tall) the roof goes to the roof robot and each side to its own, as in seed 003."""
+    suv = load_part(testdata / "meshes" / "gazebo_suv_body_m.ply", units="m")
+    cell = load_cell("line3-tall")
+    part, _ = drop_floor_facing(place_part(suv, cell).part, 45.0)
+    assert 1700.0 < np.ptp(part.vertices[:, 2]) < 2000.0
+    areas = segment_areas(part)
+    reach = reach_matrix(cell, part, areas.face_normals, standoff_mm=113.0)
+    got = assign_areas(areas, part.face_areas, reach)
+    names = [r.name for r in cell.robots]
+    first = {d: areas.direction.index(d) for d in ("top", "side +y", "side -y")}
+    assert names[got.area_robot[first["top"]]] == "roof"
+    assert names[got.area_robot[first["side +y"]]] == "left"
+    assert names[got.area_robot[first["side -y"]]] == "right"
+    assert got.unreached_mm2 < 0.02 * part.area
 
 
 def test_reach_scores_are_inverse_kinematics_answers(bmw):
