@@ -249,6 +249,7 @@ def test_strict_refuses_a_plan_left_in_collision(testdata, tmp_path, capsys):
         ("[collision]\nplatform_search_mm = -50\n", "collision.platform_search_mm"),
         ("[collision]\nplatform_search_mm = nan\n", "collision.platform_search_mm"),
         ("[collision]\nplatform_search_step_mm = 0\n", "collision.platform_search_step_mm"),
+        ("[collision]\nplatform_search_mm = 100000\nplatform_search_step_mm = 1\n", "collision.platform_search_step_mm"),
     ],
 )
 def test_bad_collision_settings_exit_2_naming_the_key(testdata, tmp_path, capsys, text, key):

@@ -246,6 +246,32 @@ def test_a_transfer_that_turns_a_joint_round_is_unwound(plan, gantry):
     np.testing.assert_array_equal(new.q9[: len(st.strokes[0])], st.q9[: len(st.strokes[0])])
 
 
+def test_the_motion_flags_after_unwinding_are_the_plans_own(plan, gantry):
+    """After whole turns are taken out (rows shifted, transfers routed), every motion flag the stage writes is
+    what checking the written plan from scratch gives: no shift leaves a stale flag on a move it changed."""
+    from sprayplan.collision.repair import _Station, flag_motions
+    from sprayplan.robots.model import TAU
+
+    st = plan.stations[0]
+    after = slice(len(st) - len(st.strokes[-1]), len(st))
+    q9 = st.q9.copy()
+    q9[after, 1] += -TAU if q9[after, 1].max() > 0 else TAU
+    whirled = Plan((dataclasses.replace(st, q9=q9),), plan.home_mm, plan.unassigned)
+    whole = plate_with_post(1.0)
+    job = JobConfig()
+    result, summary = collision_stage(whirled, whole, job, gantry)
+    assert summary["transfers_unwound"] == 1
+    cell = CellCollision(gantry, whole, job.collision)
+    works = []
+    for new in result.stations:
+        work = _Station.of(new)
+        work.check(cell)
+        works.append(work)
+    flags, _, _ = flag_motions(cell, works)
+    for new, fresh in zip(result.stations, flags):
+        np.testing.assert_array_equal(new.motion_collision, fresh)
+
+
 def test_the_stage_with_a_detour_repeats(plan, gantry, detoured):
     _, _, a, summary_a = detoured
     _, _, b, summary_b = run(plan, gantry, 300.0, detour_iterations=300)

@@ -734,6 +734,10 @@ class RefineConfig(Section):
         _within(RefineConfig, "touch_up_stations", self.touch_up_stations, 0, 20)
 
 
+#: The height search (``[collision] platform_search_mm``) tries at most this many raises above the seed's height.
+MAX_HEIGHT_STEPS = 100
+
+
 @dataclass(frozen=True)
 class CollisionConfig(Section):
     """Collision checks and repairs of the plan (``[collision]``, ``sprayplan.collision``).
@@ -775,7 +779,7 @@ class CollisionConfig(Section):
         have a collision-free IK branch as at the best (``collision.heights``); 0: the seed's height. Only
         with ``check`` on and ``[stations] platform_z_mm`` unset.
     platform_search_step_mm : float
-        The step of that search, at least 1 mm.
+        The step of that search, at least 1 mm and at least a hundredth of ``platform_search_mm``.
     platform_raise_mm : float
         The gantry repair tries the station this much higher, then twice and three times as high.
     retract_mm : list of float
@@ -840,6 +844,13 @@ class CollisionConfig(Section):
         _at_least(CollisionConfig, "tilt_deg", self.tilt_deg, 0)
         _within(CollisionConfig, "platform_search_mm", self.platform_search_mm, 0, MAX_COORDINATE_MM)
         _at_least(CollisionConfig, "platform_search_step_mm", self.platform_search_step_mm, 1)
+        if self.platform_search_mm > MAX_HEIGHT_STEPS * self.platform_search_step_mm:
+            raise _fail(
+                CollisionConfig,
+                "platform_search_step_mm",
+                f"at least collision.platform_search_mm / {MAX_HEIGHT_STEPS} ({self.platform_search_mm / MAX_HEIGHT_STEPS:g})",
+                self.platform_search_step_mm,
+            )
         _at_least(CollisionConfig, "platform_raise_mm", self.platform_raise_mm, 0)
         _at_least(CollisionConfig, "cloud_radius_mm", self.cloud_radius_mm, 0, strict=True)
         if self.clearance_mm > 0 and self.motion_step_mm > 2 * self.clearance_mm:

@@ -113,7 +113,7 @@ def summary_line(result, outdir) -> str:
         line += "; collisions not checked (--collisions checks them)"
     elif collisions.get("checked") is False:
         line += f"\ncollisions: not checked ({collisions['reason']})"
-    elif collisions:
+    else:
         line += (
             f"\ncollisions: {collisions['flagged_waypoints']} waypoints and {collisions['flagged_motions']} motions "
             f"flagged, {collisions['repaired']} of {collisions['in_collision_before_repair']} repaired "

@@ -452,7 +452,7 @@ def _reroute(
     slices = _slices(st)
     standoff = job.paths.standoff_mm
     work = work.copy()
-    shifted = [False]
+    shifted = False
     for k in range(len(strokes) - 2, 0, -1):
         if strokes[k].spray_on:
             continue
@@ -488,8 +488,16 @@ def _reroute(
                 if found is not None:
                     work.q9[rows] += turns
                     work.changed[rows] = True
-                    shifted[0] = True
+                    shifted = True
                     counts["unwound"] += 1
+                    if rows is stroke_before:
+                        # the move into the stroke before changed: checked again now, so that its own transfer
+                        # (taken next) is routed when the shift put it in collision
+                        inner = np.flatnonzero(work.reachable[: rows[0]])
+                        if len(inner):
+                            motion[rows[0]] = bool(
+                                motion_hits(repairer.cell, work.q9[inner[-1:]], work.q9[rows[:1]])[0]
+                            )
                     break
             if found is None:
                 found = router.route(work.q9[ia], work.q9[ib], seed=[job.collision.seed, place, k])
@@ -522,7 +530,7 @@ def _reroute(
         strokes[k] = route_stroke(repairer.gantry, q9[0], found.nodes, q9[-1], standoff)
     if any(a is not b for a, b in zip(strokes, st.strokes)):
         repairer.errors(work, SimpleNamespace(strokes=strokes))
-    return tuple(strokes), work, motion, shifted[0]
+    return tuple(strokes), work, motion, shifted
 
 
 def unwound(robot, q_a: np.ndarray, after: np.ndarray) -> np.ndarray | None:
