@@ -299,6 +299,14 @@ def test_a_cell_plan_with_collisions_flags_each_waypoint_as_its_own_check_does(t
         csv_flags = np.array([int(r["collides"]) for r in rows if r["robot"] == work["name"]], bool)
         np.testing.assert_array_equal(csv_flags, flags)
         total += int(flags.sum())
+        # the schedule's times: in both files, each stroke's wait before it, the cycle the longest robot's
+        t_s = np.concatenate([st["t_s"] for st in work["strokes"]])
+        csv_t = np.array([float(r["t_s"]) for r in rows if r["robot"] == work["name"]])
+        np.testing.assert_allclose(csv_t, t_s, atol=1e-6)
+        assert np.all(np.diff(t_s) >= -1e-9)
+        assert t_s[-1] <= plan["report"]["cycle_time_s"] + 1e-3  # the report rounds to ms
+        waited = sum(st["wait_s"] for st in work["strokes"])
+        assert plan["report"]["schedule"]["waits"][work["name"]]["waited_s"] == pytest.approx(waited, abs=1e-3)
         # the repairs' joints still put the gun where the stroke wants it, at the stroke's track and roll
         for st in work["strokes"]:
             good = st["reachable"]

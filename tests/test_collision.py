@@ -172,7 +172,8 @@ def test_a_real_plan_gets_one_entry_per_waypoint(testdata, gantry):
     assert not result.in_collision[~result.checked].any()
     assert (result.station == np.concatenate([np.full(len(s.q9), i) for i, s in enumerate(plan.stations)])).all()
     again = cell.distances(np.concatenate([s.q9 for s in plan.stations])[result.checked][:5])
-    assert np.allclose(again.distance_mm.min(axis=1) <= result.distance_mm[result.checked][:5], True)
+    # the least body distance of a fresh check is the one reported (to rounding: the two sum in other orders)
+    assert np.all(again.distance_mm.min(axis=1) <= result.distance_mm[result.checked][:5] + 1e-9)
 
 
 @pytest.mark.parametrize(

@@ -6,8 +6,8 @@ The result is data: each robot's waypoints get a flag (``RobotWork.collides``: c
 waypoints.csv's ``collides`` column), and ``report["collisions"]`` gives per robot the waypoints checked and in
 collision (by body and what it meets), the motions in collision, the least slack, and for every two robots the
 least gap between the spaces they sweep (a lower bound). A positive gap is the proof that the two robots can
-paint at the same time in any order and at any speed: that is how the robots of a line are kept apart. A
-negative one says the two robots' work spaces overlap and need a schedule, which is not made here.
+paint at the same time in any order and at any speed. A negative one says the two robots' work spaces overlap:
+``cells.schedule`` then keeps them apart in time (``cells.plan.plan_cell`` runs it after this check).
 """
 
 from __future__ import annotations
@@ -26,12 +26,10 @@ from sprayplan.collision.arms import (
 )
 
 
-def check_cell(plan, config, repair=None) -> tuple[tuple, dict]:
-    """Check a :class:`~sprayplan.cells.plan.CellPlan` with the ``[collision]`` settings ``config``.
-
-    ``repair(cell_robot, work, arm) -> (work, counts)`` (``cells.plan.repaired_work``), when given and
-    ``config.repair`` is on, solves the strokes in collision again before the check.
-    Returns the robots' work with their ``collides`` flags and ``report["collisions"]``.
+def cell_arms(cell, part, config) -> list:
+    """One :class:`~sprayplan.collision.arms.ArmCollision` a robot of ``cell`` against ``part`` (in the cell
+    frame) and the floor, with the ``[collision]`` settings ``config``; the part's surface samples and BVH are
+    built once and shared.
 
     Raises
     ------
@@ -40,20 +38,40 @@ def check_cell(plan, config, repair=None) -> tuple[tuple, dict]:
     """
     from sprayplan.collision.broadphase import surface_samples
 
-    samples = surface_samples(plan.part, COVER_MM)
-    mesh = part_mesh(plan.part)
-    robots, sweeps, per_robot = [], [], {}
-    for cell_robot, work in zip(plan.cell.robots, plan.robots):
-        arm = ArmCollision(
+    samples = surface_samples(part, COVER_MM)
+    mesh = part_mesh(part)
+    return [
+        ArmCollision(
             cell_robot,
-            plan.part,
-            plan.cell.floor_z_mm,
+            part,
+            cell.floor_z_mm,
             clearance_mm=config.clearance_mm,
             gun_radius_mm=config.gun_radius_mm,
             motion_step_mm=config.motion_step_mm,
             samples=samples,
             mesh=mesh,
         )
+        for cell_robot in cell.robots
+    ]
+
+
+def check_cell(plan, config, repair=None, arms=None) -> tuple[tuple, dict]:
+    """Check a :class:`~sprayplan.cells.plan.CellPlan` with the ``[collision]`` settings ``config``.
+
+    ``repair(cell_robot, work, arm) -> (work, counts)`` (``cells.plan.repaired_work``), when given and
+    ``config.repair`` is on, solves the strokes in collision again before the check. ``arms``: the robots'
+    :func:`cell_arms` when they are built already (the areas' reach uses them).
+    Returns the robots' work with their ``collides`` flags and ``report["collisions"]``.
+
+    Raises
+    ------
+    ConfigError
+        A robot without link sizes (:func:`~sprayplan.collision.arms.arm_radii`), a gun radius too large.
+    """
+    if arms is None:
+        arms = cell_arms(plan.cell, plan.part, config)
+    robots, sweeps, per_robot = [], [], {}
+    for cell_robot, work, arm in zip(plan.cell.robots, plan.robots, arms):
         repairs = {}
         if repair is not None and config.repair:
             work, repairs = repair(cell_robot, work, arm)

@@ -6,12 +6,14 @@
     the part's placement (``part2cell``); the areas (name, direction, surface, robot, the share it reaches,
     split or not); per robot its strokes in order, each with its kind, area, roll, and per waypoint the gun
     tip, the normal, the time factor, the track position, the six joints (rad), whether it is reached and (with
-    ``--collisions``) whether it collides; and the
+    ``--collisions``) whether it collides, when the robot gets there (``t_s``) and the stroke's wait
+    (``wait_s``) in the cell's schedule (``cells.schedule``); and the
     report (film over the whole body, per area, per robot, per seam; cycle times). mm, rad, s.
 ``waypoints.csv``
     One row a waypoint of every robot: ``robot, stroke, waypoint, kind, area, x_mm, y_mm, z_mm, nx, ny, nz,
-    dwell, track_mm, roll_deg, q1..q6, reachable, collides`` (``q6`` empty for the five-axis R5150;
-    ``collides`` 1 for a waypoint in collision, empty when the plan was not checked: ``--collisions``).
+    dwell, track_mm, roll_deg, q1..q6, reachable, collides, t_s`` (``q6`` empty for the five-axis R5150;
+    ``collides`` 1 for a waypoint in collision, empty when the plan was not checked: ``--collisions``; ``t_s``
+    the time the robot reaches the waypoint in the cell's schedule, empty without ``--collisions``).
 ``areas.csv``
     One row a face of the painted surface: ``face, area, direction, robot, robot_index``.
 ``areas.png``, ``film.png``
@@ -39,7 +41,7 @@ CELL_FILES = (
 )  # fmt: skip
 WAYPOINT_COLUMNS = [
     "robot", "stroke", "waypoint", "kind", "area", "x_mm", "y_mm", "z_mm", "nx", "ny", "nz", "dwell", "track_mm",
-    "roll_deg", *(f"q{i + 1}" for i in range(6)), "reachable", "collides",
+    "roll_deg", *(f"q{i + 1}" for i in range(6)), "reachable", "collides", "t_s",
 ]  # fmt: skip
 
 
@@ -114,6 +116,7 @@ def cell_plan_dict(plan) -> dict:
                     "q_rad": np.round(r.q[at : at + n], 12),
                     "reachable": r.reachable[at : at + n],
                     **({} if flags is None else {"collides": flags[at : at + n]}),
+                    **({} if r.t_s is None else {"t_s": np.round(r.t_s[at : at + n], 6), "wait_s": r.wait_s[i]}),
                 }
             )
             at += n
@@ -154,7 +157,8 @@ def write_cell_plan(outdir, plan, target_um: float = 50.0, tolerance_um: float =
                 rows.append(
                     [r.name, i, j, s.kind, int(r.area[i]), *np.round(s.tcp[j], 4), *np.round(s.normals[j], 6),
                      round(float(s.dwell[j]), 6), round(float(r.track_mm[at + j]), 4), float(r.roll_deg[i]),
-                     *q, int(r.reachable[at + j]), None if flags is None else int(flags[at + j])]
+                     *q, int(r.reachable[at + j]), None if flags is None else int(flags[at + j]),
+                     None if r.t_s is None else round(float(r.t_s[at + j]), 6)]
                 )  # fmt: skip
             at += len(s)
     path = os.path.join(outdir, "waypoints.csv")
@@ -225,6 +229,8 @@ def read_cell_plan(path) -> dict:
                 s["reachable"] = np.array(s["reachable"], dtype=bool)
                 if "collides" in s:
                     s["collides"] = np.array(s["collides"], dtype=bool)
+                if "t_s" in s:
+                    s["t_s"] = np.array(s["t_s"], dtype=float)
     except (KeyError, TypeError, ValueError) as exc:
         raise PartFileError(path, f"not a readable cell plan ({exc})") from None
     return data

@@ -44,10 +44,19 @@ seam, each leaving the tapered half of its spray there, and the whole-body tunin
 ``seams = "overlap"`` keeps every extension (each side paints over the seam by a lead-out, and the tuning
 has to take the doubled film back). ``docs/cells.md`` compares the two on the car body.
 
-Collisions and joint-limited timing of fixed-base arms are not checked yet: the cycle time of each robot is
-its path length over its speeds (spray strokes at their tuned speeds, transfers at ``[motion]
-transfer_speed_mm_s``), and the cell's is the longest robot's (robots of a line work at the same time).
-Robots keep apart in space: every face has one robot, and a robot's strokes stay over its own share.
+Without ``[collision] check`` the cycle time of each robot is its path length over its speeds (spray strokes
+at their tuned speeds, transfers at ``[motion] transfer_speed_mm_s``), and the cell's is the longest robot's
+(robots of a line work at the same time); every face has one robot, and a robot's strokes stay over its own
+share, but the arms' swept spaces are not compared. With it (``--collisions``):
+
+- the areas' reach counts a face only where a robot reaches it free of the part and the floor
+  (:func:`~sprayplan.cells.reach.reach_matrix` with the cell's :func:`~sprayplan.cells.collide.cell_arms`), so
+  surface reached only through the body (the inner faces of the sills under a car) is unreached, as data;
+- after the film, every robot's strokes are checked and repaired (:func:`~sprayplan.cells.collide.check_cell`);
+- then the robots are scheduled (:mod:`~sprayplan.cells.schedule`): in the cell's order, a later robot waits,
+  spray off, before a stroke that would bring it within the clearance of an earlier one, each robot parks
+  when done, and the times of every waypoint, the waits and the cell's cycle time (the longest robot's, with
+  its waits, no step faster than its axis and track speeds) go into the plan.
 """
 
 from __future__ import annotations
@@ -117,6 +126,11 @@ class RobotWork:
     reachable : (n,) bool
     collides : (n,) bool or None
         Waypoints found in collision (``[collision] check``, :mod:`~sprayplan.cells.collide`); None unchecked.
+    t_s : (n,) float or None
+        When the robot reaches each waypoint in the cell's schedule (:mod:`~sprayplan.cells.schedule`, with
+        ``[collision] check``), s; None unscheduled.
+    wait_s : (s,) float or None
+        The schedule's wait before each stroke (spray off, at its first waypoint), s.
     """
 
     name: str
@@ -128,6 +142,8 @@ class RobotWork:
     q: np.ndarray
     reachable: np.ndarray
     collides: np.ndarray | None = None
+    t_s: np.ndarray | None = None
+    wait_s: np.ndarray | None = None
 
     @property
     def waypoints(self) -> int:
@@ -585,6 +601,23 @@ def _robot_name(plan: CellPlan, i: int) -> str:
 SEAM_RULES = ("feather", "overlap")
 
 
+def scheduled(cell: Cell, robots: tuple, arms, job: JobConfig) -> tuple[tuple, dict]:
+    """The robots' work with its schedule's times and waits (:func:`~sprayplan.cells.schedule.schedule_cell`,
+    with the ``[motion]`` speeds, the tracks' speeds and the ``[collision]`` clearance), and the schedule's
+    summary."""
+    from sprayplan.cells.schedule import schedule_cell
+
+    tracks = [None if r.track is None else r.track.speed_mm_s for r in cell.robots]
+    plan = schedule_cell(
+        robots, arms, job.motion.gun_speed_mm_s, job.motion.transfer_speed_mm_s, job.collision.clearance_mm, tracks
+    )
+    out = tuple(
+        dataclasses.replace(r, t_s=line.arrive_s.copy(), wait_s=line.wait_s.copy())
+        for r, line in zip(robots, plan.timelines)
+    )
+    return out, plan.summary()
+
+
 def plan_cell(
     part: Part, cell: Cell, job: JobConfig, progress: Progress | None = None, seams: str = "feather"
 ) -> CellPlan:
@@ -611,6 +644,7 @@ def plan_cell(
 
         for r in cell.robots:
             arm_radii(r.model)
+    arms = None
     timings: dict[str, float] = {}
     running: list = [None, time.perf_counter()]
 
@@ -632,11 +666,15 @@ def plan_cell(
         painted, left_out = drop_floor_facing(painted, job.collision.floor_facing_deg)
     begin("areas")
     job, chosen = meet_thickness(job)
+    if job.collision.check:
+        from sprayplan.cells.collide import cell_arms
+
+        arms = cell_arms(cell, painted, job.collision)
     if len(cell.robots) == 1:
         areas, assignment = whole_area(painted)
     else:
         areas = segment_areas(painted)
-        reach = reach_matrix(cell, painted, areas.face_normals, job.paths.standoff_mm)
+        reach = reach_matrix(cell, painted, areas.face_normals, job.paths.standoff_mm, arms=arms)
         assignment = assign_areas(areas, painted.face_areas, reach)
     begin("paths and kinematics")
     guard = None
@@ -738,7 +776,20 @@ def plan_cell(
         from sprayplan.cells.collide import check_cell
 
         begin("collisions")
-        robots, report["collisions"] = check_cell(plan, job.collision, repaired_work)
+        robots, report["collisions"] = check_cell(plan, job.collision, repaired_work, arms=arms)
+        begin("schedule")
+        robots = scheduled(cell, robots, arms, job)
+        report["schedule"] = robots[1]
+        robots = robots[0]
+        if not report["collisions"]["robots_kept_apart"].startswith("in space"):
+            left = sum(report["schedule"]["conflicts"].values())
+            report["collisions"]["robots_kept_apart"] = (
+                "in time (the schedule's waits)"
+                if not left
+                else f"not proven: {left} samples of the schedule too close"
+            )
+        report["cycle_time_s"] = report["schedule"]["cycle_time_s"]
+        report["cycle_time_rule"] = "the schedule's: path length over speed per robot with its waits"
         plan = dataclasses.replace(plan, robots=robots)
     begin(None)
     return dataclasses.replace(plan, report=report, timings_s=timings)

@@ -8,8 +8,13 @@ the spray). A robot on a track tries its base at the track position nearest the 
 either side of it (clipped to the track). The score of a (robot, face) is the share of those (track position,
 roll) tries that the robot's inverse kinematics solves within its joint limits on any branch: 0 where none
 does (not reached), 1 where every try does (the face is reached whichever way the gun is turned and from
-anywhere near it on the track, a measure of dexterity). Collisions are not counted here: the collision stage
-checks the plan.
+anywhere near it on the track, a measure of dexterity).
+
+With the cell's collision model (``arms``: one :class:`~sprayplan.collision.arms.ArmCollision` a robot, when
+``[collision] check`` is on), a face also needs one try whose joints are free of the part and the floor: the
+valid branches of each try are checked in order until one is free, and a face with none scores 0 for that
+robot (it is reached only through the body: the inner face of a sill under the car, a wheel arch's far wall).
+The score of a face that has a free try stays its share of tries reached, as without the model.
 
 A car body has tens of thousands of faces, and neighbouring faces of one direction are reached alike: faces
 are grouped by ``cluster_mm`` cubes of their centres and by the :data:`~sprayplan.surface.areas.DIRECTIONS`
@@ -61,6 +66,18 @@ def _rot_z(angle: float) -> np.ndarray:
     return out
 
 
+def _free_branch(arm, sols, track: np.ndarray, todo: np.ndarray) -> np.ndarray:
+    """(n,) bool: poses ``todo`` with a valid branch of ``sols`` free of collisions, the branches checked in
+    order and a pose done at its first free one."""
+    n, k = sols.valid.shape
+    found = np.zeros(n, bool)
+    for b in range(k):
+        rows = np.flatnonzero(todo & ~found & sols.valid[:, b])
+        if len(rows):
+            found[rows] = ~arm.collides(sols.q[rows, b], track[rows])
+    return found
+
+
 def reach_matrix(
     cell: Cell,
     part: Part,
@@ -69,8 +86,13 @@ def reach_matrix(
     rolls_deg=ROLLS_DEG,
     track_offsets_mm=TRACK_OFFSETS_MM,
     cluster_mm: float = CLUSTER_MM,
+    arms=None,
 ) -> np.ndarray:
     """(robots, faces) float in [0, 1]: how well each robot reaches each face (module docstring).
+
+    ``arms``, optional: per robot an object with ``collides(q (n, dof), track_mm (n,)) -> (n,) bool`` (the cell's
+    :class:`~sprayplan.collision.arms.ArmCollision`) or None; where given, faces the robot reaches only in
+    collision score 0 for it.
 
     ``part`` is in the cell frame (:func:`~sprayplan.cells.spec.place_part`); ``face_normals`` its outward
     unit face normals; ``cluster_mm`` groups faces (module docstring). A gantry cell's robot reaches everything its stations will be placed for (score 1): its
@@ -96,6 +118,8 @@ def reach_matrix(
             along = (tips - origin) @ cr.track.axis
             lo, hi = cr.track.range_mm
             shifts = [np.clip(along + d, lo, hi) for d in track_offsets_mm]
+        arm = None if arms is None else arms[i]
+        free = np.zeros(len(tips), bool)  # a collision-free try found (only kept with ``arm``)
         tries = 0
         for s in shifts:
             offset = np.zeros((len(tips), 4, 4))
@@ -112,5 +136,9 @@ def reach_matrix(
                 hit = np.zeros(len(tips), bool)
                 hit[near] = sols.valid.any(axis=1)
                 out[i] += hit
+                if arm is not None:
+                    free[near] |= _free_branch(arm, sols, s[near], ~free[near])
         out[i] /= max(tries, 1)
+        if arm is not None:
+            out[i] *= free
     return out[:, group]

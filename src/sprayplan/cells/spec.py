@@ -331,7 +331,15 @@ def cell_from_dict(data: dict, source: str = "") -> Cell:
                     )
         description = data.get("description", "")
         return Cell(
-            name, robots, floor, align, (float(position[0]), float(position[1])), lift, yaw, source, str(description)
+            name,
+            robots,
+            floor,
+            align,
+            (float(position[0]), float(position[1])),
+            lift,
+            yaw,
+            source,
+            description=str(description),
         )
     except ConfigError as exc:
         raise ConfigError(f"{where}: {exc}") from None

@@ -70,8 +70,18 @@ def cmd_areas(args) -> int:
         kept = not_floor_facing(placed, args.floor_facing_deg)  # which faces of the part as loaded remain
     with _stage("areas"):
         areas = segment_areas(painted, min_share=args.min_share)
+    arms = None
+    if args.collisions:
+        from sprayplan.cells.collide import cell_arms
+        from sprayplan.collision.arms import arm_radii
+        from sprayplan.config import CollisionConfig
+
+        for r in cell.robots:
+            arm_radii(r.model)
+        with _stage("collision model"):
+            arms = cell_arms(cell, painted, CollisionConfig(check=True))
     with _stage("reach"):
-        reach = reach_matrix(cell, painted, areas.face_normals, args.standoff_mm)
+        reach = reach_matrix(cell, painted, areas.face_normals, args.standoff_mm, arms=arms)
         assigned = assign_areas(areas, painted.face_areas, reach)
     names = [r.name for r in cell.robots]
     index = np.flatnonzero(kept)
@@ -132,6 +142,12 @@ def add_parsers(sub, common, add_load_options) -> None:
         type=float,
         default=45.0,
         help="leave out surface facing more than this below the horizontal (default 45)",
+    )
+    areas.add_argument(
+        "--collisions",
+        action="store_true",
+        help="count a face as reached only where a try of the robot is free of the part and the floor "
+        "(the default [collision] settings; the industrial arms only)",
     )
     add_load_options(areas)
     areas.set_defaults(func=cmd_areas)
@@ -248,7 +264,12 @@ def cmd_plan_cell(args, job, cell=None) -> int:
         line += (
             f"\ncollisions: {hits['waypoints_in_collision']} waypoints and {hits['motions_in_collision']} motions in "
             f"collision (clearance {hits['clearance_mm']:g} mm); robots kept apart {hits['robots_kept_apart']}"
-            f" (least gaps {gaps})"
+            f" (least gaps of the swept spaces {gaps})"
         )
+    schedule = report.get("schedule")
+    if schedule:
+        waits = ", ".join(f"{k} {v['waited_s']:g} s" for k, v in schedule["waits"].items())
+        gaps = ", ".join(f"{k} {'-' if v is None else f'{v:g} mm'}" for k, v in schedule["least_gap_mm"].items())
+        line += f"; schedule: waits {waits}, least gaps in time {gaps}"
     print(f"{line} -> {os.path.join(args.output, 'cell_plan.json')}")
     return 0

@@ -1,0 +1,391 @@
+"""The robots of a line painting at the same time, kept apart in time (issue 18, section 3: "say how their work
+zones are kept apart in time or space so that two arms never meet, and check it with the collision model").
+
+Every face has one robot, but the spaces the arms sweep overlap where their areas meet (the roof robot's arm
+over the upper edge of a side while the side robot paints below it; ``cells.collide``'s ``robot_gap_mm``), so
+keeping them apart in space alone is not proven. :func:`schedule_cell` keeps them apart in time:
+
+1. **Each robot's timeline** is the plan's own timing, path length over speed (:meth:`RobotWork.cycle_time_s`'s
+   rule): a spray segment at ``[motion] gun_speed_mm_s`` divided by its time factor, a transfer at
+   ``transfer_speed_mm_s``, but no step faster than the arm's axis speeds (the maker's, ``robots.opw``) and the
+   track's speed allow for its largest joint or track move; the joints and the track move linearly between
+   waypoints. An unreached waypoint (no joints) holds the last reached configuration (the first reached one
+   before any).
+2. **Priority in the cell's order**: the first robot (the roof robot of ``line3``) never waits. Each later
+   robot is scheduled against the timelines of the robots before it, stroke by stroke: before a stroke starts
+   it may wait at the stroke's first waypoint, spray off (never in the middle of a stroke, where a stop would
+   spoil the film), for the least whole number of ``WAIT_STEP_S`` that makes the wait and the stroke free of
+   every robot before it. A robot that has finished holds its last configuration; one that has not started holds
+   its first. If no wait before the stroke frees it, a wait up to ``BACKTRACK`` strokes earlier is tried (the
+   strokes between moved with it). If none up to ``MAX_WAIT_S`` frees it, it is not delayed and its conflict
+   is counted (data, as a collision is).
+   When a robot has done its work it **parks** (:func:`park_joints`): a joint move, at its axis speeds, to the
+   configuration of a small set (axis 1 turned 0, 90, -90 or 180 degrees, axes 2 and 3 folded back) farthest
+   from the part and the floor, at its last track position; so a robot that has finished does not stand in the
+   way of one still painting.
+3. **The check** samples the common time axis every ``DT_S`` and measures, at every sample, the least distance
+   between any capsule of one robot and any capsule of the other (:func:`segment_distances`, exact for segments;
+   the arms' own capsules, ``collision.arms``). Two robots may conflict where that distance is below the sum of
+   the two radii, the ``[collision] clearance_mm``, and how far either robot's capsule ends move in the sampling
+   intervals on both sides of the sample (so a touch between two samples cannot hide: no body point moves
+   farther than its ends do under the linear joint motion within ``DT_S``, to within the curvature of a
+   sub-``DT_S`` arc). The final count samples each such place again ``REFINE`` times finer, with the finer
+   motion bounds, and counts the sample as a conflict only if that does not prove the clearance.
+
+The result is data: each robot's waypoint times (``t_s``, the arrival) and each stroke's wait; the least
+distance between every two robots over the scheduled cycle, the conflicts left, and the cell's cycle time,
+the longest robot's with its waits.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+#: The time axis's sampling, s.
+DT_S = 0.05
+#: Waits are whole numbers of this, s.
+WAIT_STEP_S = 0.5
+#: The longest wait tried before a stroke, s.
+MAX_WAIT_S = 600.0
+#: How many strokes back a wait may move when none before the stroke itself frees it.
+BACKTRACK = 6
+#: The park configurations tried at the end of a robot's work: axes 1, 2 and 3 (degrees), the wrist bent 30.
+PARK_AXIS1_DEG = (0.0, 90.0, -90.0, 180.0)
+PARK_AXIS2_DEG = (-60.0, -30.0, 0.0)
+PARK_AXIS3_DEG = (-60.0, -30.0, 0.0)
+#: A park move takes at least this long, s.
+MIN_PARK_S = 0.5
+
+
+def segment_distances(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndarray) -> np.ndarray:
+    """The least distances between segments ``p1-q1`` and ``p2-q2`` (arrays (..., 3) broadcast together), mm.
+
+    The closest points minimise ``|p1 + s d1 - p2 - t d2|`` over ``s, t`` in [0, 1]: the unconstrained ``s``
+    clamped, ``t`` for it clamped, then ``s`` again for the clamped ``t`` (exact for the convex problem; zero
+    length segments are points)."""
+    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    a = np.einsum("...i,...i->...", d1, d1)
+    e = np.einsum("...i,...i->...", d2, d2)
+    b = np.einsum("...i,...i->...", d1, d2)
+    c = np.einsum("...i,...i->...", d1, r)
+    f = np.einsum("...i,...i->...", d2, r)
+    tiny = 1e-12
+    denom = a * e - b * b
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(denom > tiny * np.maximum(a * e, tiny), np.clip((b * f - c * e) / denom, 0.0, 1.0), 0.0)
+        t = np.where(e > tiny, np.clip((b * s + f) / e, 0.0, 1.0), 0.0)
+        s = np.where(a > tiny, np.clip((b * t - c) / a, 0.0, 1.0), 0.0)
+    gap = r + d1 * s[..., None] - d2 * t[..., None]
+    return np.sqrt(np.einsum("...i,...i->...", gap, gap))
+
+
+def waypoint_times(
+    work, speed_mm_s: float, transfer_speed_mm_s: float, max_speed=None, track_speed_mm_s: float | None = None
+) -> np.ndarray:
+    """(n,) s: when a robot reaches each waypoint of its plan without waits (module docstring, step 1).
+
+    With the arm's axis speeds ``max_speed`` (rad/s, NaN where unknown) and the track's speed, a step takes at
+    least as long as its largest joint or track move needs at those speeds (a change of branch between two
+    strokes, a fast track move): the path's own speed alone would have it happen in no time."""
+    dt = []
+    for s in work.strokes:
+        seg = np.linalg.norm(np.diff(s.tcp, axis=0), axis=1)
+        if s.spray_on:
+            dt.append(seg * (s.dwell[:-1] + s.dwell[1:]) / 2.0 / speed_mm_s)
+        else:
+            dt.append(seg / transfer_speed_mm_s)
+        dt.append(np.zeros(1))  # from one stroke's last waypoint to the next's first (the same point)
+    if not dt:
+        return np.zeros(0)
+    steps = np.concatenate(dt)[:-1]
+    q, track = _held(np.asarray(work.q, dtype=float), np.asarray(work.track_mm, dtype=float), work.reachable)
+    if max_speed is not None and len(q) > 1:
+        speed = np.asarray(max_speed, dtype=float)
+        known = np.isfinite(speed)
+        if known.any():
+            steps = np.maximum(steps, (np.abs(np.diff(q[:, known], axis=0)) / speed[known]).max(axis=1))
+    if track_speed_mm_s and len(track) > 1:
+        steps = np.maximum(steps, np.abs(np.diff(track)) / track_speed_mm_s)
+    return np.r_[0.0, np.cumsum(steps)]
+
+
+def park_joints(arm, q_last: np.ndarray, track_mm: float) -> np.ndarray:
+    """The park configuration of a robot whose last configuration is ``q_last`` at ``track_mm``: of the
+    candidates (module docstring, within the joint limits; axes 4-6 as ``q_last`` but the wrist bent 30 degrees),
+    the one with the largest slack to the part and the floor (``arm.check``)."""
+    import itertools as it
+
+    lower, upper = np.asarray(arm.params.lower, dtype=float), np.asarray(arm.params.upper, dtype=float)
+    rows = []
+    for a1, a2, a3 in it.product(PARK_AXIS1_DEG, PARK_AXIS2_DEG, PARK_AXIS3_DEG):
+        q = np.array(q_last, dtype=float)
+        q[:3] = np.radians([a1, a2, a3])
+        q[4] = math.radians(30.0)
+        if np.all(q >= lower - 1e-12) and np.all(q <= upper + 1e-12):
+            rows.append(q)
+    if not rows:
+        return np.asarray(q_last, dtype=float)
+    rows = np.asarray(rows)
+    found = arm.check(rows, np.full(len(rows), float(track_mm)))
+    return rows[int(np.argmax(found.slack_mm))]
+
+
+def _held(q: np.ndarray, track: np.ndarray, reachable: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Joints and track with every unreached waypoint holding the last reached configuration (the first
+    reached one before any)."""
+    idx = np.flatnonzero(reachable)
+    if not len(idx):
+        return np.zeros_like(q), np.zeros_like(track)
+    last = np.maximum.accumulate(np.where(reachable, np.arange(len(q)), -1))
+    last = np.where(last < 0, idx[0], last)
+    return q[last], track[last]
+
+
+@dataclass(frozen=True)
+class Timeline:
+    """One robot's motion in time: configuration knots (times strictly increasing, repeated configurations
+    where it waits) and its waypoints' arrival times."""
+
+    knot_t: np.ndarray  # (k,) s
+    knot_q: np.ndarray  # (k, dof) rad
+    knot_track: np.ndarray  # (k,) mm
+    arrive_s: np.ndarray  # (n,) s
+    wait_s: np.ndarray  # (strokes,) s
+
+    @property
+    def end_s(self) -> float:
+        return float(self.knot_t[-1]) if len(self.knot_t) else 0.0
+
+    def at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Joints (m, dof) and track (m,) at times ``t`` (held before the start and after the end)."""
+        t = np.asarray(t, dtype=float)
+        q = np.stack([np.interp(t, self.knot_t, self.knot_q[:, j]) for j in range(self.knot_q.shape[1])], axis=1)
+        return q, np.interp(t, self.knot_t, self.knot_track)
+
+
+def _knots(t0, q, track, starts, waits):
+    """Knots of a timeline: waypoint ``i`` at ``t0[i]`` plus the waits of the strokes up to its own, each wait
+    held at its stroke's first waypoint."""
+    n = len(t0)
+    shift = np.zeros(n)
+    extra = np.zeros(n)
+    for j, w in enumerate(waits):
+        if w > 0:
+            shift[starts[j] :] += w
+            extra[starts[j]] = w
+    arrive = t0 + shift - extra  # the arrival at a stroke's first waypoint is before its wait
+    times, qs, tracks = [], [], []
+    for i in range(n):
+        times.append(arrive[i])
+        qs.append(q[i])
+        tracks.append(track[i])
+        if extra[i] > 0:
+            times.append(arrive[i] + extra[i])
+            qs.append(q[i])
+            tracks.append(track[i])
+    times = np.asarray(times)
+    keep = np.r_[True, np.diff(times) > 1e-12]  # zero-length steps (a stroke's end and the next's start)
+    return times[keep], np.asarray(qs)[keep], np.asarray(tracks)[keep], arrive
+
+
+def _moves(segments: np.ndarray) -> np.ndarray:
+    """(m,) how far any capsule end moves in the sampling intervals on either side of each sample, mm."""
+    if len(segments) < 2:
+        return np.zeros(len(segments))
+    step = np.linalg.norm(np.diff(segments, axis=0), axis=-1).max(axis=(1, 2))
+    return np.maximum(np.r_[step, 0.0], np.r_[0.0, step])
+
+
+def pair_gaps(a_segments, a_radii, b_segments, b_radii) -> np.ndarray:
+    """(m,) the least surface gap between any capsule of ``a`` and any of ``b`` at each of m samples, mm."""
+    pa, qa = a_segments[:, :, None, 0], a_segments[:, :, None, 1]
+    pb, qb = b_segments[:, None, :, 0], b_segments[:, None, :, 1]
+    d = segment_distances(pa, qa, pb, qb) - a_radii[None, :, None] - b_radii[None, None, :]
+    return d.reshape(len(d), -1).min(axis=1)
+
+
+@dataclass(frozen=True)
+class _Sampled:
+    """A robot's capsules at grid samples ``first .. first + m - 1`` (times ``g * DT_S``): ends (m, b, 2, 3),
+    radii (b,), the motion bound of each sample (m,), and each sample's box (m, 3) lo and hi, radius added."""
+
+    first: int
+    segments: np.ndarray
+    radii: np.ndarray
+    moves: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+
+    @classmethod
+    def of(cls, arm, q, track, first: int = 0) -> _Sampled:
+        segments = arm.segments(q, track)
+        radii = np.asarray(arm.radii, dtype=float)
+        grow = float(radii.max(initial=0.0))
+        ends = segments.reshape(len(segments), -1, 3)
+        return cls(first, segments, radii, _moves(segments), ends.min(axis=1) - grow, ends.max(axis=1) + grow)
+
+    def rows(self, g: np.ndarray) -> np.ndarray:
+        """Row of each grid sample ``g``, held at the first and the last outside them."""
+        return np.clip(g - self.first, 0, len(self.segments) - 1)
+
+
+def _gaps(a: _Sampled, ra: np.ndarray, b: _Sampled, rb: np.ndarray, clearance_mm: float) -> np.ndarray:
+    """(m,) the gap less the clearance and both motion bounds at sample pairs (rows ``ra`` of ``a``, ``rb`` of
+    ``b``): negative where the two robots may come too close. Pairs whose boxes are farther apart than that
+    are not measured (their value is the box gap, a lower bound)."""
+    need = clearance_mm + a.moves[ra] + b.moves[rb]
+    box = np.maximum(np.maximum(a.lo[ra] - b.hi[rb], b.lo[rb] - a.hi[ra]), 0.0)
+    gap = np.linalg.norm(box, axis=1) - need
+    near = np.flatnonzero(gap < 0)
+    if len(near):
+        gap[near] = pair_gaps(a.segments[ra[near]], a.radii, b.segments[rb[near]], b.radii) - need[near]
+    return gap
+
+
+def _grid(lo: float, hi: float) -> np.ndarray:
+    """Grid samples (integers g, times g * DT_S) in [lo, hi]."""
+    return np.arange(math.ceil(lo / DT_S - 1e-9), math.floor(hi / DT_S + 1e-9) + 1)
+
+
+def _configs(t_local, t0, q, track):
+    return np.stack([np.interp(t_local, t0, q[:, c]) for c in range(q.shape[1])], axis=1), np.interp(t_local, t0, track)
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """The cell's robots in time (module docstring).
+
+    Attributes
+    ----------
+    timelines : tuple of Timeline
+    least_gap_mm : dict
+        ``"a-b"``: the least surface gap between robots a and b over the scheduled cycle (at the samples), mm.
+    conflicts : dict
+        ``"a-b"``: samples at which a and b are closer than the clearance with the motion bound.
+    waits : dict
+        Per robot: strokes delayed and the seconds waited.
+    cycle_time_s : float
+        The longest robot's time, waits included.
+    """
+
+    timelines: tuple
+    least_gap_mm: dict
+    conflicts: dict
+    waits: dict
+    cycle_time_s: float
+
+    def summary(self) -> dict:
+        return {
+            "rule": "robots in the cell's order; a later robot waits, spray off, before a stroke that would come "
+            f"within the clearance of an earlier robot (samples every {DT_S:g} s, waits of {WAIT_STEP_S:g} s)",
+            "cycle_time_s": round(self.cycle_time_s, 3),
+            "waits": self.waits,
+            "least_gap_mm": self.least_gap_mm,
+            "conflicts": self.conflicts,
+            "kept_apart": not any(self.conflicts.values()),
+        }
+
+
+def _wait_for(stroke: _Sampled, hold: _Sampled, earlier, clearance_mm: float) -> float | None:
+    """The least wait (a whole number of WAIT_STEP_S up to MAX_WAIT_S) before a stroke sampled at grid samples
+    ``stroke.first ..`` that keeps it and the hold before it clear of every ``earlier`` robot; None if none
+    does. The hold only grows with the wait, so the search ends at the first wait whose hold is not clear."""
+    per = round(WAIT_STEP_S / DT_S)
+    g0, m = stroke.first, len(stroke.segments)
+    rows = np.arange(m)
+    zero = np.zeros(1, dtype=int)
+    for k in range(int(MAX_WAIT_S / WAIT_STEP_S) + 1):
+        shift = k * per
+        if shift:  # the hold's new samples, g0 + shift - per .. g0 + shift - 1
+            new = np.arange(g0 + shift - per, g0 + shift)
+            for other in earlier:
+                if (_gaps(hold, np.repeat(zero, len(new)), other, other.rows(new), clearance_mm) < 0).any():
+                    return None
+        g = g0 + shift + rows
+        if all((_gaps(stroke, rows, other, other.rows(g), clearance_mm) >= 0).all() for other in earlier):
+            return shift * DT_S
+    return None
+
+
+#: Sub-samples either side of a sample whose motion bound does not prove the clearance.
+REFINE = 10
+
+
+def _refined_conflict(line_a, arm_a, line_b, arm_b, t: float, clearance_mm: float) -> bool:
+    """Whether two robots may come within the clearance in the sampling intervals either side of time ``t``,
+    sampled again ``REFINE`` times finer (with the finer samples' motion bounds)."""
+    times = t + DT_S * np.linspace(-1.0, 1.0, 2 * REFINE + 1)
+    a = _Sampled.of(arm_a, *line_a.at(times))
+    b = _Sampled.of(arm_b, *line_b.at(times))
+    rows = np.arange(len(times))
+    return bool((_gaps(a, rows, b, rows, clearance_mm) < 0).any())
+
+
+def schedule_cell(
+    robots, arms, speed_mm_s: float, transfer_speed_mm_s: float, clearance_mm: float, track_speeds=None
+) -> Schedule:
+    """Schedule the robots' work (``RobotWork`` each, in the cell's order) with their ``ArmCollision`` models
+    (module docstring); ``track_speeds``: each robot's track speed, mm/s (None without a track)."""
+    names = [w.name for w in robots]
+    timelines: list[Timeline] = []
+    sampled: list[_Sampled] = []
+    waits: dict = {}
+    for k, (w, arm) in enumerate(zip(robots, arms)):
+        track_speed = None if track_speeds is None else track_speeds[k]
+        t0 = waypoint_times(w, speed_mm_s, transfer_speed_mm_s, arm.params.max_speed, track_speed)
+        q, track = _held(np.asarray(w.q, dtype=float), np.asarray(w.track_mm, dtype=float), w.reachable)
+        starts = np.cumsum([0] + [len(s) for s in w.strokes])[:-1]
+        chosen = np.zeros(len(starts))
+        if k and len(t0):
+            for j in range(len(starts)):
+                for first in range(j, max(-1, j - BACKTRACK - 1), -1):
+                    # strokes first .. j as one block, waiting only before the first (the later waits dropped)
+                    shift = float(chosen[:first].sum())
+                    end = starts[j + 1] if j + 1 < len(starts) else len(t0) - 1
+                    g = _grid(t0[starts[first]] + shift, t0[end] + shift)
+                    if not len(g):
+                        break
+                    block = _Sampled.of(arm, *_configs(g * DT_S - shift, t0, q, track), first=int(g[0]))
+                    hold = _Sampled.of(arm, q[starts[first]][None], track[starts[first] : starts[first] + 1])
+                    wait = _wait_for(block, hold, sampled, clearance_mm)
+                    if wait is not None:
+                        chosen[first : j + 1] = 0.0
+                        chosen[first] = wait
+                        break
+        knots = list(_knots(t0, q, track, starts, chosen))
+        if len(t0):
+            park = park_joints(arm, q[-1], float(track[-1]))
+            speed = np.asarray(arm.params.max_speed, dtype=float)
+            known = np.isfinite(speed)
+            move = float((np.abs(park - q[-1])[known] / speed[known]).max(initial=0.0))
+            knots[0] = np.r_[knots[0], knots[0][-1] + max(move, MIN_PARK_S)]
+            knots[1] = np.vstack([knots[1], park])
+            knots[2] = np.r_[knots[2], track[-1]]
+        line = Timeline(knots[0], knots[1], knots[2], knots[3], chosen)
+        timelines.append(line)
+        g = _grid(0.0, line.end_s) if len(t0) else np.zeros(1, dtype=int)
+        sampled.append(
+            _Sampled.of(arm, *line.at(g * DT_S)) if len(t0) else _Sampled.of(arm, np.zeros((1, 6)), np.zeros(1))
+        )
+        waits[w.name] = {"strokes_delayed": int((chosen > 0).sum()), "waited_s": round(float(chosen.sum()), 3)}
+    cycle = max((tl.end_s for tl in timelines), default=0.0)
+    everywhere = _grid(0.0, cycle)
+    gaps, conflicts = {}, {}
+    for (i, a), (j, b) in itertools.combinations(enumerate(sampled), 2):
+        ra, rb = a.rows(everywhere), b.rows(everywhere)
+        found = _gaps(a, ra, b, rb, clearance_mm)
+        least = math.inf
+        for c in range(0, len(everywhere), 4096):
+            part = slice(c, c + 4096)
+            least = min(least, float(pair_gaps(a.segments[ra[part]], a.radii, b.segments[rb[part]], b.radii).min()))
+        key = f"{names[i]}-{names[j]}"
+        gaps[key] = None if math.isinf(least) else round(least, 1)
+        suspects = everywhere[found < 0]
+        conflicts[key] = sum(
+            _refined_conflict(timelines[i], arms[i], timelines[j], arms[j], g * DT_S, clearance_mm) for g in suspects
+        )
+    return Schedule(tuple(timelines), gaps, conflicts, waits, cycle)

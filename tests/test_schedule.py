@@ -1,0 +1,175 @@
+"""The robots of a cell kept apart in time (cells.schedule; issue 18, section 3): segment distances against a
+dense sampling, the timelines against the plan's own timing, waits only before strokes, and the gaps and
+conflicts the schedule reports recounted independently."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from sprayplan.cells import load_cell
+from sprayplan.cells import schedule as sched
+from sprayplan.cells.plan import plan_cell
+from sprayplan.config import CollisionConfig, JobConfig
+from tests.helpers import grid_box
+
+pytest.importorskip("coal")
+
+
+def _dense(p1, q1, p2, q2, n=801):
+    t = np.linspace(0.0, 1.0, n)[:, None]
+    a = p1 + t * (q1 - p1)
+    b = p2 + t * (q2 - p2)
+    return cKDTree(b).query(a)[0].min()
+
+
+def test_segment_distances_are_the_least_distance_of_the_two_segments():
+    rng = np.random.default_rng(0)
+    p1, q1, p2, q2 = (rng.uniform(-500, 500, (300, 3)) for _ in range(4))
+    q2[:20] = p2[:20] + (q1[:20] - p1[:20]) * 0.7  # parallel pairs
+    q1[20:30] = p1[20:30]  # a point against a segment
+    q2[30:35], q1[30:35] = p2[30:35], p1[30:35]  # two points
+    got = sched.segment_distances(p1, q1, p2, q2)
+    for i in range(len(got)):
+        length = np.linalg.norm(q1[i] - p1[i]) + np.linalg.norm(q2[i] - p2[i])
+        sampled = _dense(p1[i], q1[i], p2[i], q2[i])
+        assert got[i] <= sampled + 1e-9
+        assert got[i] >= sampled - length / 800.0 - 1e-9
+
+
+@pytest.fixture(scope="module")
+def box_plan(tmp_path_factory):
+    from tests.test_cell_plan import CELL, SIZE
+
+    folder = tmp_path_factory.mktemp("sched")
+    (folder / "small2.toml").write_text(CELL)
+    cell = load_cell(folder / "small2.toml")
+    plan = plan_cell(grid_box(n=8, size=SIZE), cell, JobConfig())
+    from sprayplan.cells.collide import cell_arms
+
+    return plan, cell_arms(cell, plan.part, CollisionConfig(check=True))
+
+
+def test_the_timelines_are_the_plans_timing_with_waits_only_before_strokes(box_plan):
+    plan, arms = box_plan
+    tracks = [None if r.track is None else r.track.speed_mm_s for r in plan.cell.robots]
+    got = sched.schedule_cell(plan.robots, arms, 400.0, 1000.0, 30.0, tracks)
+    for k, (work, line) in enumerate(zip(plan.robots, got.timelines)):
+        path = sched.waypoint_times(work, 400.0, 1000.0)
+        assert path[-1] == pytest.approx(work.cycle_time_s(400.0, 1000.0), rel=1e-12)
+        # no step faster than the path's speed, the arm's axis speeds and the track's speed allow
+        t0 = sched.waypoint_times(work, 400.0, 1000.0, arms[k].params.max_speed, tracks[k])
+        q, track = sched._held(work.q, work.track_mm, work.reachable)
+        joint = (np.abs(np.diff(q, axis=0)) / arms[k].params.max_speed).max(axis=1)
+        rail = np.abs(np.diff(track)) / tracks[k] if tracks[k] else np.zeros(len(q) - 1)
+        np.testing.assert_allclose(np.diff(t0), np.maximum.reduce([np.diff(path), joint, rail]), atol=1e-12)
+        assert (joint > np.diff(path) + 1e-9).any()  # the axis speeds do matter somewhere in this plan
+        starts = np.cumsum([0] + [len(s) for s in work.strokes])[:-1]
+        wait_before = np.zeros(len(t0))
+        wait_before[starts] = line.wait_s
+        # each waypoint is reached at its own time plus the waits before every stroke started before it
+        shifted = np.r_[0.0, np.cumsum(wait_before)[:-1]]
+        np.testing.assert_allclose(line.arrive_s, t0 + shifted, atol=1e-9)
+        if k == 0:
+            assert not line.wait_s.any()  # the first robot never waits
+        # then it parks: a joint move at its axis speeds to the park configuration
+        park = sched.park_joints(arms[k], q[-1], float(track[-1]))
+        moved = float((np.abs(park - q[-1]) / arms[k].params.max_speed).max())
+        done = t0[-1] + line.wait_s.sum()
+        assert line.end_s == pytest.approx(done + max(moved, sched.MIN_PARK_S))
+        np.testing.assert_allclose(line.at(np.array([line.end_s + 5.0]))[0][0], park)
+        assert not arms[k].check(park[None], track[-1:]).collides[0]
+    assert got.cycle_time_s == pytest.approx(max(tl.end_s for tl in got.timelines))
+
+
+def _sampled_points(arm, q, track):
+    """Points every 2 mm along each capsule, with their radii."""
+    seg = arm.segments(q, track)[0]
+    points, radii = [], []
+    for k, (a, b) in enumerate(seg):
+        n = max(2, int(np.linalg.norm(b - a) / 2.0) + 1)
+        t = np.linspace(0, 1, n)[:, None]
+        points.append(a + t * (b - a))
+        radii.append(np.full(n, arm.radii[k]))
+    return np.concatenate(points), np.concatenate(radii)
+
+
+def test_the_reported_gap_and_conflicts_are_recounted_and_waits_take_conflicts_away(box_plan, monkeypatch):
+    plan, arms = box_plan
+    got = sched.schedule_cell(plan.robots, arms, 400.0, 1000.0, 30.0)
+    # the least gap, recounted at a few samples by points along the capsules
+    a, b = got.timelines
+    times = np.arange(0.0, got.cycle_time_s, 0.05)
+    qa, ta = a.at(times)
+    qb, tb = b.at(times)
+    ends_a, ends_b = arms[0].segments(qa, ta), arms[1].segments(qb, tb)
+    gaps = sched.pair_gaps(ends_a, np.asarray(arms[0].radii), ends_b, np.asarray(arms[1].radii))
+    worst = np.argsort(gaps)[:5]
+    for i in worst:
+        pa, ra = _sampled_points(arms[0], qa[i : i + 1], ta[i : i + 1])
+        pb, rb = _sampled_points(arms[1], qb[i : i + 1], tb[i : i + 1])
+        d = np.linalg.norm(pa[:, None] - pb[None], axis=2) - ra[:, None] - rb[None]
+        assert gaps[i] == pytest.approx(d.min(), abs=1.5)
+    assert got.least_gap_mm["left-right"] == pytest.approx(float(gaps.min()), abs=0.05)
+    # without waits (none allowed) the same plan has more samples in conflict
+    monkeypatch.setattr(sched, "MAX_WAIT_S", 0.0)
+    naive = sched.schedule_cell(plan.robots, arms, 400.0, 1000.0, 30.0)
+    assert not any(tl.wait_s.any() for tl in naive.timelines)
+    assert naive.conflicts["left-right"] > got.conflicts["left-right"]
+    assert got.summary()["kept_apart"] == (got.conflicts["left-right"] == 0)
+
+
+def test_a_wait_keeps_a_later_robot_out_of_an_earlier_ones_way(monkeypatch):
+    """Two robots facing each other over a small box, each painting the top across the middle: the second waits
+    until the first is done with the place they share, and the schedule is then free of conflicts."""
+    from sprayplan.cells.plan import RobotWork
+    from sprayplan.cells.spec import cell_from_dict
+    from sprayplan.collision.arms import ArmCollision
+    from sprayplan.types import Stroke
+
+    cell = cell_from_dict(
+        {
+            "name": "two",
+            "robot": [
+                {"name": "a", "model": "abb-irb2400-10", "base_mm": [0.0, 900.0, 0.0], "base_rpy_deg": [0, 0, -90]},
+                {"name": "b", "model": "abb-irb2400-10", "base_mm": [0.0, -900.0, 0.0], "base_rpy_deg": [0, 0, 90]},
+            ],
+        }
+    )
+    part = grid_box(n=4, size=(200.0, 200.0, 100.0))
+    works, arms = [], []
+    for k, robot in enumerate(cell.robots):
+        side = 1.0 if k == 0 else -1.0
+        # a stroke across the middle (y from the robot's side to 150 mm past the centre) and back, then a stroke
+        # 500 mm aside on the robot's own side
+        y = np.r_[np.linspace(side * 400, -side * 150, 30), np.linspace(-side * 150, side * 400, 30)]
+        strokes = []
+        for xs, ys in ((np.zeros(len(y)), y), (np.linspace(500.0, 600.0, 10), np.full(10, side * 400.0))):
+            pts = np.column_stack([xs, ys, np.full(len(ys), 700.0)])
+            normals = np.tile([0.0, 0.0, 1.0], (len(ys), 1))
+            strokes.append(Stroke(pts - [0, 0, 113.0], normals, pts, spray_on=True, on_part=np.ones(len(ys), bool)))
+        strokes.insert(1, Stroke(
+            np.stack([strokes[0].points[-1], strokes[1].points[0]]), np.stack([strokes[0].normals[-1]] * 2),
+            np.stack([strokes[0].tcp[-1], strokes[1].tcp[0]]), spray_on=False, on_part=np.zeros(2, bool)))  # fmt: skip
+        tcp = np.concatenate([s.tcp for s in strokes])
+        normals = np.concatenate([s.normals for s in strokes])
+        from sprayplan.robots.interface import follow_solutions
+        from sprayplan.surface.poses import poses_at
+
+        arm = robot.robot(0.0)
+        sols = arm.ik(poses_at(tcp, normals))
+        q, branch = follow_solutions(arm, sols, np.radians([0, 0, 0, 0, 30, 0]))
+        assert (branch >= 0).all()
+        works.append(RobotWork(robot.name, robot.model, tuple(strokes), np.array([0, -1, 0]), np.zeros(len(tcp)),
+                               np.zeros(3), q, np.ones(len(tcp), bool)))  # fmt: skip
+        arms.append(ArmCollision(robot, part, -500.0))
+    got = sched.schedule_cell(works, arms, 400.0, 1000.0, 30.0)
+    monkeypatch.setattr(sched, "MAX_WAIT_S", 0.0)
+    naive = sched.schedule_cell(works, arms, 400.0, 1000.0, 30.0)
+    assert naive.conflicts["a-b"] > 0  # both at the middle at the same time
+    assert got.conflicts["a-b"] == 0 and got.summary()["kept_apart"]
+    first_stroke_s = works[0].cycle_time_s(400.0, 1000.0)
+    assert got.timelines[1].wait_s[0] > 0  # b waits before its first stroke
+    assert got.least_gap_mm["a-b"] >= 30.0  # the clearance, and more by the motion bound
+    assert got.cycle_time_s > naive.cycle_time_s and got.cycle_time_s <= first_stroke_s + naive.cycle_time_s + 1.0
