@@ -305,6 +305,8 @@ def test_a_cell_plan_with_collisions_flags_each_waypoint_as_its_own_check_does(t
         np.testing.assert_allclose(csv_t, t_s, atol=1e-6)
         assert np.all(np.diff(t_s) >= -1e-9)
         assert t_s[-1] <= plan["report"]["cycle_time_s"] + 1e-3  # the report rounds to ms
+        mine = plan["report"]["robots"][work["name"]]
+        assert t_s[-1] <= mine["cycle_time_s"] + 1e-3 and mine["cycle_time_s"] >= mine["length_over_speed_s"] - 1e-3
         waited = sum(st["wait_s"] for st in work["strokes"])
         assert plan["report"]["schedule"]["waits"][work["name"]]["waited_s"] == pytest.approx(waited, abs=1e-3)
         # the repairs' joints still put the gun where the stroke wants it, at the stroke's track and roll

@@ -789,6 +789,10 @@ def plan_cell(
                 else f"not proven: {left} samples of the schedule too close"
             )
         report["cycle_time_s"] = report["schedule"]["cycle_time_s"]
+        for name, seconds in report["schedule"]["robot_time_s"].items():
+            entry = report["robots"][name]
+            entry["length_over_speed_s"] = entry["cycle_time_s"]
+            entry["cycle_time_s"] = seconds
         report["cycle_time_rule"] = "the schedule's: path length over speed per robot with its waits"
         plan = dataclasses.replace(plan, robots=robots)
     begin(None)

@@ -283,6 +283,7 @@ class Schedule:
             "rule": "robots in the cell's order; a later robot waits, spray off, before a stroke that would come "
             f"within the clearance of an earlier robot (samples every {DT_S:g} s, waits of {WAIT_STEP_S:g} s)",
             "cycle_time_s": round(self.cycle_time_s, 3),
+            "robot_time_s": {name: round(line.end_s, 3) for name, line in zip(self.waits, self.timelines)},
             "waits": self.waits,
             "least_gap_mm": self.least_gap_mm,
             "conflicts": self.conflicts,
