@@ -302,6 +302,28 @@ def test_areas_command_writes_one_row_a_painted_face(testdata, tmp_path, capsys)
     assert "areas of" in text and str(out) in text
 
 
+def test_areas_command_with_the_collision_model_reaches_no_more_and_needs_link_sizes(testdata, tmp_path, capsys):
+    import csv
+
+    pytest.importorskip("coal")
+    suv = testdata / "meshes" / "gazebo_suv_body_m.ply"
+    plain, checked = tmp_path / "plain.csv", tmp_path / "checked.csv"
+    assert _run(["-q", "areas", suv, "--units", "m", "--cell", "sides2", "-o", plain], capsys)[0] == 0
+    code, _, err = _run(["-q", "areas", suv, "--units", "m", "--cell", "sides2", "--collisions", "-o", checked], capsys)
+    assert code == 0, err
+    a, b = list(csv.DictReader(plain.open())), list(csv.DictReader(checked.open()))
+    assert [r["face"] for r in a] == [r["face"] for r in b]
+    reached = np.array([r["robot"] != "" for r in a])
+    reached_free = np.array([r["robot"] != "" for r in b])
+    assert not (reached_free & ~reached).any()  # the model only takes reach away
+    # a cell of a robot the collision model has no link sizes for: one line, exit 2, nothing written
+    ur = tmp_path / "ur.toml"
+    ur.write_text('[[robot]]\nname = "a"\nmodel = "ur5"\nbase_mm = [0, 1500, 0]\n')
+    out = tmp_path / "ur.csv"
+    code, _, err = _run(["areas", suv, "--units", "m", "--cell", ur, "--collisions", "-o", out], capsys)
+    assert code == 2 and "no link sizes" in err and len(err.strip().splitlines()) == 1 and not out.exists()
+
+
 @pytest.mark.parametrize(
     "extra, words",
     [
