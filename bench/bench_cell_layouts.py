@@ -26,11 +26,7 @@ sys.path.insert(0, str(REPO / "src"))
 sys.path.insert(0, str(REPO / "bench"))
 
 from _data import meshes_dir  # noqa: E402
-
-BODIES = {
-    "bmw": ("bmw_m6_body_m_yup.ply", {"units": "m", "up": "y"}),
-    "suv": ("gazebo_suv_body_m.ply", {"units": "m"}),
-}
+from bench_cell_collisions import BODIES  # noqa: E402
 
 
 def layout(base, lift: float, side_z: float, roof_z: float, side_y: float):
