@@ -601,23 +601,6 @@ def _robot_name(plan: CellPlan, i: int) -> str:
 SEAM_RULES = ("feather", "overlap")
 
 
-def scheduled(cell: Cell, robots: tuple, arms, job: JobConfig) -> tuple[tuple, dict]:
-    """The robots' work with its schedule's times and waits (:func:`~sprayplan.cells.schedule.schedule_cell`,
-    with the ``[motion]`` speeds, the tracks' speeds and the ``[collision]`` clearance), and the schedule's
-    summary."""
-    from sprayplan.cells.schedule import schedule_cell
-
-    tracks = [None if r.track is None else r.track.speed_mm_s for r in cell.robots]
-    plan = schedule_cell(
-        robots, arms, job.motion.gun_speed_mm_s, job.motion.transfer_speed_mm_s, job.collision.clearance_mm, tracks
-    )
-    out = tuple(
-        dataclasses.replace(r, t_s=line.arrive_s.copy(), wait_s=line.wait_s.copy())
-        for r, line in zip(robots, plan.timelines)
-    )
-    return out, plan.summary()
-
-
 def plan_cell(
     part: Part, cell: Cell, job: JobConfig, progress: Progress | None = None, seams: str = "feather"
 ) -> CellPlan:
@@ -778,6 +761,8 @@ def plan_cell(
         begin("collisions")
         robots, report["collisions"] = check_cell(plan, job.collision, repaired_work, arms=arms)
         begin("schedule")
+        from sprayplan.cells.schedule import scheduled
+
         robots = scheduled(cell, robots, arms, job)
         report["schedule"] = robots[1]
         robots = robots[0]

@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -390,3 +390,17 @@ def schedule_cell(
             _refined_conflict(timelines[i], arms[i], timelines[j], arms[j], g * DT_S, clearance_mm) for g in suspects
         )
     return Schedule(tuple(timelines), gaps, conflicts, waits, cycle)
+
+
+def scheduled(cell, robots: tuple, arms, job) -> tuple[tuple, dict]:
+    """The robots' work with its schedule's times and waits (:func:`schedule_cell`,
+    with the ``[motion]`` speeds, the tracks' speeds and the ``[collision]`` clearance), and the schedule's
+    summary."""
+    tracks = [None if r.track is None else r.track.speed_mm_s for r in cell.robots]
+    plan = schedule_cell(
+        robots, arms, job.motion.gun_speed_mm_s, job.motion.transfer_speed_mm_s, job.collision.clearance_mm, tracks
+    )
+    out = tuple(
+        replace(r, t_s=line.arrive_s.copy(), wait_s=line.wait_s.copy()) for r, line in zip(robots, plan.timelines)
+    )
+    return out, plan.summary()
