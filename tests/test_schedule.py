@@ -80,6 +80,8 @@ def test_the_timelines_are_the_plans_timing_with_waits_only_before_strokes(box_p
         assert line.end_s == pytest.approx(done + max(moved, sched.MIN_PARK_S))
         np.testing.assert_allclose(line.at(np.array([line.end_s + 5.0]))[0][0], park)
         assert not arms[k].check(park[None], track[-1:]).collides[0]
+        along = q[-1] + np.linspace(0.0, 1.0, 200)[:, None] * (park - q[-1])
+        assert not arms[k].check(along, np.full(200, track[-1])).collides.any()  # the move there is free too
     assert got.cycle_time_s == pytest.approx(max(tl.end_s for tl in got.timelines))
 
 

@@ -21,7 +21,7 @@ keeping them apart in space alone is not proven. :func:`schedule_cell` keeps the
    is counted (data, as a collision is).
    When a robot has done its work it **parks** (:func:`park_joints`): a joint move, at its axis speeds, to the
    configuration of a small set (axis 1 turned 0, 90, -90 or 180 degrees, axes 2 and 3 folded back) farthest
-   from the part and the floor, at its last track position; so a robot that has finished does not stand in the
+   from the part and the floor whose move there is free of them, at its last track position; so a robot that has finished does not stand in the
    way of one still painting.
 3. **The check** samples the common time axis every ``DT_S`` and measures, at every sample, the least distance
    between any capsule of one robot and any capsule of the other (:func:`segment_distances`, exact for segments;
@@ -59,6 +59,8 @@ PARK_AXIS2_DEG = (-60.0, -30.0, 0.0)
 PARK_AXIS3_DEG = (-60.0, -30.0, 0.0)
 #: A park move takes at least this long, s.
 MIN_PARK_S = 0.5
+#: Configurations checked along a park move.
+PARK_STEPS = 40
 
 
 def segment_distances(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndarray) -> np.ndarray:
@@ -116,12 +118,11 @@ def waypoint_times(
 def park_joints(arm, q_last: np.ndarray, track_mm: float) -> np.ndarray:
     """The park configuration of a robot whose last configuration is ``q_last`` at ``track_mm``: of the
     candidates (module docstring, within the joint limits; axes 4-6 as ``q_last`` but the wrist bent 30 degrees),
-    the one with the largest slack to the part and the floor (``arm.check``)."""
-    import itertools as it
-
+    the one with the largest slack to the part and the floor (``arm.check``) whose joint move from ``q_last``
+    is free of them too (checked at ``PARK_STEPS`` configurations along it); the largest slack if no move is."""
     lower, upper = np.asarray(arm.params.lower, dtype=float), np.asarray(arm.params.upper, dtype=float)
     rows = []
-    for a1, a2, a3 in it.product(PARK_AXIS1_DEG, PARK_AXIS2_DEG, PARK_AXIS3_DEG):
+    for a1, a2, a3 in itertools.product(PARK_AXIS1_DEG, PARK_AXIS2_DEG, PARK_AXIS3_DEG):
         q = np.array(q_last, dtype=float)
         q[:3] = np.radians([a1, a2, a3])
         q[4] = math.radians(30.0)
@@ -130,8 +131,13 @@ def park_joints(arm, q_last: np.ndarray, track_mm: float) -> np.ndarray:
     if not rows:
         return np.asarray(q_last, dtype=float)
     rows = np.asarray(rows)
-    found = arm.check(rows, np.full(len(rows), float(track_mm)))
-    return rows[int(np.argmax(found.slack_mm))]
+    order = np.argsort(-arm.check(rows, np.full(len(rows), float(track_mm))).slack_mm, kind="stable")
+    s = np.linspace(0.0, 1.0, PARK_STEPS)[:, None]
+    for i in order:
+        path = q_last + s * (rows[i] - q_last)
+        if not arm.collides(path, np.full(len(path), float(track_mm))).any():
+            return rows[i]
+    return rows[order[0]]
 
 
 def _held(q: np.ndarray, track: np.ndarray, reachable: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -162,9 +168,7 @@ class Timeline:
 
     def at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Joints (m, dof) and track (m,) at times ``t`` (held before the start and after the end)."""
-        t = np.asarray(t, dtype=float)
-        q = np.stack([np.interp(t, self.knot_t, self.knot_q[:, j]) for j in range(self.knot_q.shape[1])], axis=1)
-        return q, np.interp(t, self.knot_t, self.knot_track)
+        return _configs(np.asarray(t, dtype=float), self.knot_t, self.knot_q, self.knot_track)
 
 
 def _knots(t0, q, track, starts, waits):
@@ -251,8 +255,9 @@ def _grid(lo: float, hi: float) -> np.ndarray:
     return np.arange(math.ceil(lo / DT_S - 1e-9), math.floor(hi / DT_S + 1e-9) + 1)
 
 
-def _configs(t_local, t0, q, track):
-    return np.stack([np.interp(t_local, t0, q[:, c]) for c in range(q.shape[1])], axis=1), np.interp(t_local, t0, track)
+def _configs(t, times, q, track):
+    """Joints and track at times ``t``, linear between the knots (``times``, ``q``, ``track``)."""
+    return np.stack([np.interp(t, times, q[:, c]) for c in range(q.shape[1])], axis=1), np.interp(t, times, track)
 
 
 @dataclass(frozen=True)
