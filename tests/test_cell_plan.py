@@ -176,7 +176,7 @@ def test_a_gantry_cell_or_a_point_cloud_is_not_a_cell_plan(tmp_path):
 @pytest.mark.parametrize(
     "extra, words",
     [
-        (["--program", "rapid"], "--program: not available with --cell"),
+        (["--tour", "ga"], "--tour: not available with --cell"),
         (["--region", "z > 10"], "--region: not available with --cell"),
     ],
 )

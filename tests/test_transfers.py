@@ -4,6 +4,7 @@ cell where the straight transfer between two spray strokes runs through a post s
 from __future__ import annotations
 
 import dataclasses
+import itertools
 
 import numpy as np
 import pytest
@@ -76,7 +77,7 @@ def dense_slack(cell: CellCollision, chain: np.ndarray, spacing_mm: float = 2.0)
     configurations no body point moves more than ``spacing_mm`` apart (an independent check of the proof)."""
     from sprayplan.collision.motion import motion_checks
 
-    q = np.vstack([motion_checks(a, b, cell.reach_radii_mm, spacing_mm) for a, b in zip(chain[:-1], chain[1:])])
+    q = np.vstack([motion_checks(a, b, cell.reach_radii_mm, spacing_mm) for a, b in itertools.pairwise(chain)])
     return float(cell.distances(q).slack_mm.min())
 
 

@@ -184,6 +184,9 @@ class CellPlan:
         Wall seconds of each step.
     name : str
         What was planned (the part's name when there is a part).
+    job : JobConfig or None
+        The settings the plan was made with, the gun speed and spacing chosen for the film target among them
+        (what the robot programs carry, ``programs.arms``).
     """
 
     cell: Cell
@@ -196,6 +199,7 @@ class CellPlan:
     report: dict = field(default_factory=dict)
     timings_s: dict = field(default_factory=dict)
     name: str = ""
+    job: object = field(default=None, compare=False)
 
 
 def _sub_part(part: Part, keep: np.ndarray, name: str) -> Part:
@@ -669,7 +673,7 @@ def plan_cell(
     robots = tuple(_robot_work(r, i, painted, areas, assignment, job, guard) for i, r in enumerate(cell.robots))
     begin("film")
     report = {"spray_radius_mm": job.paths.spray_radius_mm, "floor_facing_left_out_mm2": round(left_out, 1)}
-    plan = CellPlan(cell, painted, placed.part2cell, areas, assignment, robots, None, report, timings)
+    plan = CellPlan(cell, painted, placed.part2cell, areas, assignment, robots, None, report, timings, job=job)
     target = job.coating.thickness_um
     everything, _ = reached_strokes(robots)
     if not everything:

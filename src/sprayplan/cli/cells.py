@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import sys
 
 from sprayplan.cli.common import check_outputs, file_input
 from sprayplan.cli.common import stage as _stage
@@ -154,7 +155,7 @@ def add_parsers(sub, common, add_load_options) -> None:
 
 
 #: ``plan --cell`` options that belong to the gantry's plan and have no meaning in a cell of arms.
-GANTRY_ONLY = ("robot", "robot_file", "mode", "tour", "program", "strict")
+GANTRY_ONLY = ("robot", "robot_file", "mode", "tour")
 
 
 def cmd_plan_robot(args, job_config) -> int:
@@ -225,8 +226,16 @@ def cmd_plan_cell(args, job, cell=None) -> int:
     cell = load_cell(args.cell) if cell is None else cell
     if cell.is_gantry:
         raise ConfigError(f"--cell {cell.name}: the gantry cell is planned without --cell")
+    formats = tuple(job.export.programs)
+    if "urscript" in formats:
+        raise ConfigError(
+            "--program urscript: URScript is written for the gantry's UR arm; a cell's robots get rapid or krl"
+        )
+    if formats:
+        _programs_possible(cell)
     inputs = [(args.part, "part"), (args.config, "-c"), (file_input(getattr(args, "cell", None)), "--cell")]
-    check_folder_outputs(args.output, CELL_FILES, "-o", inputs)
+    outputs = CELL_FILES + (("programs",) if formats else ())
+    check_folder_outputs(args.output, outputs, "-o", inputs)
     with _stage("load"):
         part = load_part(args.part, units=job.load.units, up=job.load.up)
     if job.load.region is not None:
@@ -241,8 +250,23 @@ def cmd_plan_cell(args, job, cell=None) -> int:
         raise
     display.close()
     target = job.coating.thickness_um if job.coating.thickness_um is not None else 50.0
-    with staged_folder(args.output, CELL_FILES) as folder:
+    programs = []
+    if formats:
+        from sprayplan.programs.arms import build_cell_programs, write_cell_programs
+
+        with _stage("programs"):
+            programs = build_cell_programs(plan, job, formats)  # every refusal before anything is written
+    summaries = []
+    with staged_folder(args.output, outputs) as folder:
         write_cell_plan(folder, plan, target, job.coating.tolerance_um)
+        if programs:
+            summaries = write_cell_programs(os.path.join(folder, "programs"), programs, plan.job or job)
+    for robot in programs:
+        for built in robot.builts:
+            from sprayplan.programs.stage import warnings_of
+
+            for warning in warnings_of(built):
+                print(f"sprayplan: {robot.robot}: {warning}", file=sys.stderr)
     report = plan.report
     robots = ", ".join(
         f"{name} {r['strokes']} strokes {r['waypoints']} waypoints ({r['unreached_waypoints']} unreached) "
@@ -271,5 +295,25 @@ def cmd_plan_cell(args, job, cell=None) -> int:
         waits = ", ".join(f"{k} {v['waited_s']:g} s" for k, v in schedule["waits"].items())
         gaps = ", ".join(f"{k} {'-' if v is None else f'{v:g} mm'}" for k, v in schedule["least_gap_mm"].items())
         line += f"; schedule: waits {waits}, least gaps in time {gaps}"
+    for data in summaries:
+        print(
+            f"{data['robot']} {data['program_format']}: {len(data['files'])} files, {data['moves']} moves -> "
+            f"{os.path.join(args.output, 'programs', data['robot'], data['program_format'])}"
+        )
     print(f"{line} -> {os.path.join(args.output, 'cell_plan.json')}")
     return 0
+
+
+def _programs_possible(cell) -> None:
+    """Every robot of ``cell`` has a program format (six axes): checked before the plan, so that a refusal
+    costs no planning time."""
+    from sprayplan.errors import ConfigError
+    from sprayplan.robots.interface import robot_from_name
+
+    for r in cell.robots:
+        dof = robot_from_name(r.model, None).dof
+        if dof != 6:
+            raise ConfigError(
+                f"--program: robot {r.name} ({r.model}) has {dof} axes; RAPID and KRL programs are written for "
+                "six-axis arms"
+            )

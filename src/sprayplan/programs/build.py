@@ -49,7 +49,7 @@ from sprayplan.programs.model import (
     angle_between_deg,
     offset_along_z,
 )
-from sprayplan.robots.stage import HOME_JOINTS, gantry_for
+from sprayplan.robots.stage import gantry_for
 
 #: The approach tried at the set distance, then at half, a quarter and an eighth of it.
 APPROACH_TRIES = (1.0, 0.5, 0.25, 0.125)
@@ -217,9 +217,10 @@ def _split(index: np.ndarray, limit: int, report: dict) -> list[np.ndarray]:
     return parts
 
 
-def build_program(plan, job, fmt: str, strict: bool | None = None) -> CellProgram:
+def build_program(plan, job, fmt: str, strict: bool | None = None, cell=None) -> CellProgram:
     """The moves of every station for ``fmt`` (``urscript``, ``rapid``, ``krl``), and the report of what was
-    left out (the ``summary.json`` of the export).
+    left out (the ``summary.json`` of the export). ``cell``: the robot the plan is for (default the job's
+    gantry; a cell robot's is ``programs.arms.ArmCell``, whose plan is ``programs.arms.arm_plan``).
 
     Raises
     ------
@@ -230,7 +231,7 @@ def build_program(plan, job, fmt: str, strict: bool | None = None) -> CellProgra
     """
     cfg = job.export
     strict = cfg.strict if strict is None else strict
-    cell = Cell(gantry_for(job.kinematics))
+    cell = cell or Cell(gantry_for(job.kinematics))
     runs, report = spray_runs(plan, job, fmt, cell)
     report.update({"unapproachable_waypoints": [], "shortened_approaches": 0, "single_waypoint_runs": 0,
                    "clipped_leads": 0, "unswitched_runs": 0})  # fmt: skip
@@ -251,7 +252,14 @@ def build_program(plan, job, fmt: str, strict: bool | None = None) -> CellProgra
         _refuse(report)
     home = _home(cell, plan.home_mm)
     return CellProgram(
-        tuple(stations), np.array(plan.home_mm), HOME_JOINTS.copy(), cell.tool2flange, plan.name, report, home
+        tuple(stations),
+        np.array(plan.home_mm),
+        cell.home_joints,
+        cell.tool2flange,
+        plan.name,
+        report,
+        home,
+        **getattr(cell, "program_fields", dict)(),
     )
 
 
@@ -286,8 +294,9 @@ def _refuse(report: dict) -> None:
 
 
 def _home(cell: Cell, external_mm) -> Move:
-    pose = cell.poses(HOME_JOINTS, external_mm)[0]
-    return Move(JOINT, "home", pose, HOME_JOINTS.copy(), np.array(external_mm, float))
+    home = cell.home_joints
+    pose = cell.poses(home, external_mm)[0]
+    return Move(JOINT, "home", pose, home, np.array(external_mm, float))
 
 
 def line_joints(cell: Cell, start: np.ndarray, end: np.ndarray, external_mm, q_start: np.ndarray):
@@ -306,7 +315,7 @@ def line_joints(cell: Cell, start: np.ndarray, end: np.ndarray, external_mm, q_s
 
     for k in range(steps):
         q = nearest_equivalent(solutions.q[k, branch], previous, cell.lower, cell.upper)
-        if not (solutions.valid[k, branch] and cell.gantry.robot.within_limits(q[None])[0]):
+        if not (solutions.valid[k, branch] and cell.within_limits(q[None])[0]):
             return None
         if np.abs(q - previous).max() > LINE_STEP_RAD:
             return None

@@ -38,11 +38,9 @@ from sprayplan.programs.model import (
     LINEAR,
     Cell,
     angle_between_deg,
-    krl_status_turn,
     offset_along_z,
-    rapid_config,
 )
-from sprayplan.robots.stage import HOME_JOINTS, gantry_for
+from sprayplan.robots.stage import gantry_for
 from sprayplan.types import TRANSFER_REPAIRS
 
 POSITION_MM = 0.01
@@ -103,10 +101,11 @@ class CheckResult:
             self.failures.append(f"{where}: {text}" if where else text)
 
 
-def check_program(read, plan, job) -> CheckResult:
-    """Compare the moves of ``read`` (``stage.read_programs``) with ``plan`` and its settings ``job``."""
+def check_program(read, plan, job, cell=None) -> CheckResult:
+    """Compare the moves of ``read`` (``stage.read_programs``) with ``plan`` and its settings ``job``; ``cell``
+    the robot (default the job's gantry; ``programs.arms.ArmCell`` for a robot of a cell)."""
     result = CheckResult(moves=len(read.moves))
-    cell = Cell(gantry_for(job.kinematics))
+    cell = cell or Cell(gantry_for(job.kinematics))
     if np.abs(read.tool2flange - cell.tool2flange).max() > 1e-4:
         result.fail(None, f"the TCP is not the gun's spray target {cell.tool2flange[:3, 3].tolist()}")
     stations = _by_station(read, plan, cell, result)
@@ -138,7 +137,10 @@ def _by_station(read, plan, cell: Cell, result: CheckResult) -> list:
         if visits != [st.index for st in plan.stations]:
             result.fail(None, f"the scripts visit the stations {visits}, the plan {[st.index for st in plan.stations]}")
         for order, station_moves in out:
-            if not station_moves or not (_is_home(station_moves[0], None) and _is_home(station_moves[-1], None)):
+            home = cell.home_joints
+            if not station_moves or not (
+                _is_home(station_moves[0], None, home) and _is_home(station_moves[-1], None, home)
+            ):
                 result.fail(
                     station_moves[0] if station_moves else None, f"station {order + 1} must begin and end at home"
                 )
@@ -146,17 +148,17 @@ def _by_station(read, plan, cell: Cell, result: CheckResult) -> list:
     if np.abs(read.frame - np.eye(4)).max() > 1e-6:
         result.fail(None, "the work object / base is not the part frame (identity in the plan's world)")
     for end in (0, -1):
-        if not moves or not _is_home(moves[end], plan.home_mm):
+        if not moves or not _is_home(moves[end], plan.home_mm, cell.home_joints):
             result.fail(moves[end] if moves else None, "the program must start and end at home (gantry at home_mm)")
             return []
     body, out, k = moves[1:-1], [], 0
     for order, st in enumerate(plan.stations):
-        if k >= len(body) or not _is_home(body[k], st.platform_mm):
+        if k >= len(body) or not _is_home(body[k], st.platform_mm, cell.home_joints):
             result.fail(
                 body[k] if k < len(body) else None, f"station {order + 1} must begin at home at its gantry position"
             )
             return out
-        end = next((j for j in range(k + 1, len(body)) if _is_home(body[j], st.platform_mm)), None)
+        end = next((j for j in range(k + 1, len(body)) if _is_home(body[j], st.platform_mm, cell.home_joints)), None)
         if end is None:
             result.fail(body[k], f"station {order + 1} never returns home")
             return out
@@ -167,12 +169,14 @@ def _by_station(read, plan, cell: Cell, result: CheckResult) -> list:
     return out
 
 
-def _is_home(move, external_mm) -> bool:
+def _is_home(move, external_mm, home_joints) -> bool:
     """A joint move to the home joints (with the gantry at ``external_mm`` where the format carries it)."""
-    if move.kind != JOINT or np.abs(move.joints - HOME_JOINTS).max() > JOINT_RAD:
+    if move.kind != JOINT or np.abs(move.joints - home_joints).max() > JOINT_RAD:
         return False
     return (
-        move.external_mm is None or external_mm is None or np.abs(move.external_mm - external_mm).max() <= EXTERNAL_MM
+        move.external_mm is None
+        or external_mm is None
+        or np.abs(move.external_mm - external_mm).max(initial=0.0) <= EXTERNAL_MM
     )
 
 
@@ -189,8 +193,8 @@ class _Station:
         self.data = station_arrays(st, job)
         self.q9 = target_q9(st, fmt)
         n = len(self.q9)
-        self.poses = cell.gantry.target2world(self.q9) if n else np.zeros((0, 4, 4))  # eq. 8, the plan's own chain
-        self.wanted = wanted_targets(self.data["tcp"], self.data["normals"], cell.gantry.gun.spray_distance_mm)
+        self.poses = cell.target_poses(self.q9) if n else np.zeros((0, 4, 4))  # the plan's own chain
+        self.wanted = wanted_targets(self.data["tcp"], self.data["normals"], cell.spray_distance_mm)
         self.branch = cell.branches(self.q9[:, :6]) if n else np.zeros(0, int)
         self.spray = self.data["spray"] & st.reachable
         # (move, joints, branch, gantry, exact pose) whose configuration data are checked at the end
@@ -360,7 +364,7 @@ def _check_targets(station, targets, indices, fmt, cell, result) -> None:
             moves[j], f"waypoint {k[j]}: {dw[j]:.4g} mm, {dz[j]:.4g} deg from the plan's spray target and gun axis"
         )
     if fmt in ("rapid", "krl"):
-        ext = np.abs(np.array([m.external_mm for m in moves]) - station.q9[k, 6:]).max(axis=1)
+        ext = np.abs(np.array([m.external_mm for m in moves]) - station.q9[k, 6:]).max(axis=1, initial=0.0)
         result.max_external_mm = max(result.max_external_mm, float(ext.max()))
         for j in np.flatnonzero(ext > EXTERNAL_MM):
             result.fail(
@@ -381,23 +385,14 @@ def _check_configs(pending, fmt, cell: Cell, result) -> None:
         return
     moves = [p[0] for p in pending]
     joints = np.array([p[1] for p in pending])
-    branch = np.array([p[2] for p in pending])
     config = np.array([tuple(m.config) for m in moves], int)
-    expected = rapid_config(joints, branch) if fmt == "rapid" else krl_status_turn(joints, branch)
+    expected = cell.config_data(joints, fmt)
     wrong = (config != expected).any(axis=1)
     for n in np.flatnonzero(wrong):
         result.fail(
             moves[n], f"configuration data {tuple(config[n])} are not those of the plan's joints {tuple(expected[n])}"
         )
-    if fmt == "rapid":  # cfx = 4 shoulder + 2 elbow + wrist
-        cfx = config[:, 3]
-        use = 4 * (cfx >> 2) + 2 * (cfx & 1) + ((cfx >> 1) & 1)
-    else:  # S = shoulder + 2 elbow + 4 wrist
-        status = config[:, 0]
-        use = 4 * (status & 1) + 2 * ((status >> 2) & 1) + ((status >> 1) & 1)
-    solutions = cell.solutions(np.array([p[4] for p in pending]), np.array([p[3] for p in pending]))
-    rows = np.arange(len(pending))
-    raw, ok = solutions.q[rows, use], solutions.valid[rows, use]
+    raw, ok = cell.config_solutions(np.array([p[4] for p in pending]), np.array([p[3] for p in pending]), config, fmt)
     q = _turns(raw, joints, config, fmt)
     error = np.where(np.isfinite(q).all(axis=1), np.abs(q - joints).max(axis=1), np.inf)
     for n in np.flatnonzero(~wrong & (~ok | (error > POSE_JOINT_RAD))):
@@ -498,7 +493,7 @@ def _check_backoff(station, move, i, cfg, cell, fmt, result, is_approach: bool) 
     base = station.poses[i]
     if is_approach:
         pose = cell.poses(move.joints, station.q9[i, 6:])[0]
-        if move.external_mm is not None and np.abs(move.external_mm - station.q9[i, 6:]).max() > EXTERNAL_MM:
+        if move.external_mm is not None and np.abs(move.external_mm - station.q9[i, 6:]).max(initial=0.0) > EXTERNAL_MM:
             result.fail(move, "the joint move's external axes are not the gantry's at its run")
     else:
         pose = move.pose

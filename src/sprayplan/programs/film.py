@@ -58,7 +58,7 @@ def _paths(pieces, name: str, cell: Cell, standoff_mm: float, merge: bool = True
     strokes, overrides = [], []
     for piece in _merged(pieces) if merge else pieces:
         axis = piece.poses[:, :3, 2]
-        tip = piece.poses[:, :3, 3] - cell.gantry.gun.spray_distance_mm * axis
+        tip = piece.poses[:, :3, 3] - cell.spray_distance_mm * axis
         length = float(np.linalg.norm(tip[1] - tip[0]))
         if length <= TINY_MM or not piece.seconds > 0:
             continue  # the tip stands still: the film model gives it no time, as the plan's does

@@ -44,7 +44,8 @@ def _frame_text(pose, abc=None) -> str:
 
 
 def _external(external_mm) -> str:
-    e = [fixed(v, 4) for v in external_mm] + ["0.0"] * 3
+    """E1..E6: the external axes in use (mm), the rest 0."""
+    e = [fixed(v, 4) for v in external_mm] + ["0.0"] * (6 - len(external_mm))
     return ",".join(f"E{k + 1} {v}" for k, v in enumerate(e))
 
 
@@ -84,7 +85,8 @@ def _main(cell, job, names) -> str:
         f"{IND}BAS (#INITMOV,0 )",
         ";ENDFOLD (INI)",
         f"{IND}; sprayplan {__version__}: spray program for {cell.name or 'the part'}, {_stations(cell)}",
-        f"{IND}; mm, degrees (A, B, C about Z, Y, X), m/s; E1..E3 the gantry (mm); S, T from the plan's joints",
+        f"{IND}; mm, degrees (A, B, C about Z, Y, X), m/s; {_axes_note(cell)}; S, T from the plan's joints",
+        f"{IND}; poses in the base {cfg.krl_base} ({cell.frame_note})",
         f"{IND}TOOL_DATA[{cfg.krl_tool}]={{{_frame_text(cell.tool2flange)}}}",
         f"{IND}BASE_DATA[{cfg.krl_base}]={{{_frame_text(np.eye(4))}}}",
         f"{IND}$TOOL=TOOL_DATA[{cfg.krl_tool}]",
@@ -97,6 +99,12 @@ def _main(cell, job, names) -> str:
         "",
     ]
     return "\n".join(lines)
+
+
+def _axes_note(cell) -> str:
+    if cell.external_axes == 3:
+        return "E1..E3 the gantry (mm)"
+    return cell.external_note
 
 
 def _sub(name, moves, notes, cfg, configs) -> tuple[str, str]:
@@ -132,9 +140,10 @@ def _sub(name, moves, notes, cfg, configs) -> tuple[str, str]:
 # --- the reader ---------------------------------------------------------------------------------------------
 
 
-def read_krl(folder, job) -> ReadProgram:
+def read_krl(folder, job, external_axes: int = 3) -> ReadProgram:
     """Read a KRL program folder written by :func:`write_krl` back into moves, strictly: every line must be one
-    the writer writes (comments aside); anything else is a :class:`ProgramError` naming the file and line."""
+    the writer writes (comments aside); anything else is a :class:`ProgramError` naming the file and line.
+    ``external_axes``: how many of E1..E6 the robot has (the gantry 3, a track 1); the rest must be 0."""
     cfg = job.export
     folder = Path(folder)
     main = folder / f"{cfg.name}.src"
@@ -143,7 +152,7 @@ def read_krl(folder, job) -> ReadProgram:
     files = [main.name]
     for call in calls:
         files += [f"{call}.src", f"{call}.dat"]
-        moves += _read_sub(folder, call, cfg)
+        moves += _read_sub(folder, call, cfg, external_axes)
     return ReadProgram("krl", tool, base, tuple(moves), (), tuple(files))
 
 
@@ -240,7 +249,7 @@ def _pose(f: dict) -> np.ndarray:
     return pose
 
 
-def _read_sub(folder: Path, name: str, cfg) -> list:
+def _read_sub(folder: Path, name: str, cfg, axes: int = 3) -> list:
     dat_path, src_path = folder / f"{name}.dat", folder / f"{name}.src"
     targets = {}
     for n, line in _block(dat_path, _lines(dat_path), f"DEFDAT {name}", "ENDDAT"):
@@ -255,11 +264,11 @@ def _read_sub(folder: Path, name: str, cfg) -> list:
             f = _fields(match.group(3), (*_FRAME_KEYS, "S", "T", *_E), where)
             if any(f[k] != int(f[k]) or f[k] < 0 for k in ("S", "T")) or f["S"] > 7 or f["T"] > 63:
                 raise ProgramError(*where, f"S must be 0 to 7 and T 0 to 63, whole numbers: {text[:80]!r}")
-            targets[match.group(2)] = (f, (int(f["S"]), int(f["T"])), _ext(f, where))  # posed below, at once
+            targets[match.group(2)] = (f, (int(f["S"]), int(f["T"])), _ext(f, where, axes))  # posed below, at once
         else:
             f = _fields(match.group(3), (*(f"A{k}" for k in range(1, 7)), *_E), where)
             joints = np.radians([f[f"A{k}"] for k in range(1, 7)])
-            targets[match.group(2)] = (joints, _ext(f, where))
+            targets[match.group(2)] = (joints, _ext(f, where, axes))
     linear = [k for k, t in targets.items() if k.startswith("XP")]
     if linear:
         fields = [targets[k][0] for k in linear]
@@ -319,7 +328,8 @@ def _read_sub(folder: Path, name: str, cfg) -> list:
     return moves
 
 
-def _ext(f: dict, where) -> np.ndarray:
-    if any(f[k] != 0 for k in ("E4", "E5", "E6")):
-        raise ProgramError(*where, "E4..E6 must be 0 (no such axes)")
-    return np.array([f["E1"], f["E2"], f["E3"]])
+def _ext(f: dict, where, axes: int = 3) -> np.ndarray:
+    unused = [f"E{k}" for k in range(axes + 1, 7)]
+    if any(f[k] != 0 for k in unused):
+        raise ProgramError(*where, f"{unused[0]}..E6 must be 0 (no such axes)")
+    return np.array([f[f"E{k}"] for k in range(1, axes + 1)])

@@ -108,6 +108,13 @@ class CellProgram:
     home : Move
         The joint move home with the gantry at ``home_mm``: where a whole-cell program (RAPID, KRL) starts and
         ends.
+    external_axes : int
+        How many external axes the moves carry: 3 for the gantry, 1 for a cell robot's track, 0 for a fixed base
+        (``programs.arms``).
+    external_note, frame_note : str
+        What the external axes are and which frame the poses are in (the programs' header comments).
+    gun_mm : (3,) float or None
+        The gun body on the flange (the tool load's centre of gravity, mm); None: the gantry's gun.
     """
 
     stations: tuple
@@ -117,6 +124,10 @@ class CellProgram:
     name: str
     report: dict = field(default_factory=dict)
     home: Move | None = None
+    external_axes: int = 3
+    external_note: str = "the gantry in eax_a..eax_c / E1..E3 (mm)"
+    frame_note: str = "the part frame"
+    gun_mm: np.ndarray | None = None
 
     def sequence(self) -> list[tuple[Move, str | None]]:
         """Every move of a whole-cell program with a note where a station begins: home, each station's moves
@@ -125,6 +136,8 @@ class CellProgram:
         for st in self.stations:
             p = ", ".join(fixed(v, 4) for v in st.platform_mm)
             note = f"station {st.order + 1} of {len(self.stations)} (plan station {st.station}), gantry at ({p}) mm"
+            if self.external_axes != 3:  # a robot of a cell: its whole work is one station
+                note = "the robot's work" + (f", track at {p} mm" if len(st.platform_mm) else "")
             out += [(move, note if k == 0 else None) for k, move in enumerate(st.moves)]
         return out + [(self.home, None)]
 
@@ -279,10 +292,53 @@ class Cell:
 
     gantry: Gantry
 
+    #: How many external axes the programs drive (the gantry's x, y, z).
+    external_axes = 3
+
     @property
     def tool2flange(self) -> np.ndarray:
         """The TCP on the flange: the gun's T_tool, then its spray distance T_dis."""
         return self.gantry.gun.gun2flange @ self.gantry.gun.target2gun
+
+    @property
+    def spray_distance_mm(self) -> float:
+        """From the gun tip to the spray target along the gun axis."""
+        return self.gantry.gun.spray_distance_mm
+
+    @property
+    def home_joints(self) -> np.ndarray:
+        """The arm's joints at home (where every station is solved from)."""
+        from sprayplan.robots.stage import HOME_JOINTS
+
+        return HOME_JOINTS.copy()
+
+    def within_limits(self, q) -> np.ndarray:
+        return self.gantry.robot.within_limits(q)
+
+    def target_poses(self, q9) -> np.ndarray:
+        """(n, 4, 4) the TCP in the part frame for the plan's nine axes (n, 9), by the plan's own chain (eq. 8 of
+        seed 000): what the read-back check compares with."""
+        return self.gantry.target2world(q9)
+
+    def config_data(self, q6, fmt: str) -> np.ndarray:
+        """(n, 4) RAPID ``[cf1, cf4, cf6, cfx]`` or (n, 2) KRL ``[S, T]`` of joints (n, 6)."""
+        branch = self.branches(q6)
+        return rapid_config(q6, branch) if fmt == "rapid" else krl_status_turn(q6, branch)
+
+    def config_solutions(self, poses, external_mm, config: np.ndarray, fmt: str):
+        """(n, 6) joints and (n,) bool valid: the closed-form solution of each pose (n, 4, 4) on the branch its
+        configuration data (n, 4) or (n, 2) name, turns as solved (RAPID's cfx = 4 shoulder + 2 elbow + wrist,
+        KRL's S = shoulder + 2 elbow + 4 wrist)."""
+        config = np.asarray(config, int)
+        if fmt == "rapid":
+            cfx = config[:, 3]
+            use = 4 * (cfx >> 2) + 2 * (cfx & 1) + ((cfx >> 1) & 1)
+        else:
+            status = config[:, 0]
+            use = 4 * (status & 1) + 2 * ((status >> 2) & 1) + ((status >> 1) & 1)
+        solutions = self.solutions(poses, external_mm)
+        rows = np.arange(len(use))
+        return solutions.q[rows, use], solutions.valid[rows, use]
 
     @property
     def lower(self) -> np.ndarray:
@@ -324,7 +380,7 @@ class Cell:
         solutions = self.solutions(poses, external_mm)
         q = solutions.q[:, branch]
         q = nearest_equivalent(q, np.broadcast_to(seed, q.shape), self.lower, self.upper)
-        ok = solutions.valid[:, branch] & self.gantry.robot.within_limits(q)
+        ok = solutions.valid[:, branch] & self.within_limits(q)
         return q, ok
 
 

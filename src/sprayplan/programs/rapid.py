@@ -49,7 +49,8 @@ def _quat(matrix) -> str:
 
 
 def _extax(external_mm) -> str:
-    return ",".join([fixed(v, 4) for v in external_mm] + [UNUSED] * 3)
+    """eax_a..eax_f: the external axes in use (mm), the rest ``9E+09``."""
+    return ",".join([fixed(v, 4) for v in external_mm] + [UNUSED] * (6 - len(external_mm)))
 
 
 def robtarget(move, config, quaternion: str | None = None) -> str:
@@ -99,12 +100,12 @@ def write_rapid(cell, job, configs) -> dict[str, str]:
 def _main_module(cell, job, names) -> str:
     cfg = job.export
     tool = cell.tool2flange
-    cog = job_gun_position(job)
+    cog = job_gun_position(job) if cell.gun_mm is None else cell.gun_mm
     lines = [
         f"MODULE {cfg.name}_main",
         f"{IND}! sprayplan {__version__}: spray program for {cell.name or 'the part'}, {_stations(cell)}",
-        f"{IND}! mm, degrees; quaternions [w, x, y, z]; robtargets in the work object {cfg.rapid_wobj} (the part frame)",
-        f"{IND}! gantry in eax_a..eax_c (mm); cf1, cf4, cf6, cfx from the plan's joints (docs/programs.md)",
+        f"{IND}! mm, degrees; quaternions [w, x, y, z]; robtargets in the work object {cfg.rapid_wobj} ({cell.frame_note})",
+        f"{IND}! {_axes_note(cell)}; cf1, cf4, cf6, cfx from the plan's joints (docs/programs.md)",
         f"{IND}PERS tooldata {cfg.rapid_tool} := [TRUE,[[{_pos(tool[:3, 3])}],[{_quat(tool[:3, :3])}]],"
         f"[{fixed(cfg.tool_mass_kg, 3)},[{_pos(cog)}],[1,0,0,0],0,0,0]];",
         f'{IND}PERS wobjdata {cfg.rapid_wobj} := [FALSE,TRUE,"",[[{_pos((0, 0, 0))}],[{_quat(np.eye(3))}]],'
@@ -118,6 +119,12 @@ def _main_module(cell, job, names) -> str:
     lines += [f"{IND * 2}SetDO {cfg.rapid_gun_signal}, 0;"] if not cfg.rapid_paint else []
     lines += [f"{IND}ENDPROC", "ENDMODULE", ""]
     return "\n".join(lines)
+
+
+def _axes_note(cell) -> str:
+    if cell.external_axes == 3:
+        return "gantry in eax_a..eax_c (mm)"
+    return cell.external_note
 
 
 def _stations(cell) -> str:
@@ -182,9 +189,10 @@ def brush_plane(start, end, distance_mm: float) -> tuple[str, float]:
 # --- the reader ---------------------------------------------------------------------------------------------
 
 
-def read_rapid(folder, job) -> ReadProgram:
+def read_rapid(folder, job, external_axes: int = 3) -> ReadProgram:
     """Read a RAPID program folder written by :func:`write_rapid` back into moves, strictly: every line must be
     one the writer writes (comments aside); anything else is a :class:`ProgramError` naming the file and line.
+    ``external_axes``: how many of eax_a..eax_f the robot has (the gantry 3, a track 1); the rest must be unused.
     """
     cfg = job.export
     folder = Path(folder)
@@ -195,7 +203,7 @@ def read_rapid(folder, job) -> ReadProgram:
     for call in calls:
         path = folder / f"{call}{SUFFIX}"
         files.append(path.name)
-        moves += _read_part(path, call, cfg)
+        moves += _read_part(path, call, cfg, external_axes)
     return ReadProgram("rapid", tool, frame, tuple(moves), (), tuple(files))
 
 
@@ -292,8 +300,9 @@ _FAST = (
 )
 
 
-def _fast_linear(match, where):
-    """(pose, external, config, speed, blend, triggers) of a linear move in the writer's own layout."""
+def _fast_linear(match, where, axes: int = 3):
+    """(pose, external, config, speed, blend, triggers) of a linear move in the writer's own layout; ``axes``
+    of eax_a..eax_c in use, the rest 9E+09."""
     g = match.groups()
     pose = np.eye(4)
     pose[:3, 3] = [float(v) for v in g[1:4]]
@@ -304,13 +313,16 @@ def _fast_linear(match, where):
     config = tuple(int(v) for v in g[8:12])
     if not 0 <= config[3] <= 7:
         raise ProgramError(*where, f"robconf must be 4 whole numbers, cfx 0 to 7, got {list(config)}")
-    external = np.array([float(v) for v in g[12:15]])
+    values = np.array([float(v) for v in g[12:15]])
+    if np.any(values[axes:] != 9e9):
+        raise ProgramError(*where, f"eax_{'abc'[axes]}..eax_f must be 9E+09 (unused)")
+    external = values[:axes]
     speed = float(g[15])
     blend = 0.0 if g[20] == "fine" else _zone_values(np.array([float(v) for v in g[21:27]]), g[20], where)
     return pose, external, config, speed, blend, g[19]
 
 
-def _read_part(path: Path, name: str, cfg) -> list:
+def _read_part(path: Path, name: str, cfg, axes: int = 3) -> list:
     data, body = _body(path, name, name)
     if data:
         raise ProgramError(path, data[0][0], f"unknown declaration: {data[0][1][:60]!r}")
@@ -329,7 +341,7 @@ def _read_part(path: Path, name: str, cfg) -> list:
             target = aggregate(args[0], where)
             _expect(isinstance(target, list) and len(target) == 2, where, line)
             joints = np.radians(numbers(target[0], (6,), "robax", where))
-            ext = _extax_read(target[1], where)
+            ext = _extax_read(target[1], where, axes)
             speed = numbers(aggregate(args[1], where), (4,), "speeddata", where)
             moves.append(ReadMove(JOINT, None, joints, ext, float(speed[0]), 0.0, where=f"{path.name}:{n}"))
         elif head == "TriggIO" and not cfg.rapid_paint:
@@ -349,12 +361,12 @@ def _read_part(path: Path, name: str, cfg) -> list:
             expect = 5 if head == "TriggL" else 4
             fast = fast_move.match(line)
             if fast and (fast.group(20) is not None) == (head == "TriggL"):
-                pose, external, config, v, blend, trig = _fast_linear(fast, where)
+                pose, external, config, v, blend, trig = _fast_linear(fast, where, axes)
                 speed = [v]
                 args = [None, None, trig, None, tool] if head == "TriggL" else [None, None, None, tool]
             else:
                 _expect(len(args) == expect and args[-1] == tool, where, line)
-                pose, external, config = _robtarget(args[0], where)
+                pose, external, config = _robtarget(args[0], where, axes)
                 speed = numbers(aggregate(args[1], where), (4,), "speeddata", where)
                 blend = _zone_read(args[-2], where)
             _expect(speed[0] > 0, where, line)
@@ -393,16 +405,17 @@ def _nonnegative(text: str, where) -> float:
     return value
 
 
-def _extax_read(value, where) -> np.ndarray:
+def _extax_read(value, where, axes: int = 3) -> np.ndarray:
     if not (isinstance(value, list) and len(value) == 6):
         raise ProgramError(*where, "extax must hold 6 values")
-    ext = numbers(value[:3], (3,), "eax_a..eax_c", where)
-    if any(v != 9e9 for v in numbers(value[3:], (3,), "eax_d..eax_f", where)):
-        raise ProgramError(*where, "eax_d..eax_f must be 9E+09 (unused)")
+    names = "abcdef"
+    ext = numbers(value[:axes], (axes,), f"eax_a..eax_{names[axes - 1]}", where) if axes else np.zeros(0)
+    if any(v != 9e9 for v in numbers(value[axes:], (6 - axes,), f"eax_{names[axes]}..eax_f", where)):
+        raise ProgramError(*where, f"eax_{names[axes]}..eax_f must be 9E+09 (unused)")
     return ext
 
 
-def _robtarget(text: str, where):
+def _robtarget(text: str, where, axes: int = 3):
     value = aggregate(text, where)
     if not (isinstance(value, list) and len(value) == 4):
         raise ProgramError(*where, "a robtarget must be [trans, rot, robconf, extax]")
@@ -412,7 +425,7 @@ def _robtarget(text: str, where):
     conf = numbers(value[2], (4,), "robconf", where)
     if (conf != np.round(conf)).any() or not 0 <= conf[3] <= 7:
         raise ProgramError(*where, f"robconf must be 4 whole numbers, cfx 0 to 7, got {value[2]}")
-    return pose, _extax_read(value[3], where), tuple(int(c) for c in conf)
+    return pose, _extax_read(value[3], where, axes), tuple(int(c) for c in conf)
 
 
 def _zone_read(text: str, where) -> float:

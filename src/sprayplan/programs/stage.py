@@ -22,7 +22,7 @@ import numpy as np
 from sprayplan import __version__
 from sprayplan.config import PROGRAM_FORMATS
 from sprayplan.errors import ConfigError
-from sprayplan.programs.model import LINEAR, Cell, CellProgram, krl_status_turn, rapid_config
+from sprayplan.programs.model import LINEAR, Cell, CellProgram
 
 log = logging.getLogger(__name__)
 
@@ -53,12 +53,15 @@ class Built:
         The moves they were written from, and the report of what was left out.
     seconds : float
         Time to build and write them.
+    cell : object or None
+        The robot they are for when it is not the job's gantry (``programs.arms.ArmCell``).
     """
 
     fmt: str
     files: dict
     program: CellProgram
     seconds: float
+    cell: object = None
 
 
 def check_format(fmt: str) -> str:
@@ -67,8 +70,9 @@ def check_format(fmt: str) -> str:
     return fmt
 
 
-def build(plan, job, fmt: str, strict: bool | None = None) -> Built:
-    """``fmt``'s program files of a plan, in memory (``programs.build.build_program``, then the writer).
+def build(plan, job, fmt: str, strict: bool | None = None, cell=None) -> Built:
+    """``fmt``'s program files of a plan, in memory (``programs.build.build_program``, then the writer);
+    ``cell`` the robot when it is not the job's gantry (``programs.arms``).
 
     Raises
     ------
@@ -79,7 +83,12 @@ def build(plan, job, fmt: str, strict: bool | None = None) -> Built:
 
     check_format(fmt)
     start = time.perf_counter()
-    program = build_program(plan, job, fmt, strict)
+    if cell is not None and fmt == "urscript":
+        raise ConfigError(
+            f"--program urscript: {cell.name} is a robot of a cell; URScript is written for the gantry's UR arm "
+            "(use rapid or krl)"
+        )
+    program = build_program(plan, job, fmt, strict, cell)
     if fmt == "urscript":
         from sprayplan.programs.urscript import write_urscript
 
@@ -87,31 +96,31 @@ def build(plan, job, fmt: str, strict: bool | None = None) -> Built:
     elif fmt == "rapid":
         from sprayplan.programs.rapid import write_rapid
 
-        files = write_rapid(program, job, configurations(program, job, fmt))
+        files = write_rapid(program, job, configurations(program, job, fmt, cell))
     else:
         from sprayplan.programs.krl import write_krl
 
-        files = write_krl(program, job, configurations(program, job, fmt))
-    return Built(fmt, files, program, time.perf_counter() - start)
+        files = write_krl(program, job, configurations(program, job, fmt, cell))
+    return Built(fmt, files, program, time.perf_counter() - start, cell)
 
 
-def configurations(program: CellProgram, job, fmt: str) -> dict:
+def configurations(program: CellProgram, job, fmt: str, cell=None) -> dict:
     """The configuration data of every linear target (``id(move)`` -> RAPID ``(cf1, cf4, cf6, cfx)`` or KRL
-    ``(S, T)``), from the joints each target stands for."""
+    ``(S, T)``), from the joints each target stands for; ``cell`` the robot (default the job's gantry)."""
     from sprayplan.robots.stage import gantry_for
 
-    cell = Cell(gantry_for(job.kinematics))
+    cell = cell or Cell(gantry_for(job.kinematics))
     linear = [m for m, _ in program.sequence() if m.kind == LINEAR]
     if not linear:
         return {}
     q = np.array([m.joints for m in linear])
-    branch = cell.branches(q)
-    values = rapid_config(q, branch) if fmt == "rapid" else krl_status_turn(q, branch)
+    values = cell.config_data(q, fmt)
     return {id(m): tuple(int(v) for v in row) for m, row in zip(linear, values)}
 
 
-def read_programs(folder, job, fmt: str):
-    """The programs in ``folder`` read back by ``fmt``'s strict reader (a ``model.ReadProgram``)."""
+def read_programs(folder, job, fmt: str, external_axes: int = 3):
+    """The programs in ``folder`` read back by ``fmt``'s strict reader (a ``model.ReadProgram``) for a robot
+    with ``external_axes`` external axes (3: the gantry; a cell robot's 1 with a track, else 0)."""
     check_format(fmt)
     if fmt == "urscript":
         from sprayplan.programs.urscript import read_urscript
@@ -120,10 +129,10 @@ def read_programs(folder, job, fmt: str):
     if fmt == "rapid":
         from sprayplan.programs.rapid import read_rapid
 
-        return read_rapid(folder, job)
+        return read_rapid(folder, job, external_axes)
     from sprayplan.programs.krl import read_krl
 
-    return read_krl(folder, job)
+    return read_krl(folder, job, external_axes)
 
 
 def summary(built: Built, read, job, plan_name: str, source: str | None, result=None) -> dict:
@@ -219,8 +228,9 @@ def write_built(folder, builts: list[Built], plan, job, source: str | None = Non
             for name, text in built.files.items():
                 with atomic_output(target / name, "w", encoding="ascii", newline="\n") as handle:
                     handle.write(text)
-            read = read_programs(target, job, built.fmt)
-            result = check_program(read, plan, job)
+            axes = built.program.external_axes
+            read = read_programs(target, job, built.fmt, axes)
+            result = check_program(read, plan, job, built.cell)
             if not result.ok:
                 raise ProgramCheckError(
                     f"the {built.fmt} program read back differs from the plan ({len(result.failures)} differences; "

@@ -1,0 +1,230 @@
+"""Robot programs of a cell plan, one per robot (programs.arms, ``sprayplan plan --cell ... --program``): issue 18."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from sprayplan.cells import load_cell
+from sprayplan.cells.files import read_cell_plan
+from sprayplan.cli import main
+from sprayplan.config import JobConfig
+from sprayplan.export.stl import write_stl_binary
+from sprayplan.programs.arms import ArmCell, abb_config, arm_config_bits, kuka_status_turn
+from sprayplan.programs.check import check_program
+from sprayplan.programs.stage import read_programs
+from sprayplan.robots.gantry import load_gun
+from sprayplan.robots.opw import PRESETS, load_opw, opw_fk
+from tests.helpers import grid_box
+from tests.test_cell_plan import CELL, SIZE
+
+FORMATS = ("rapid", "krl")
+
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory):
+    """The small two-robot box planned with a 50 um target and both formats' programs (one run)."""
+    folder = tmp_path_factory.mktemp("cellprog")
+    cell = folder / "small2.toml"
+    cell.write_text(CELL)
+    part = folder / "box.stl"
+    part.write_bytes(write_stl_binary(grid_box(n=8, size=SIZE).triangles))
+    out = folder / "out"
+    argv = ["-q", "plan", str(part), "--cell", str(cell), "--thickness-um", "50", "-o", str(out)]
+    assert main([*argv, "--program", "rapid", "--program", "krl"]) == 0
+    return {"out": out, "cell": load_cell(cell), "plan": read_cell_plan(out / "cell_plan.json"), "part": part}
+
+
+def _random_joints(params, n, rng):
+    lower = np.maximum(params.lower, -np.pi)
+    upper = np.minimum(params.upper, np.pi)
+    return rng.uniform(lower, upper, size=(n, 6))
+
+
+@pytest.mark.parametrize("name", list(PRESETS))
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_configuration_data_give_the_joints_back(name, fmt):
+    """Random joints: the configuration data of their pose name one solution, and it is the joints (turns aside):
+    RAPID's cfx or KRL's S tells the eight branches apart."""
+    from sprayplan.cells.spec import cell_from_dict
+
+    cell = cell_from_dict({"name": "one", "robot": [{"name": "a", "model": name, "base_mm": [0, 0, 0]}]})
+    arm = ArmCell(cell.robots[0], 200.0)
+    rng = np.random.default_rng(7)
+    q = _random_joints(load_opw(name), 300, rng)
+    poses = arm.poses(q, np.zeros(0))
+    config = arm.config_data(q, fmt)
+    back, ok = arm.config_solutions(poses, np.zeros(0), config, fmt)
+    assert ok.all()
+    assert np.allclose(np.angle(np.exp(1j * (back - q))), 0.0, atol=1e-7)
+    # every valid solution of one pose has its own configuration number
+    sols = arm.solutions(poses, np.zeros(0))
+    column = 3 if fmt == "rapid" else 0
+    for i in range(len(q)):
+        valid = sols.q[i][sols.valid[i]]
+        numbers = arm.config_data(valid, fmt)[:, column]
+        assert len(set(numbers.tolist())) == len(valid)
+
+
+@pytest.mark.parametrize("name", list(PRESETS))
+def test_the_configuration_bits_are_the_wrist_centre_and_axis_5(name):
+    """The wrist centre behind axis 1, recomputed from the flange pose (c4 back along the flange axis, in the
+    plane axis 1 turns), and axis 5's sign read off the joints are where ABB's cfx and KUKA's S put them."""
+    params = load_opw(name)
+    rng = np.random.default_rng(3)
+    q = _random_joints(params, 500, rng)
+    flange = opw_fk(params, q)
+    centre = flange[:, :3, 3] - params.c4 * flange[:, :3, 2]
+    t1 = q[:, 0] * params.signs[0] + params.offsets[0]
+    x_plane = centre[:, 0] * np.cos(t1) + centre[:, 1] * np.sin(t1)
+    back, behind, wrist = arm_config_bits(params, q)
+    assert np.array_equal(back, x_plane < 0)
+    assert np.array_equal(wrist, q[:, 4] < 0)
+    cfx = abb_config(params, q)[:, 3]
+    assert np.array_equal(cfx, 4 * (x_plane < 0) + 2 * behind + (q[:, 4] < 0))
+    status, turn = kuka_status_turn(params, q).T
+    assert np.array_equal(status & 1, (x_plane < 0).astype(int))
+    assert np.array_equal((status >> 2) & 1, (q[:, 4] <= 0).astype(int))
+    assert np.array_equal(turn, ((q < 0) * (1 << np.arange(6))).sum(axis=1))
+    # the two elbow solutions of a pose lie on either side of the lower arm
+    from sprayplan.robots.opw import opw_ik
+
+    sols = opw_ik(params, flange[:50])
+    bits = np.array([arm_config_bits(params, sols.q[:, j])[1] for j in range(8)]).T  # (50, 8)
+    for i in range(50):
+        ok = sols.valid[i]
+        if ok.all():
+            assert bits[i].sum() == 4
+
+
+def test_an_abb_arm_at_its_zero_is_configuration_0():
+    for name in ("abb-irb2400-10", "abb-irb4600-60-205"):
+        params = load_opw(name)
+        assert abb_config(params, np.radians([0, 0, 0, 0, 30, 0])).tolist() == [[0, 0, 0, 0]]
+        assert abb_config(params, np.radians([0, 0, 0, 0, -30, 0]))[0, 3] == 1
+
+
+def _expected_poses(plan, cell, robot_index):
+    """Every waypoint's TCP pose in the cell frame from cell_plan.json alone: the base moved along the track,
+    the OPW chain, the gun, the standoff (|tcp - point|) along the gun axis; and the track and whether sprayed."""
+    cr = cell.robots[robot_index]
+    work = plan["robots"][robot_index]
+    params = load_opw(cr.model)
+    gun = load_gun(cr.tool).gun2flange
+    poses, tracks, spray, reach = [], [], [], []
+    for s in work["strokes"]:
+        standoff = np.linalg.norm(s["tcp_mm"] - s["points_mm"], axis=1)
+        for j in range(len(s["tcp_mm"])):
+            base = cr.base2cell.copy()
+            if cr.track is not None:
+                base[:3, 3] += s["track_mm"][j] * np.asarray(cr.track.axis)
+            target = np.eye(4)
+            target[2, 3] = standoff[j]
+            poses.append(base @ opw_fk(params, s["q_rad"][j])[0] @ gun @ target)
+            tracks.append(s["track_mm"][j])
+            spray.append(s["kind"] != "transfer")
+            reach.append(bool(s["reachable"][j]))
+    return np.array(poses), np.array(tracks), np.array(spray), np.array(reach)
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_each_robots_program_read_back_moves_to_its_waypoints(written, fmt):
+    """The programs read back by their own strict readers: every linear target is a reached spray waypoint of
+    its robot (pose from cell_plan.json's joints, 0.01 mm / 0.01 deg) or an approach / retract on a waypoint's
+    gun axis; the track is the external axis; every reached spray waypoint is moved to except those the
+    summary lists as left out."""
+    plan, cell = written["plan"], written["cell"]
+    job = JobConfig()
+    for i, cr in enumerate(cell.robots):
+        folder = written["out"] / "programs" / cr.name / fmt
+        axes = 0 if cr.track is None else 1
+        read = read_programs(folder, job, fmt, axes)
+        poses, tracks, spray, reach = _expected_poses(plan, cell, i)
+        want = np.flatnonzero(spray & reach)
+        hit = set()
+        for move in read.moves:
+            assert len(move.external_mm) == axes
+            if move.kind != "linear":
+                continue
+            d = np.linalg.norm(poses[want, :3, 3] - move.pose[:3, 3], axis=1)
+            near = np.flatnonzero(d <= 0.01)  # (two strokes may meet at one point with other gun axes)
+            if len(near):
+                r = np.einsum("nji,jk->nik", poses[want[near], :3, :3], move.pose[:3, :3])
+                angle = np.degrees(np.arccos(np.clip((np.trace(r, axis1=1, axis2=2) - 1) / 2, -1, 1)))
+                assert angle.min() <= 0.01
+                k = int(want[near[np.argmin(angle)]])
+                if axes:
+                    assert abs(move.external_mm[0] - tracks[k]) <= 1e-3
+                hit.add(k)
+            else:  # an approach or retract: on some waypoint's gun axis, behind it
+                rel = move.pose[:3, 3] - poses[want, :3, 3]
+                along = np.einsum("ij,ij->i", rel, poses[want, :3, 2])
+                off = np.linalg.norm(rel - along[:, None] * poses[want, :3, 2], axis=1)
+                assert ((off <= 0.01) & (along < 0)).any()
+        summary = json.loads((folder / "summary.json").read_text())
+        unapproachable = len(summary["left_out"]["unapproachable_waypoints"])
+        duplicates = summary["counts"]["duplicate_waypoints"]
+        assert len(hit) >= len(want) - unapproachable - duplicates
+        assert len(hit) <= len(want)
+        assert summary["counts"]["waypoints_in_collision_left_out"] == 0
+
+
+def test_a_wrong_configuration_in_a_program_fails_the_check(written, tmp_path):
+    """Change one target's cfx in the left robot's RAPID: the read-back check finds it."""
+    import shutil
+
+    from sprayplan.programs.arms import arm_plan
+    from sprayplan.programs.model import LINEAR
+
+    src = written["out"] / "programs" / "left" / "rapid"
+    folder = tmp_path / "rapid"
+    shutil.copytree(src, folder)
+    module = sorted(p for p in folder.glob("*.mod") if not p.name.endswith("_main.mod"))[0]
+    lines = module.read_text().splitlines()
+    k = next(n for n, line in enumerate(lines) if "MoveL [[" in line)
+    parts = lines[k].split("],[")
+    cf = parts[2].split(",")  # [cf1, cf4, cf6, cfx]
+    cf[3] = str((int(cf[3]) + 2) % 8)
+    parts[2] = ",".join(cf)
+    lines[k] = "],[".join(parts)
+    module.write_text("\n".join(lines) + "\n")
+    # the plan the program was written from, rebuilt from the same cell plan in memory
+    from sprayplan.cells.plan import plan_cell
+    from sprayplan.io.load import load_part
+
+    job = JobConfig().replace(coating={"thickness_um": 50.0})
+    plan = plan_cell(load_part(str(written["part"])), written["cell"], job)
+    arm = ArmCell(written["cell"].robots[0], plan.job.paths.standoff_mm)
+    robot_plan = arm_plan(plan.robots[0], arm)
+    good = check_program(read_programs(src, plan.job, "rapid", 1), robot_plan, plan.job, arm)
+    assert good.ok, good.failures[:3]
+    bad = check_program(read_programs(folder, plan.job, "rapid", 1), robot_plan, plan.job, arm)
+    assert not bad.ok and any("configuration" in f for f in bad.failures)
+    assert sum(m.kind == LINEAR for m in read_programs(folder, plan.job, "rapid", 1).moves) > 0
+
+
+def test_urscript_or_a_five_axis_robot_in_a_cell_is_exit_2_and_nothing_written(written, tmp_path, capsys):
+    out = tmp_path / "o"
+    args = ["plan", str(written["part"]), "--cell", str(written["part"].parent / "small2.toml"), "-o", str(out)]
+    assert main([*args, "--program", "urscript"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "urscript" in err[0]
+    five = tmp_path / "five.toml"
+    five.write_text('name = "five"\n[[robot]]\nname = "r"\nmodel = "r5150"\nbase_mm = [0.0, 600.0, 0.0]\n')
+    argv = ["plan", str(written["part"]), "--cell", str(five), "-o", str(out), "--program", "krl"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "five-axis" not in err[0] and "5 axes" in err[0]
+    assert not out.exists()
+
+
+def test_the_fixed_robot_has_no_external_axis_and_the_track_robot_one(written):
+    text = (written["out"] / "programs" / "right" / "rapid").glob("*_001.mod")
+    body = next(text).read_text()
+    assert "[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]" in body
+    left = next((written["out"] / "programs" / "left" / "krl").glob("*_001.dat")).read_text()
+    e1 = [float(line.split("E1 ")[1].split(",")[0]) for line in left.splitlines() if "E1 " in line]
+    lo, hi = written["cell"].robots[0].track.range_mm
+    assert e1 and all(lo - 1e-6 <= v <= hi + 1e-6 for v in e1) and len(set(e1)) > 1
