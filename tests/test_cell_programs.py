@@ -228,3 +228,40 @@ def test_the_fixed_robot_has_no_external_axis_and_the_track_robot_one(written):
     e1 = [float(line.split("E1 ")[1].split(",")[0]) for line in left.splitlines() if "E1 " in line]
     lo, hi = written["cell"].robots[0].track.range_mm
     assert e1 and all(lo - 1e-6 <= v <= hi + 1e-6 for v in e1) and len(set(e1)) > 1
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_the_schedules_waits_are_in_the_programs_before_their_strokes(written, tmp_path, fmt):
+    """A robot whose schedule waits before some strokes (``RobotWork.wait_s``, as ``cells.schedule`` sets it):
+    each wait is written once, before the approach of its stroke's first run, read back there, and the check
+    fails when a written wait is changed."""
+    import dataclasses
+
+    from sprayplan.cells.plan import plan_cell
+    from sprayplan.io.load import load_part
+    from sprayplan.programs.arms import arm_plan, build_cell_programs, write_cell_programs
+
+    job = JobConfig()
+    plan = plan_cell(load_part(str(written["part"])), written["cell"], job)
+    work = plan.robots[1]
+    spray = [i for i, s in enumerate(work.strokes) if s.spray_on]
+    waits = np.zeros(len(work.strokes))
+    waits[spray[1]], waits[spray[3]] = 2.5, 0.75
+    plan = dataclasses.replace(plan, robots=(plan.robots[0], dataclasses.replace(work, wait_s=waits)))
+    built = build_cell_programs(plan, plan.job, (fmt,))
+    write_cell_programs(tmp_path / "programs", built, plan.job)
+    folder = tmp_path / "programs" / "right" / fmt
+    read = read_programs(folder, plan.job, fmt, 0)
+    got = sorted(m.wait_s for m in read.moves if m.wait_s > 0)
+    assert got == [0.75, 2.5]
+    text = "".join(p.read_text() for p in sorted(folder.iterdir()) if p.suffix in (".mod", ".src"))
+    word = "WaitTime \\InPos, " if fmt == "rapid" else "WAIT SEC "
+    assert text.count(word) == 2 and f"{word}2.500" in text
+    arm = ArmCell(written["cell"].robots[1], plan.job.paths.standoff_mm)
+    robot_plan = arm_plan(plan.robots[1], arm)
+    assert check_program(read, robot_plan, plan.job, arm).ok
+    for path in folder.iterdir():
+        if path.suffix in (".mod", ".src") and word + "2.500" in path.read_text():
+            path.write_text(path.read_text().replace(word + "2.500", word + "1.500"))
+    bad = check_program(read_programs(folder, plan.job, fmt, 0), robot_plan, plan.job, arm)
+    assert not bad.ok and any("waits 1.5 s" in f for f in bad.failures)

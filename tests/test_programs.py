@@ -568,7 +568,7 @@ BROKEN = [
     ("krl", "t_001.src", "END\n", "", "END"),
     ("krl", "t_001.src", "  LIN XP3 C_DIS", "  LIN XP4 C_DIS", "not declared"),
     ("krl", "t_001.src", "$VEL.CP=0.4", "$VEL.CP=-0.4", "$VEL.CP"),
-    ("krl", "t_001.src", "  ; a hand-written subprogram\n", "  WAIT SEC 1\n", "unknown statement"),
+    ("krl", "t_001.src", "  ; a hand-written subprogram\n", "  HALT\n", "unknown statement"),
     (
         "krl",
         "t_001.dat",

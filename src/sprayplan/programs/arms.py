@@ -243,6 +243,7 @@ class ArmStation:
     platform_mm: np.ndarray
     repair: np.ndarray
     method: np.ndarray
+    wait_s: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -274,8 +275,9 @@ def arm_plan(work, cell: ArmCell, name: str = "") -> ArmPlan:
     colliding = np.zeros(n, bool) if work.collides is None else np.asarray(work.collides, bool) & reachable
     reachable &= ~colliding
     home = q9[0, 6:].copy() if n else np.zeros(cell.external_axes)
+    waits = None if work.wait_s is None else np.asarray(work.wait_s, float)
     station = ArmStation(
-        0, tuple(work.strokes), q9, reachable, home, np.full(n, "", dtype=object), np.full(n, "analytic")
+        0, tuple(work.strokes), q9, reachable, home, np.full(n, "", dtype=object), np.full(n, "analytic"), waits
     )
     return ArmPlan(name or work.name, (station,), home, int(colliding.sum()))
 

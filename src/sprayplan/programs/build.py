@@ -31,6 +31,7 @@ robot makes within its joints' limits), so the programs carry those.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from dataclasses import dataclass
@@ -243,9 +244,16 @@ def build_program(plan, job, fmt: str, strict: bool | None = None, cell=None) ->
         poses = cell.poses(q9[:, :6], q9[:, 6:]) if len(q9) else np.zeros((0, 4, 4))
         moves = [_home(cell, st.platform_mm)]
         routed: set = set()
+        waits = getattr(st, "wait_s", None)  # a cell robot's schedule: the wait before each stroke
+        waited: set = set()
         for run in st_runs:
             moves += route_moves(st, run, data, poses, q9, routed)
-            moves += _run_moves(cell, cfg, run, data, poses, q9, lead_on, lead_off, report)
+            run_moves = _run_moves(cell, cfg, run, data, poses, q9, lead_on, lead_off, report)
+            if waits is not None and run_moves and run.stroke not in waited:
+                waited.add(run.stroke)
+                if waits[run.stroke] > 0:
+                    run_moves[1] = dataclasses.replace(run_moves[1], wait_s=float(waits[run.stroke]))
+            moves += run_moves
         moves.append(_home(cell, st.platform_mm))
         stations.append(StationProgram(order, st.index, np.array(st.platform_mm), tuple(moves)))
     if strict:
@@ -388,8 +396,6 @@ def _run_moves(cell, cfg, run: Run, data, poses, q9, lead_on, lead_off, report) 
 def _with_gun_events(moves: list[Move], approach_mm: float, lead_on: float, lead_off: float, report) -> list[Move]:
     """The run's moves with the gun's on signal on the approach and its off signal where, ``lead_off`` before
     the last spray waypoint, the program's timing puts it (moves: transfer, approach, spray..., retract)."""
-    import dataclasses
-
     chain = moves[1:-1]  # approach and spray moves: the gun switches on these
     lengths = [approach_mm] + [
         float(np.linalg.norm(b.pose[:3, 3] - a.pose[:3, 3])) for a, b in itertools.pairwise(chain)

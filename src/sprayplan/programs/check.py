@@ -199,6 +199,7 @@ class _Station:
         self.spray = self.data["spray"] & st.reachable
         # (move, joints, branch, gantry, exact pose) whose configuration data are checked at the end
         self.pending: list = []
+        self.waited: set = set()  # the strokes whose first run was seen
 
 
 def _check_station(order, moves, fmt, plan, job, cell, result: CheckResult) -> None:
@@ -283,6 +284,7 @@ def _check_run(station, transfer, chain, fmt, cfg, cell, job, result, matched, p
         result.fail(chain[0], "the approach does not end at a reachable spray waypoint of the station (in order)")
         return None
     stroke = station.data["stroke"][first]
+    _check_wait(station, transfer, chain, a, int(stroke), result)
     targets, indices, previous = [_PoseOnly(start_pose), *chain[: a + 1]], [-2] + [-1] * a + [first], first
     for move in chain[a + 1 : -1]:
         k = _match(station, move.pose, previous + 1, stroke)
@@ -320,6 +322,21 @@ def _check_run(station, transfer, chain, fmt, cfg, cell, job, result, matched, p
         result.fail(chain[-1], "the gun must not switch on the retract")
     _check_gun([start_pose, *(m.pose for m in chain[:-1])], chain[:-1], a, indices, cfg, fmt, result, transfer.events)
     return previous  # a run split for a file's size starts again at the waypoint this one ends at
+
+
+def _check_wait(station, transfer, chain, a: int, stroke: int, result) -> None:
+    """The schedule's wait before a stroke (a cell robot's, ``wait_s`` of its station) on the approach of the
+    stroke's first run (0.001 s, as written); no wait anywhere else."""
+    waits = getattr(station.st, "wait_s", None)
+    expected = 0.0
+    if waits is not None and stroke not in station.waited:
+        expected = float(waits[stroke])
+    station.waited.add(stroke)
+    for j, move in enumerate([transfer, *chain]):
+        want = expected if j == a + 1 else 0.0
+        got = float(getattr(move, "wait_s", 0.0))
+        if abs(got - want) > 1e-3:
+            result.fail(move, f"waits {got:g} s; the plan's schedule waits {want:g} s here")
 
 
 class _PoseOnly:

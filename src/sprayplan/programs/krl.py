@@ -130,6 +130,8 @@ def _sub(name, moves, notes, cfg, configs) -> tuple[str, str]:
         if float(radius) > 0 and radius != blend:
             blend = radius
             src.append(f"{IND}$APO.CDIS={blend}")
+        if move.wait_s > 0:
+            src.append(f"{IND}WAIT SEC {fixed(move.wait_s, 3)}")
         for distance, on in move.events:
             state = "TRUE" if on else "FALSE"
             src.append(f"{IND}TRIGGER WHEN PATH=-{fixed(distance, 4)} DELAY=0 DO $OUT[{cfg.krl_gun_output}]={state}")
@@ -281,6 +283,7 @@ def _read_sub(folder: Path, name: str, cfg, axes: int = 3) -> list:
     speed = blend = None
     pending: list = []
     used = set()
+    wait = 0.0
     for n, line in _block(src_path, _lines(src_path), f"DEF {name}( )", "END"):
         text = _statement(src_path, n, line)
         where = (src_path, n)
@@ -293,6 +296,10 @@ def _read_sub(folder: Path, name: str, cfg, axes: int = 3) -> list:
             blend = parse_number(text[len("$APO.CDIS=") :], where)
             if not blend > 0:
                 raise ProgramError(*where, "$APO.CDIS must be > 0")
+        elif text.startswith("WAIT SEC ") and not pending and not wait:
+            wait = parse_number(text[len("WAIT SEC ") :], where)
+            if not wait > 0:
+                raise ProgramError(*where, "a WAIT SEC must be > 0 s")
         elif match := re.fullmatch(
             rf"TRIGGER WHEN PATH=(-?\S+) DELAY=0 DO \$OUT\[{cfg.krl_gun_output}\]=(TRUE|FALSE)", text
         ):
@@ -306,7 +313,7 @@ def _read_sub(folder: Path, name: str, cfg, axes: int = 3) -> list:
                 raise ProgramError(*where, f"{key} is not declared in {dat_path.name}, or used twice")
             used.add(key)
             if match.group(1) == "PTP":
-                if not key.startswith("XJ") or match.group(3) or pending:
+                if not key.startswith("XJ") or match.group(3) or pending or wait:
                     raise ProgramError(*where, f"not a statement sprayplan writes: {text!r}")
                 joints, ext = targets[key]
                 moves.append(ReadMove(JOINT, None, joints, ext, 0.0, 0.0, where=at))
@@ -317,10 +324,12 @@ def _read_sub(folder: Path, name: str, cfg, axes: int = 3) -> list:
                     )
                 pose, config, ext = targets[key]
                 r = blend if match.group(3) else 0.0
-                moves.append(ReadMove(LINEAR, pose, None, ext, speed, r, tuple(pending), config, at))
-                pending = []
+                moves.append(ReadMove(LINEAR, pose, None, ext, speed, r, tuple(pending), config, at, wait))
+                pending, wait = [], 0.0
         else:
             raise ProgramError(*where, f"unknown statement: {text[:60]!r}")
+    if wait:
+        raise ProgramError(src_path, 0, "a WAIT SEC not followed by a LIN")
     if pending:
         raise ProgramError(src_path, 0, "a TRIGGER not followed by a LIN")
     if set(targets) != used:

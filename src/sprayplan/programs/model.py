@@ -55,6 +55,9 @@ class Move:
         Gun signals switched on the way: (distance before the target along the move, mm; on).
     source : tuple
         ``(station order, waypoint index in the station)`` for a move to a plan waypoint, else ().
+    wait_s : float
+        Seconds the robot stands still, the gun off, before the move (a cell schedule's wait before a stroke,
+        ``cells.schedule``; written on the run's approach).
     """
 
     kind: str
@@ -66,6 +69,7 @@ class Move:
     blend_mm: float = 0.0
     events: tuple = ()
     source: tuple = ()
+    wait_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -164,6 +168,8 @@ class ReadMove:
         The configuration data of a linear target: RAPID ``(cf1, cf4, cf6, cfx)``, KRL ``(S, T)``, else ().
     where : str
         ``file:line`` of the move, for messages.
+    wait_s : float
+        A wait written before the move (RAPID ``WaitTime``, KRL ``WAIT SEC``), s.
     """
 
     kind: str
@@ -175,6 +181,7 @@ class ReadMove:
     events: tuple = ()
     config: tuple = ()
     where: str = ""
+    wait_s: float = 0.0
 
 
 class ProgramError(PartFileError):

@@ -86,7 +86,7 @@ def write_rapid(cell, job, configs) -> dict[str, str]:
     """
     cfg = job.export
     flat = cell.sequence()
-    lines_of = lambda m: 1 + len(m.events) + (m.role == "home")
+    lines_of = lambda m: 1 + len(m.events) + (m.role == "home") + (m.wait_s > 0)
     parts = chunks([m for m, _ in flat], lines_of, cfg.rapid_max_lines - 12)
     notes = {id(m): note for m, note in flat if note}
     files = {}
@@ -153,6 +153,8 @@ def _part_module(name, moves, notes, cfg, configs) -> str:
                      f"{fixed(cfg.gantry_speed_mm_s, 4)},{fixed(cfg.joint_speed_deg_s, 4)}]")  # fmt: skip
             body.append(f"MoveAbsJ [[{joints}],[{_extax(move.external_mm)}]], {speed}, fine, {tool};")
         else:
+            if move.wait_s > 0:
+                body.append(f"WaitTime \\InPos, {fixed(move.wait_s, 3)};")
             target = robtarget(move, configs[id(move)], quaternions[id(move)])
             speed = f"[{fixed(move.speed_mm_s, 4)},{','.join(LINEAR_SPEED_REST)}]"
             zone = _zone(move.blend_mm)
@@ -328,7 +330,7 @@ def _read_part(path: Path, name: str, cfg, axes: int = 3) -> list:
         raise ProgramError(path, data[0][0], f"unknown declaration: {data[0][1][:60]!r}")
     tool = f"{cfg.rapid_tool}\\WObj:={cfg.rapid_wobj}"
     fast_move = re.compile(_FAST + re.escape(tool) + ";")
-    moves, pending, previous = [], {}, None
+    moves, pending, previous, wait = [], {}, None, 0.0
     for n, line in body:
         where = (path, n)
         head, _, rest = line.partition(" ")
@@ -336,7 +338,11 @@ def _read_part(path: Path, name: str, cfg, axes: int = 3) -> list:
             raise ProgramError(*where, f"a statement must end with ';': {line[:60]!r}")
         fast = fast_move.match(line) if head in ("MoveL", "TriggL", "PaintL") else None
         args = [] if fast else split_arguments(rest[:-1], where)
-        if head == "MoveAbsJ" and not pending:
+        if head == "WaitTime" and len(args) == 2 and args[0] == "\\InPos" and not pending and not wait:
+            wait = _number(args[1], where)
+            if not wait > 0:
+                raise ProgramError(*where, "a WaitTime must be > 0 s")
+        elif head == "MoveAbsJ" and not pending and not wait:
             _expect(len(args) == 4 and args[2] == "fine" and args[3] == tool, where, line)
             target = aggregate(args[0], where)
             _expect(isinstance(target, list) and len(target) == 2, where, line)
@@ -380,10 +386,13 @@ def _read_part(path: Path, name: str, cfg, axes: int = 3) -> list:
                 events = tuple(_brush_event(previous, pose, e, where) for e in pending.values())
                 pending = {}
             moves.append(ReadMove(LINEAR, pose, None, external, float(speed[0]), blend, events, config,
-                                  f"{path.name}:{n}"))  # fmt: skip
+                                  f"{path.name}:{n}", wait))  # fmt: skip
+            wait = 0.0
         else:
             raise ProgramError(*where, f"unknown statement: {line[:60]!r}")
         previous = moves[-1] if moves else None
+    if wait:
+        raise ProgramError(path, body[-1][0] if body else 0, "a WaitTime not followed by a linear move")
     if pending:
         raise ProgramError(path, body[-1][0] if body else 0, "a trigger or brush event not used by a move")
     return moves

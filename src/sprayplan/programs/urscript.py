@@ -169,7 +169,8 @@ def with_via_points(moves: list[Move], share: float, blend_mm: float) -> list[Mo
             ek, dk = vias[-1][0] - pieces[-1].blend_mm, vias[-1][0]
             if previous.kind == LINEAR:
                 out[-1] = dataclasses.replace(
-                    previous, blend_mm=max(0.0, min(previous.blend_mm, share * (length - ek) - BLEND_MARGIN_MM, length - dk))
+                    previous,
+                    blend_mm=max(0.0, min(previous.blend_mm, share * (length - ek) - BLEND_MARGIN_MM, length - dk)),
                 )
         out += [*reversed(pieces), end]
     return out
