@@ -81,13 +81,13 @@ def test_the_configuration_bits_are_the_wrist_centre_and_axis_5(name):
     x_plane = centre[:, 0] * np.cos(t1) + centre[:, 1] * np.sin(t1)
     back, behind, wrist = arm_config_bits(params, q)
     assert np.array_equal(back, x_plane < 0)
-    assert np.array_equal(wrist, q[:, 4] < 0)
+    assert np.array_equal(wrist, q[:, 4] < -1e-9)
     cfx = abb_config(params, q)[:, 3]
-    assert np.array_equal(cfx, 4 * (x_plane < 0) + 2 * behind + (q[:, 4] < 0))
+    assert np.array_equal(cfx, 4 * (x_plane < 0) + 2 * behind + (q[:, 4] < -1e-9))
     status, turn = kuka_status_turn(params, q).T
     assert np.array_equal(status & 1, (x_plane < 0).astype(int))
-    assert np.array_equal((status >> 2) & 1, (q[:, 4] <= 0).astype(int))
-    assert np.array_equal(turn, ((q < 0) * (1 << np.arange(6))).sum(axis=1))
+    assert np.array_equal((status >> 2) & 1, (q[:, 4] <= 1e-9).astype(int))
+    assert np.array_equal(turn, ((q < -1e-9) * (1 << np.arange(6))).sum(axis=1))
     # the two elbow solutions of a pose lie on either side of the lower arm
     from sprayplan.robots.opw import opw_ik
 
@@ -265,3 +265,47 @@ def test_the_schedules_waits_are_in_the_programs_before_their_strokes(written, t
             path.write_text(path.read_text().replace(word + "2.500", word + "1.500"))
     bad = check_program(read_programs(folder, plan.job, fmt, 0), robot_plan, plan.job, arm)
     assert not bad.ok and any("waits 1.5 s" in f for f in bad.failures)
+
+
+def test_export_of_a_cell_plan_folder_writes_the_same_programs(written, tmp_path, capsys):
+    """``sprayplan export OUT --format rapid`` on a cell plan folder rebuilds each robot's programs from
+    cell_plan.json alone (its settings: the gun speed the plan chose): the same files, and read back the same
+    moves (the joints kept to 1e-12 rad in the file move a blend's last written digit at most)."""
+    out = tmp_path / "progs"
+    assert main(["-q", "export", str(written["out"]), "--format", "rapid", "--format", "krl", "-o", str(out)]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert len(lines) == 4 and all("read back and checked" in line for line in lines)
+    for robot in ("left", "right"):
+        for fmt in FORMATS:
+            mine = out / robot / fmt
+            theirs = written["out"] / "programs" / robot / fmt
+            names = sorted(p.name for p in theirs.iterdir() if p.name != "summary.json")
+            assert names == sorted(p.name for p in mine.iterdir() if p.name != "summary.json")
+            axes = 1 if robot == "left" else 0
+            a = read_programs(mine, JobConfig(), fmt, axes).moves
+            b = read_programs(theirs, JobConfig(), fmt, axes).moves
+            assert len(a) == len(b)
+            for m, n in zip(a, b):
+                assert (m.kind, m.config, len(m.events), m.wait_s) == (n.kind, n.config, len(n.events), n.wait_s)
+                assert np.allclose(m.external_mm, n.external_mm, atol=1e-4)
+                assert abs(m.speed_mm_s - n.speed_mm_s) <= 1e-3 and abs(m.blend_mm - n.blend_mm) <= 2e-4
+                if m.kind == "linear":
+                    assert np.allclose(m.pose, n.pose, atol=1e-4)
+                else:
+                    assert np.allclose(m.joints, n.joints, atol=1e-8)
+
+
+def test_export_of_a_cell_plan_without_settings_or_with_urscript_is_exit_2(written, tmp_path, capsys):
+    import shutil
+
+    folder = tmp_path / "old"
+    shutil.copytree(written["out"], folder, ignore=shutil.ignore_patterns("programs"))
+    assert main(["export", str(folder), "--format", "urscript"]) == 2
+    assert "urscript" in capsys.readouterr().err
+    data = json.loads((folder / "cell_plan.json").read_text())
+    del data["settings"]
+    (folder / "cell_plan.json").write_text(json.dumps(data))
+    assert main(["export", str(folder), "--format", "rapid"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cell_plan.json" in err[0] and "settings" in err[0]
+    assert not (folder / "programs").exists()

@@ -30,6 +30,7 @@ import os
 
 import numpy as np
 
+from sprayplan.config import job_to_dict
 from sprayplan.export.files import atomic_output
 
 FORMAT = "sprayplan-cell-plan"
@@ -131,6 +132,7 @@ def cell_plan_dict(plan) -> dict:
             "robots": work,
             "report": plan.report,
             "timings_s": plan.timings_s,
+            **({} if plan.job is None else {"settings": job_to_dict(plan.job)}),
         }
     )
 
@@ -234,3 +236,65 @@ def read_cell_plan(path) -> dict:
     except (KeyError, TypeError, ValueError) as exc:
         raise PartFileError(path, f"not a readable cell plan ({exc})") from None
     return data
+
+
+def cell_plan_from_file(path):
+    """A cell plan folder's ``cell_plan.json`` as a ``cells.plan.CellPlan`` with what the robot programs need
+    (the cell, each robot's strokes, joints, track positions, flags, waits, and ``job``: the settings it was made
+    with); no part, areas or film.
+
+    Raises
+    ------
+    PartFileError
+        Not a readable cell plan, or one written before the settings were kept (plan it again).
+    """
+    from sprayplan.cells.plan import CellPlan, RobotWork
+    from sprayplan.cells.spec import Cell, CellRobot, Track
+    from sprayplan.config import job_from_dict
+    from sprayplan.errors import ConfigError, PartFileError
+    from sprayplan.types import Stroke
+
+    data = read_cell_plan(path)
+    if "settings" not in data:
+        raise PartFileError(path, "holds no settings (written by an older sprayplan): plan it again")
+    try:
+        job = job_from_dict(data["settings"])
+        robots = []
+        for r in data["cell"]["robots"]:
+            track = r.get("track")
+            if track is not None:
+                track = Track(np.asarray(track["axis"], float), tuple(track["range_mm"]), float(track["speed_mm_s"]))
+            reach = r["reach_mm"] if r["reach_mm"] is not None else float("nan")
+            robots.append(CellRobot(r["name"], r["model"], r["tool"], r["base2cell"], float(reach), track))
+        cell = Cell(data["cell"]["name"], tuple(robots), float(data["cell"]["floor_z_mm"]))
+        works = []
+        for entry in data["robots"]:
+            strokes, area, roll, track_mm, q, reach, hit, waits, times = [], [], [], [], [], [], [], [], []
+            flags = all("collides" in st for st in entry["strokes"])
+            timed = all("t_s" in st for st in entry["strokes"])
+            for st in entry["strokes"]:
+                kind = st["kind"]
+                strokes.append(Stroke(st["points_mm"], st["normals"], st["tcp_mm"], spray_on=kind != "transfer",
+                                      on_part=np.zeros(len(st["tcp_mm"]), bool) if kind == "transfer" else None,
+                                      dwell=st["dwell"], kind=kind))  # fmt: skip
+                area.append(st["area"])
+                roll.append(st["roll_deg"])
+                track_mm.append(st["track_mm"])
+                q.append(np.nan_to_num(st["q_rad"]))
+                reach.append(st["reachable"])
+                hit.append(st.get("collides", np.zeros(len(st["tcp_mm"]), bool)))
+                times.append(st.get("t_s", np.zeros(len(st["tcp_mm"]))))
+                waits.append(st.get("wait_s") or 0.0)
+            works.append(
+                RobotWork(
+                    entry["name"], entry["model"], tuple(strokes), np.asarray(area, int), np.concatenate(track_mm),
+                    np.asarray(roll, float), np.concatenate(q), np.concatenate(reach),
+                    np.concatenate(hit) if flags else None, np.concatenate(times) if timed else None,
+                    np.asarray(waits, float) if timed else None,
+                )
+            )  # fmt: skip
+    except (KeyError, TypeError, ValueError, ConfigError) as exc:
+        raise PartFileError(path, f"not a readable cell plan ({exc})") from None
+    name = data["part"]["name"]
+    return CellPlan(cell, None, data["part"]["part2cell"], None, None, tuple(works), None, data["report"], {}, name,
+                    job=job)  # fmt: skip

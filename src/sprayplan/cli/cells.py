@@ -255,7 +255,7 @@ def cmd_plan_cell(args, job, cell=None) -> int:
         from sprayplan.programs.arms import build_cell_programs, write_cell_programs
 
         with _stage("programs"):
-            programs = build_cell_programs(plan, job, formats)  # every refusal before anything is written
+            programs = build_cell_programs(plan, plan.job or job, formats)  # every refusal before any writing
     summaries = []
     with staged_folder(args.output, outputs) as folder:
         write_cell_plan(folder, plan, target, job.coating.tolerance_um)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from sprayplan.cli.common import check_outputs, output_option, stage
 from sprayplan.config import PROGRAM_FORMATS
-from sprayplan.errors import PartFileError
+from sprayplan.errors import ConfigError, PartFileError
 
 
 def program_format(text: str) -> str:
@@ -59,6 +59,8 @@ def cmd_export(args) -> int:
     if not outdir.is_dir():
         raise PartFileError(args.outdir, "not a folder (give a plan folder written by 'sprayplan plan')")
     plan_file = outdir / "plan.json"
+    if not plan_file.exists() and (outdir / "cell_plan.json").exists():
+        return _export_cell(args, outdir / "cell_plan.json")
     if not plan_file.exists():
         raise PartFileError(args.outdir, "holds no plan.json: not a plan folder (written by 'sprayplan plan')")
     folder = args.output if args.output is not None else default_folder(args.outdir)
@@ -86,6 +88,44 @@ def cmd_export(args) -> int:
             print(f"sprayplan: warning: {line}", file=sys.stderr)
     for data in summaries:
         print(summary_text(data, os.path.join(folder, data["program_format"])))
+    return 0
+
+
+def _export_cell(args, plan_file) -> int:
+    """``sprayplan export OUT`` of a cell plan folder: one program per robot into OUT/programs/<robot>/<format>/
+    (``programs.arms``), built before anything is written, then each read back and checked."""
+    from sprayplan.cells.files import cell_plan_from_file
+    from sprayplan.export.files import staged_folder
+    from sprayplan.programs.arms import build_cell_programs, write_cell_programs
+    from sprayplan.programs.stage import default_folder, warnings_of
+
+    folder = args.output if args.output is not None else default_folder(args.outdir)
+    inputs = [(plan_file, "cell_plan.json"), (args.config, "-c")]
+    check_outputs([(folder, "-o")], inputs, folder=True)
+    formats = tuple(dict.fromkeys(args.formats))
+    if "urscript" in formats:
+        raise ConfigError(
+            "--format urscript: URScript is written for the gantry's UR arm; a cell's robots get rapid or krl"
+        )
+    plan = cell_plan_from_file(plan_file)
+    job = plan.job
+    if args.config:
+        from sprayplan.config import job_from_toml
+
+        job = job.replace(export=job_from_toml(args.config).export)
+    if args.strict:
+        job = job.replace(export={"strict": True})
+    robots = [r.name for r in plan.cell.robots]
+    with stage("export"):
+        built = build_cell_programs(plan, job, formats)
+        with staged_folder(folder, tuple(robots), whole=False) as tmp:
+            summaries = write_cell_programs(tmp, built, job)
+    for robot in built:
+        for b in robot.builts:
+            for line in warnings_of(b):
+                print(f"sprayplan: warning: {robot.robot}: {line}", file=sys.stderr)
+    for data in summaries:
+        print(f"{data['robot']} " + summary_text(data, os.path.join(folder, data["robot"], data["program_format"])))
     return 0
 
 

@@ -46,6 +46,9 @@ from sprayplan.robots.ur_ik import nearest_equivalent
 #: An external axis the programs drive for a robot on a track: the track position, mm.
 TRACK_NOTE = "the track in eax_a / E1 (mm along the track)"
 NO_AXES_NOTE = "no external axes (a fixed base)"
+#: A joint this close to 0 (rad) counts as 0 for the signs in the configuration data: a plan read back from
+#: its file (joints to 1e-12 rad) gives the same data.
+ZERO_RAD = 1e-9
 
 
 def _opw_params(arm):
@@ -60,7 +63,7 @@ def arm_config_bits(params, q6) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     t2, t23 = t[:, 1], t[:, 1] + t[:, 2]
     x_plane = params.a1 + params.c2 * np.sin(t2) + params.c3 * np.sin(t23) + params.a2 * np.cos(t23)
     phi = t[:, 2] + math.atan2(params.a2, params.c3)
-    return x_plane < 0.0, np.sin(phi) <= 0.0, q6[:, 4] < 0.0
+    return x_plane < 0.0, np.sin(phi) <= 0.0, q6[:, 4] < -ZERO_RAD
 
 
 def abb_config(params, q6) -> np.ndarray:
@@ -75,8 +78,8 @@ def kuka_status_turn(params, q6) -> np.ndarray:
     """(n, 2) int KRL ``[S, T]`` of an OPW arm's joints (module docstring)."""
     q6 = np.atleast_2d(np.asarray(q6, float))
     back, behind, _ = arm_config_bits(params, q6)
-    status = back.astype(int) + 2 * (~behind).astype(int) + 4 * (q6[:, 4] <= 0.0).astype(int)
-    turn = ((q6 < 0).astype(int) << np.arange(6)).sum(axis=1)
+    status = back.astype(int) + 2 * (~behind).astype(int) + 4 * (q6[:, 4] <= ZERO_RAD).astype(int)
+    turn = ((q6 < -ZERO_RAD).astype(int) << np.arange(6)).sum(axis=1)
     return np.column_stack([status, turn])
 
 
@@ -292,8 +295,8 @@ class RobotPrograms:
 
 
 def build_cell_programs(plan, job, formats, strict=None) -> list[RobotPrograms]:
-    """Every robot's programs of a cell plan (``cells.plan.CellPlan``; ``job`` its settings: ``plan.job`` when
-    it has one, with the gun speed the plan chose) in memory, every refusal before anything is written.
+    """Every robot's programs of a cell plan (``cells.plan.CellPlan``; ``job`` its settings, ``plan.job``: with
+    the gun speed the plan chose) in memory, every refusal before anything is written.
 
     Raises
     ------
@@ -304,7 +307,6 @@ def build_cell_programs(plan, job, formats, strict=None) -> list[RobotPrograms]:
     """
     from sprayplan.programs.stage import build
 
-    job = plan.job if getattr(plan, "job", None) is not None else job
     out = []
     for cr, work in zip(plan.cell.robots, plan.robots):
         cell = ArmCell(cr, job.paths.standoff_mm)

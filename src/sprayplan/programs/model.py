@@ -238,10 +238,15 @@ def pose_from(position, rotation: Rotation) -> np.ndarray:
 
 
 def quaternion_wxyz(matrix: np.ndarray) -> np.ndarray:
-    """(..., 4) unit quaternions scalar first (RAPID's order), w >= 0, of rotation matrices (..., 3, 3)."""
+    """(..., 4) unit quaternions scalar first (RAPID's order) of rotation matrices (..., 3, 3), with one sign
+    for each rotation: the first component farther than 1e-9 from 0 positive (w >= 0 unless w is 0 as written,
+    so that a half turn, whose w is 0 up to rounding, is written the same from rotations equal to rounding)."""
     q = Rotation.from_matrix(matrix).as_quat()  # scalar last
     q = np.concatenate([q[..., 3:], q[..., :3]], axis=-1)
-    return np.where(q[..., :1] < 0, -q, q)
+    big = np.abs(q) > 1e-9
+    first = np.argmax(big, axis=-1)
+    lead = np.take_along_axis(q, first[..., None], axis=-1)
+    return np.where(lead < 0, -q, q)
 
 
 def matrix_from_wxyz(q) -> np.ndarray:
@@ -252,12 +257,14 @@ def matrix_from_wxyz(q) -> np.ndarray:
 
 def kuka_abc(matrix: np.ndarray) -> np.ndarray:
     """(..., 3) KUKA's A, B, C in degrees: R = Rz(A) Ry(B) Rx(C) (intrinsic Z, Y', X''). At B = +-90 degrees
-    (gimbal lock) only A -+ C is defined: C is 0 there (scipy's choice; the same rotation)."""
+    (gimbal lock) only A -+ C is defined: C is 0 there (scipy's choice; the same rotation). An angle within 1e-7
+    degrees of -180 is written +180 (the same turn), so that rotations equal to rounding are written alike."""
     import warnings
 
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message="Gimbal lock detected")
-        return Rotation.from_matrix(matrix).as_euler("ZYX", degrees=True)
+        abc = Rotation.from_matrix(matrix).as_euler("ZYX", degrees=True)
+    return np.where(np.abs(abc + 180.0) < 1e-7, 180.0, abc)
 
 
 def matrix_from_abc(abc_deg) -> np.ndarray:
@@ -421,7 +428,7 @@ def krl_status_turn(q6, branch) -> np.ndarray:
     overhead area, arm, wrist), ``T`` bit i set when axis i + 1 is negative."""
     q6 = np.atleast_2d(np.asarray(q6, float))
     s, e, w = branch_bits(branch)
-    turn = ((q6 < 0).astype(int) << np.arange(6)).sum(axis=1)
+    turn = ((q6 < -1e-9).astype(int) << np.arange(6)).sum(axis=1)  # a joint within 1e-9 rad of 0 is 0
     return np.column_stack([s + 2 * e + 4 * w, turn])
 
 
