@@ -309,3 +309,40 @@ def test_export_of_a_cell_plan_without_settings_or_with_urscript_is_exit_2(writt
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cell_plan.json" in err[0] and "settings" in err[0]
     assert not (folder / "programs").exists()
+
+
+def test_the_cell_viewer_draws_the_plan(written):
+    """cell.html: the strokes drawn are each robot's spray strokes' gun tips (nothing thinned on this box), each
+    robot's faces are its areas, the film's colours lie within the film's range, the bases are where the cell
+    puts them."""
+    from sprayplan.view.cell_html import PLOT_ID
+    from sprayplan.view.html import read_viewer_figure
+
+    page = (written["out"] / "cell.html").read_text()
+    traces, _ = read_viewer_figure(page, PLOT_ID)
+    by_name = {t["name"]: t for t in traces}
+    plan = written["plan"]
+    for i, cr in enumerate(written["cell"].robots):
+        t = by_name[f"{cr.name} strokes"]
+        drawn = np.column_stack([t["x"], t["y"], t["z"]]).astype(float)
+        drawn = drawn[np.isfinite(drawn).all(axis=1)]
+        tips = np.vstack([s["tcp_mm"] for s in plan["robots"][i]["strokes"] if s["kind"] != "transfer"])
+        assert drawn.shape == tips.shape and np.allclose(drawn, tips, atol=0.01)
+        base = by_name[next(n for n in by_name if n.startswith(f"{cr.name} base"))]
+        assert np.allclose([base["x"][0], base["y"][0], base["z"][0]], cr.base_path_mm()[0], atol=0.01)
+    summary = json.loads(page.split("id='sprayplan-summary'>")[1].split("</script>")[0])
+    assert summary["drawn"]["drawn_waypoints"] == summary["drawn"]["waypoints"]
+    areas = list(csv_rows(written["out"] / "areas.csv"))
+    for cr in written["cell"].robots:
+        faces = sum(1 for row in areas if row["robot"] == cr.name)
+        assert len(by_name[f"areas: {cr.name}"]["i"]) == faces
+    film = by_name["film (um)"]["intensity"]
+    coating = json.loads((written["out"] / "coating.json").read_text())
+    assert film.min() >= coating["whole"]["min_um"] - 1e-3 and film.max() <= coating["whole"]["max_um"] + 1e-3
+
+
+def csv_rows(path):
+    import csv
+
+    with open(path, newline="") as handle:
+        yield from csv.DictReader(handle)

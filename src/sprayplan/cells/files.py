@@ -18,6 +18,9 @@
     One row a face of the painted surface: ``face, area, direction, robot, robot_index``.
 ``areas.png``, ``film.png``
     Pictures: the robot of each face, and the film (``cells.pictures``).
+``cell.html``
+    The 3D viewer (``view.cell_html``): the film, each robot's faces, strokes, base and track, the waypoints
+    unreached or in collision; one self-contained page.
 ``thickness.ply``, ``thickness.csv``, ``coating.json``
     The whole body's film, as ``sprayplan plan`` writes them (``export.film``); ``coating.json`` is the film
     part of the report.
@@ -38,7 +41,7 @@ VERSION = 1
 #: The files a cell plan writes into its folder.
 CELL_FILES = (
     "cell_plan.json", "waypoints.csv", "areas.csv", "areas.png", "thickness.ply", "thickness.csv", "coating.json",
-    "film.png",
+    "film.png", "cell.html",
 )  # fmt: skip
 WAYPOINT_COLUMNS = [
     "robot", "stroke", "waypoint", "kind", "area", "x_mm", "y_mm", "z_mm", "nx", "ny", "nz", "dwell", "track_mm",
@@ -198,6 +201,14 @@ def write_cell_plan(outdir, plan, target_um: float = 50.0, tolerance_um: float =
         with atomic_output(path, "w", encoding="utf-8") as handle:
             json.dump(_clean(plan.report.get("film", {})), handle, indent=1)
             handle.write("\n")
+        written.append(path)
+    if plan.part is not None:
+        from sprayplan.view.cell_html import cell_viewer_html
+
+        path = os.path.join(outdir, "cell.html")
+        page, _ = cell_viewer_html(plan, target_um, tolerance_um)
+        with atomic_output(path, "w", encoding="utf-8") as handle:
+            handle.write(page)
         written.append(path)
     return written
 

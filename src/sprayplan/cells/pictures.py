@@ -9,10 +9,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sprayplan.view.colours import ROBOT_COLOURS
+
 #: The two views (elevation, azimuth), degrees.
 VIEWS = ((30.0, -60.0), (30.0, 120.0))
-#: Robot colours, in the cell's order.
-ROBOT_COLOURS = ("#d62728", "#1f77b4", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b")
 UNREACHED = "#b0b0b0"
 
 

@@ -33,6 +33,8 @@ STATION_COLOURS = (
 )
 #: The colour of a bare part (no film simulated).
 GREY = "#b4b4b4"
+#: The robots of a cell, in the cell's order (``areas.png``, ``cell.html``).
+ROBOT_COLOURS = ("#d62728", "#1f77b4", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b")
 
 
 @dataclass(frozen=True)

@@ -531,9 +531,10 @@ def write_viewer(path, scene: Scene, limits: ViewerLimits | None = None) -> dict
     return drawn
 
 
-def read_viewer_figure(page: str) -> tuple[list, dict]:
+def read_viewer_figure(page: str, plot_id: str = PLOT_ID) -> tuple[list, dict]:
     """The figure a viewer page draws: its traces and layout as plotly.js gets them, with every typed array
-    (plotly's ``{"dtype", "bdata", "shape"}``) decoded into a numpy array. For checks of a written viewer.
+    (plotly's ``{"dtype", "bdata", "shape"}``) decoded into a numpy array. For checks of a written viewer;
+    ``plot_id`` the plot's div (``view.cell_html.PLOT_ID`` for a cell plan's).
 
     Raises
     ------
@@ -542,7 +543,7 @@ def read_viewer_figure(page: str) -> tuple[list, dict]:
     """
     import re
 
-    found = re.search(r'Plotly\.newPlot\(\s*"' + re.escape(PLOT_ID) + r'",\s*', page)
+    found = re.search(r'Plotly\.newPlot\(\s*"' + re.escape(plot_id) + r'",\s*', page)
     if found is None:
         raise ValueError("no Plotly.newPlot call for the viewer's plot")
     start = found.end()
