@@ -402,6 +402,8 @@ BAD = {
     "unknown table": ("[nonsense]\nx = 1", "nonsense"),
     "bad engine setting": ("[batch]\nworkers = 1.5", "[batch].workers"),
     "parts in the defaults": ('[defaults]\nparts = "x.stl"', "defaults.parts"),
+    "unknown cell": ('cell = "no-such-cell"', "no-such-cell"),
+    "the gantry as a cell": ('cell = "gantry-ur5"', "gantry cell"),
 }
 
 

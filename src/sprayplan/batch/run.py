@@ -84,7 +84,7 @@ def _place(staging: Path, final: Path) -> None:
 
 def _task(job: BatchJob, timeout_s: float | None) -> Task:
     return Task(job.job_id, job.name, job.part, job.part_sha256, job_to_dict(job.config), job.settings,
-                None, timeout_s)  # fmt: skip
+                None, timeout_s, job.cell)  # fmt: skip
 
 
 def _jobs(jobs) -> tuple[BatchJob, ...]:

@@ -22,7 +22,7 @@ from sprayplan.config import SECTIONS, JobConfig, job_from_dict, job_from_toml, 
 from sprayplan.errors import ConfigError, InputError, PartFileError
 
 #: The keys of a ``[[job]]`` table besides the settings' tables.
-JOB_KEYS = ("parts", "name", "config", "sweep")
+JOB_KEYS = ("parts", "name", "config", "sweep", "cell")
 #: The engine settings a batch file may hold in ``[batch]`` (the command line's flags win).
 BATCH_KEYS = ("workers", "timeout_s", "job_memory_mb", "ship_mb")
 #: Characters kept in a job id's readable part (others become ``_``).
@@ -52,6 +52,9 @@ class BatchJob:
     settings : dict
         The settings the batch file gave this job (``section.key`` -> value, sweeps included), for the
         summary's columns.
+    cell : str or None
+        A cell plan (``sprayplan plan --cell``): a preset's name, or a cell TOML file's text; None for the
+        gantry's plan.
     """
 
     job_id: str
@@ -61,6 +64,7 @@ class BatchJob:
     part_bytes: int
     config: JobConfig
     settings: dict = field(default_factory=dict)
+    cell: str | None = None
 
 
 @dataclass(frozen=True)
@@ -211,6 +215,42 @@ def _base_config(table: dict, folder: Path, where: str) -> JobConfig | None:
     return job_from_toml(os.path.join(folder, os.path.expanduser(path)))
 
 
+def _cell_of(table: dict, folder: Path, where: str) -> str | None:
+    """A job's ``cell``: a preset's name, or a cell TOML file (relative to the batch file) read into its text;
+    checked as ``plan --cell`` checks it."""
+    from sprayplan.cells import list_cells, load_cell
+
+    value = table.get("cell")
+    if value is None:
+        return None
+    if not isinstance(value, str) or not value:
+        raise ConfigError(f"{where}.cell must be a cell preset ({', '.join(list_cells())}) or a cell TOML file")
+    preset = value in list_cells()
+    path = value if preset else os.path.join(folder, os.path.expanduser(value))
+    cell = load_cell(path, setting=f"{where}.cell")
+    if cell.is_gantry:
+        raise ConfigError(f"{where}.cell: {cell.name} is the gantry cell (leave cell out to plan it)")
+    if preset:
+        return value
+    with open(path, encoding="utf-8") as handle:
+        return handle.read()
+
+
+def cell_from_text(text: str):
+    """The cell of a job's ``cell`` (:func:`_cell_of`): a preset by name, or a cell TOML file's text."""
+    import tempfile
+
+    from sprayplan.cells import list_cells, load_cell
+
+    if text in list_cells():
+        return load_cell(text)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "cell.toml")
+        with open(path, "w", encoding="utf-8") as handle:
+            handle.write(text)
+        return load_cell(path)
+
+
 def _options(table, where: str) -> dict:
     if table is None:
         return {}
@@ -239,7 +279,7 @@ def jobs_from_dict(data: dict, folder) -> tuple[list[BatchJob], dict]:
     defaults = data.get("defaults", {})
     if not isinstance(defaults, dict):
         raise ConfigError("[defaults] must be a table")
-    misplaced = sorted(set(defaults) & {"parts", "name", "sweep"})
+    misplaced = sorted(set(defaults) & {"parts", "name", "sweep"})  # a cell may be a default
     if misplaced:
         where = "[sweep] at the top" if misplaced[0] == "sweep" else "a [[job]]"
         raise ConfigError(f"defaults.{misplaced[0]}: belongs in {where}, not in [defaults]")
@@ -260,6 +300,7 @@ def jobs_from_dict(data: dict, folder) -> tuple[list[BatchJob], dict]:
         if name is not None and (not isinstance(name, str) or not name.strip()):
             raise ConfigError(f"{where}.name must be a non-empty string")
         base = _base_config(table, folder, where) or default_base or JobConfig()
+        cell = _cell_of(table if "cell" in table else defaults, folder, where if "cell" in table else "defaults")
         settings = {**default_settings, **_settings_of(table, where)}
         sweep = {**top_sweep, **_sweep_of(table.get("sweep"), where)}
         try:
@@ -281,13 +322,14 @@ def jobs_from_dict(data: dict, folder) -> tuple[list[BatchJob], dict]:
                     shown = ", ".join(f"{k} = {v!r}" for k, v in point.items())
                     raise ConfigError(f"{where} (sweep {shown}): {exc}") from None
                 label = readable_name(name or _stem(part), point)
-                job_id = f"{label}-{job_hash(digest, config)}"
+                key = digest if cell is None else hashlib.sha256(f"{digest}\n{cell}".encode()).hexdigest()
+                job_id = f"{label}-{job_hash(key, config)}"
                 if job_id in seen:
                     raise ConfigError(
                         f"{where}: duplicate job id {job_id} (the same part and settings as {seen[job_id]})"
                     )
                 seen[job_id] = f"{where}, {os.path.basename(part)}"
-                jobs.append(BatchJob(job_id, label, part, digest, size, config, {**settings, **point}))
+                jobs.append(BatchJob(job_id, label, part, digest, size, config, {**settings, **point}, cell))
     return jobs, options
 
 

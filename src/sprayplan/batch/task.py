@@ -47,6 +47,9 @@ class Task:
         The part's bytes, shipped with the task (Dask, small parts); None: the worker reads ``part``.
     timeout_s : float or None
         Wall time the job may take on the worker.
+    cell : str or None
+        A cell plan's cell (``batch.spec.BatchJob.cell``: a preset's name or a cell TOML's text); None: the
+        gantry's main job.
     """
 
     job_id: str
@@ -57,6 +60,7 @@ class Task:
     overrides: dict = field(default_factory=dict)
     data: bytes | None = None
     timeout_s: float | None = None
+    cell: str | None = None
 
 
 class JobTimeout(Exception):
@@ -211,6 +215,54 @@ def failed_row(task: Task, error: str, **figures) -> dict:
     return row | {"status": FAILED, "error": one_line(error)} | figures
 
 
+def _run_cell(task: Task, path: str, folder) -> dict:
+    """A cell plan's job (``sprayplan plan PART --cell CELL``, with its programs when ``[export] programs`` names
+    any) into ``folder``; its figures for the summary row."""
+    from sprayplan.batch.spec import cell_from_text
+    from sprayplan.cells.files import write_cell_plan
+    from sprayplan.cells.plan import plan_cell
+    from sprayplan.config import job_from_dict
+    from sprayplan.io.load import load_part
+
+    job = job_from_dict(task.settings)
+    part = load_part(path, units=job.load.units, up=job.load.up)
+    if path != task.part:
+        part = dataclasses.replace(part, name=os.path.basename(task.part))
+    plan = plan_cell(part, cell_from_text(task.cell), job, progress=_deadline_hook(task.timeout_s))
+    target = job.coating.thickness_um if job.coating.thickness_um is not None else 50.0
+    programs = []
+    if job.export.programs:
+        from sprayplan.programs.arms import build_cell_programs
+
+        programs = build_cell_programs(plan, plan.job or job, tuple(job.export.programs))
+    os.makedirs(folder, exist_ok=True)
+    write_cell_plan(folder, plan, target, job.coating.tolerance_um)
+    if programs:
+        from sprayplan.programs.arms import write_cell_programs
+
+        write_cell_programs(os.path.join(folder, "programs"), programs, plan.job or job)
+    report = plan.report
+    robots = report["robots"].values()
+    row = {
+        "cell": plan.cell.name,
+        "robots": len(plan.robots),
+        "strokes": sum(r["strokes"] for r in robots),
+        "waypoints": sum(r["waypoints"] for r in robots),
+        "unreachable_waypoints": sum(r["unreached_waypoints"] for r in robots),
+        "cycle_time_s": report["cycle_time_s"],
+        "planning_time_s": round(sum(plan.timings_s.values()), 3),
+    }
+    film = report.get("film")
+    if film:
+        row |= {
+            "film_mean_um": film["whole"]["mean_um"],
+            "film_std_over_mean": film["whole"]["std_um"] / film["whole"]["mean_um"],
+            "film_share_in_spec": film["whole"]["share_in_spec"],
+            "measuring_points_in_spec": film["report"].get("measuring_points", {}).get("share_in_spec"),
+        }
+    return row
+
+
 def run_task(task: Task, folder, placed=None) -> dict:
     """Run one job into ``folder`` (created; the caller moves it into place) and return its summary row.
 
@@ -227,12 +279,15 @@ def run_task(task: Task, folder, placed=None) -> dict:
     with PeakMemory() as memory:
         try:
             with _part_file(task) as path:
-                result = run_job(path, job_from_dict(task.settings), progress=_deadline_hook(task.timeout_s))
-                if path != task.part:  # shipped bytes: named as the batch's file, as `sprayplan plan` names it
-                    plan = dataclasses.replace(result.plan, name=task.part)
-                    result = dataclasses.replace(result, plan=plan, source=task.part)
-                write_outputs(folder, result, part_file=task.part, placed=placed)
-            row |= {"status": OK, "error": ""} | _figures(result, folder)
+                if task.cell is not None:  # a cell plan's job
+                    row |= {"status": OK, "error": ""} | _run_cell(task, path, folder)
+                else:
+                    result = run_job(path, job_from_dict(task.settings), progress=_deadline_hook(task.timeout_s))
+                    if path != task.part:  # shipped bytes: named as the batch's file, as `sprayplan plan` names it
+                        plan = dataclasses.replace(result.plan, name=task.part)
+                        result = dataclasses.replace(result, plan=plan, source=task.part)
+                    write_outputs(folder, result, part_file=task.part, placed=placed)
+                    row |= {"status": OK, "error": ""} | _figures(result, folder)
         except Exception as exc:  # a failed job is a row; the other jobs go on
             row |= {"status": FAILED, "error": error_text(exc).replace(path, task.part)}  # a shipped part by its name
     row |= {"job_time_s": round(time.perf_counter() - began, 3), "peak_memory_mb": round(memory.peak_mb, 1)}
