@@ -346,3 +346,24 @@ def csv_rows(path):
 
     with open(path, newline="") as handle:
         yield from csv.DictReader(handle)
+
+
+@pytest.mark.parametrize("robot", ["ur5", "kuka-kr6-r700-sixx"])
+def test_one_fixed_robot_gets_its_programs_checked(tmp_path, robot):
+    """``plan --robot NAME --program krl --program rapid``: a UR arm (the gantry's convention for its data) and
+    the KUKA arm (axes 1, 4, 6 turning the other way) get programs that read back as the plan; no external axis."""
+    from sprayplan.types import Part
+
+    plate = grid_box(n=4, size=(240.0, 160.0, 20.0))
+    part = tmp_path / "plate.stl"
+    part.write_bytes(write_stl_binary(Part(plate.vertices + [420.0, 0.0, 60.0], plate.faces).triangles))
+    out = tmp_path / "out"
+    argv = ["-q", "plan", str(part), "--robot", robot, "--spacing-mm", "40", "--program", "krl", "--program", "rapid"]
+    assert main([*argv, "-o", str(out)]) == 0
+    plan = read_cell_plan(out / "cell_plan.json")
+    reached = sum(int(s["reachable"].sum()) for s in plan["robots"][0]["strokes"] if s["kind"] != "transfer")
+    for fmt in FORMATS:
+        summary = json.loads((out / "programs" / robot / fmt / "summary.json").read_text())
+        assert summary["check"]["waypoints"] > 0.9 * reached
+        read = read_programs(out / "programs" / robot / fmt, JobConfig(), fmt, 0)
+        assert all(len(m.external_mm) == 0 for m in read.moves)
