@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 
 import numpy as np
@@ -367,3 +368,44 @@ def test_one_fixed_robot_gets_its_programs_checked(tmp_path, robot):
         assert summary["check"]["waypoints"] > 0.9 * reached
         read = read_programs(out / "programs" / robot / fmt, JobConfig(), fmt, 0)
         assert all(len(m.external_mm) == 0 for m in read.moves)
+
+
+def test_program_motions_are_checked_with_the_collision_model(written, tmp_path):
+    """``plan --cell ... --collisions --program rapid``: the program's joint moves, approaches and retracts are
+    sampled and checked (``summary.json``: ``counts.program_motions``), one motion each; and a motion ending in
+    the box is found, one between two poses clear of it is not."""
+    pytest.importorskip("coal")
+    from sprayplan.cells.collide import cell_arms
+    from sprayplan.cells.plan import plan_cell
+    from sprayplan.io.load import load_part
+    from sprayplan.programs.arms import motions_checked
+    from sprayplan.programs.model import JOINT, Move
+
+    out = tmp_path / "out"
+    argv = ["-q", "plan", str(written["part"]), "--cell", str(written["part"].parent / "small2.toml")]
+    assert main([*argv, "--collisions", "--program", "rapid", "-o", str(out)]) == 0
+    for robot in ("left", "right"):
+        folder = out / "programs" / robot / "rapid"
+        found = json.loads((folder / "summary.json").read_text())["counts"]["program_motions"]
+        axes = 1 if robot == "left" else 0
+        moves = read_programs(folder, JobConfig(), "rapid", axes).moves
+        expected = sum(1 for m in moves[1:] if m.kind == "joint") + 2 * sum(
+            1 for a, b in itertools.pairwise(moves) if a.kind == "joint" and b.kind == "linear"
+        )
+        assert found["motions_checked"] == expected and found["samples"] >= expected
+    # a constructed motion: from the start joints into the box's middle, and a small turn of axis 1 up high
+    job = JobConfig().replace(collision={"check": True})
+    plan = plan_cell(load_part(str(written["part"])), written["cell"], job)
+    (arm,) = cell_arms(written["cell"], plan.part, job.collision)[1:]
+    cell = ArmCell(written["cell"].robots[1], 0.0)
+    inside = np.eye(4)
+    inside[:3, :3] = np.diag([1.0, -1.0, -1.0])
+    inside[:3, 3] = plan.part.vertices.mean(axis=0)
+    q, ok = cell.joints_on_branch(inside[None], np.zeros(0), 0, cell.home_joints)
+    assert ok[0]
+    home = cell.home_joints
+    turned = home + np.r_[0.2, 0, 0, 0, 0, 0]
+    at = lambda joints: Move(JOINT, "transfer", np.eye(4), joints, np.zeros(0))
+    hit = motions_checked(arm, [at(home), at(q[0])])
+    clear = motions_checked(arm, [at(home), at(turned)])
+    assert hit["motions_in_collision"] == 1 and clear["motions_in_collision"] == 0

@@ -296,8 +296,15 @@ def cmd_plan_cell(args, job, cell=None) -> int:
         gaps = ", ".join(f"{k} {'-' if v is None else f'{v:g} mm'}" for k, v in schedule["least_gap_mm"].items())
         line += f"; schedule: waits {waits}, least gaps in time {gaps}"
     for data in summaries:
+        motions = data["counts"].get("program_motions")
+        checked = (
+            f", {motions['motions_in_collision']} of {motions['motions_checked']} joint moves, approaches and "
+            "retracts in collision"
+            if motions
+            else ""
+        )
         print(
-            f"{data['robot']} {data['program_format']}: {len(data['files'])} files, {data['moves']} moves -> "
+            f"{data['robot']} {data['program_format']}: {len(data['files'])} files, {data['moves']} moves{checked} -> "
             f"{os.path.join(args.output, 'programs', data['robot'], data['program_format'])}"
         )
     print(f"{line} -> {os.path.join(args.output, 'cell_plan.json')}")

@@ -315,7 +315,65 @@ def build_cell_programs(plan, job, formats, strict=None) -> list[RobotPrograms]:
         for built in builts:
             built.program.report["waypoints_in_collision_left_out"] = robot_plan.left_in_collision
         out.append(RobotPrograms(cr.name, robot_plan, builts))
+    if job.collision.check and getattr(plan, "part", None) is not None:
+        check_program_motions(plan, job, out)
     return out
+
+
+#: The largest joint step (rad) between two samples of a program's motion checked for collisions.
+MOTION_STEP_RAD = 0.02
+
+
+def motions_checked(arm, moves) -> dict:
+    """The program's motions that the plan did not check, sampled and checked with the collision model
+    (``collision.arms.ArmCollision.collides``): every joint move (home, transfers between runs, routes) and
+    every approach and retract, each from the move before it, its joints interpolated linearly (what a joint
+    move does; an approach or retract is a straight line a few centimetres long, which the joints follow closely)
+    at most :data:`MOTION_STEP_RAD` apart, the track with them. Spray moves are the plan's own waypoints and
+    motions (checked by ``cells.collide``). Returns the counts and the first motions in collision."""
+    rows, owners = [], []
+    for k in range(1, len(moves)):
+        move = moves[k]
+        if move.kind == "linear" and move.role not in ("approach", "retract"):
+            continue
+        a, b = moves[k - 1], move
+        steps = max(1, int(np.ceil(np.abs(b.joints - a.joints).max() / MOTION_STEP_RAD)))
+        t = np.linspace(0.0, 1.0, steps + 1)[:, None]
+        q = a.joints + t * (b.joints - a.joints)
+        ea = np.asarray(a.external_mm, float).reshape(-1)
+        eb = np.asarray(b.external_mm, float).reshape(-1)
+        track = (ea[0] + t[:, 0] * (eb[0] - ea[0])) if len(ea) else np.zeros(len(t))
+        rows.append((q, track))
+        owners.append(k)
+    if not rows:
+        return {"motions_checked": 0, "samples": 0, "motions_in_collision": 0, "first_in_collision": []}
+    q = np.concatenate([r[0] for r in rows])
+    track = np.concatenate([r[1] for r in rows])
+    hit = arm.collides(q, track)
+    counts = np.cumsum([0] + [len(r[0]) for r in rows])
+    bad = [owners[i] for i in range(len(rows)) if hit[counts[i] : counts[i + 1]].any()]
+    return {
+        "motions_checked": len(rows),
+        "samples": len(q),
+        "motions_in_collision": len(bad),
+        "first_in_collision": [{"move": k, "role": moves[k].role} for k in bad[:20]],
+    }
+
+
+def check_program_motions(plan, job, built: list[RobotPrograms]) -> None:
+    """With ``[collision] check`` and the part at hand: each robot's program motions (:func:`motions_checked`)
+    checked against the part and the floor, the result in every format's report (``summary.json``'s
+    ``counts.program_motions``)."""
+    from sprayplan.cells.collide import cell_arms
+
+    arms = cell_arms(plan.cell, plan.part, job.collision)
+    for robot, arm in zip(built, arms):
+        if not robot.builts:
+            continue
+        moves = [m for m, _ in robot.builts[0].program.sequence()]
+        found = motions_checked(arm, moves)
+        for b in robot.builts:
+            b.program.report["program_motions"] = found
 
 
 def write_cell_programs(folder, built: list[RobotPrograms], job) -> list[dict]:
