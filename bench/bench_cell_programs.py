@@ -4,7 +4,7 @@ how long building, writing, reading back and checking them takes.
     python bench/bench_cell_programs.py [--body bmw] [--cell line3] [--thickness-um 50] [--repeat 3]
 
 The body is planned once (``plan_cell``, as ``sprayplan plan BODY --cell CELL --thickness-um T`` does); then,
-``--repeat`` times, every robot's RAPID and KRL programs are built in memory (``build_cell_programs``) and
+``--repeat`` times, every robot's RAPID programs (its maker's format) are built in memory (``build_cell_programs``) and
 written, read back and checked in a temporary folder (``write_cell_programs``). Printed per robot and format:
 files, moves, bytes, the waypoints left out and why, and the medians of the build and the write-and-check
 seconds; one JSON line at the end.
@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 from _data import meshes_dir
 
 BODIES = {"bmw": ("bmw_m6_body_m_yup.ply", {"units": "m", "up": "y"}), "suv": ("gazebo_suv_body_m.ply", {"units": "m"})}
-FORMATS = ("rapid", "krl")
+FORMATS = ("rapid",)  # line3 and sides2 are ABB arms: RAPID (KRL is for KUKA arms)
 
 
 def main() -> None:

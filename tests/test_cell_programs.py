@@ -24,18 +24,35 @@ from tests.test_cell_plan import CELL, SIZE
 FORMATS = ("rapid", "krl")
 
 
-@pytest.fixture(scope="module")
-def written(tmp_path_factory):
-    """The small two-robot box planned with a 50 um target and both formats' programs (one run)."""
-    folder = tmp_path_factory.mktemp("cellprog")
+#: The same cell with KUKA arms (nearer the box: their reach is 0.7 m), for KRL.
+KUKA_CELL = CELL.replace("abb-irb2400-10", "kuka-kr6-r700-sixx").replace("900.0", "560.0")
+
+
+def _run(folder, text, fmt):
     cell = folder / "small2.toml"
-    cell.write_text(CELL)
+    cell.write_text(text)
     part = folder / "box.stl"
     part.write_bytes(write_stl_binary(grid_box(n=8, size=SIZE).triangles))
     out = folder / "out"
     argv = ["-q", "plan", str(part), "--cell", str(cell), "--thickness-um", "50", "-o", str(out)]
-    assert main([*argv, "--program", "rapid", "--program", "krl"]) == 0
-    return {"out": out, "cell": load_cell(cell), "plan": read_cell_plan(out / "cell_plan.json"), "part": part}
+    assert main([*argv, "--program", fmt]) == 0
+    return {"out": out, "cell": load_cell(cell), "plan": read_cell_plan(out / "cell_plan.json"), "part": part,
+            "toml": cell, "fmt": fmt}  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """The small two-robot box planned with a 50 um target: with ABB arms and RAPID programs, and with KUKA
+    arms and KRL programs (one run each for the module)."""
+    return {
+        "rapid": _run(tmp_path_factory.mktemp("abb"), CELL, "rapid"),
+        "krl": _run(tmp_path_factory.mktemp("kuka"), KUKA_CELL, "krl"),
+    }
+
+
+@pytest.fixture(scope="module")
+def written(runs):
+    return runs["rapid"]
 
 
 def _random_joints(params, n, rng):
@@ -131,11 +148,12 @@ def _expected_poses(plan, cell, robot_index):
 
 
 @pytest.mark.parametrize("fmt", FORMATS)
-def test_each_robots_program_read_back_moves_to_its_waypoints(written, fmt):
+def test_each_robots_program_read_back_moves_to_its_waypoints(runs, fmt):
     """The programs read back by their own strict readers: every linear target is a reached spray waypoint of
     its robot (pose from cell_plan.json's joints, 0.01 mm / 0.01 deg) or an approach / retract on a waypoint's
     gun axis; the track is the external axis; every reached spray waypoint is moved to except those the
     summary lists as left out."""
+    written = runs[fmt]
     plan, cell = written["plan"], written["cell"]
     job = JobConfig()
     for i, cr in enumerate(cell.robots):
@@ -221,18 +239,18 @@ def test_urscript_or_a_five_axis_robot_in_a_cell_is_exit_2_and_nothing_written(w
     assert not out.exists()
 
 
-def test_the_fixed_robot_has_no_external_axis_and_the_track_robot_one(written):
-    text = (written["out"] / "programs" / "right" / "rapid").glob("*_001.mod")
+def test_the_fixed_robot_has_no_external_axis_and_the_track_robot_one(runs):
+    text = (runs["rapid"]["out"] / "programs" / "right" / "rapid").glob("*_001.mod")
     body = next(text).read_text()
     assert "[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]" in body
-    left = next((written["out"] / "programs" / "left" / "krl").glob("*_001.dat")).read_text()
+    left = next((runs["krl"]["out"] / "programs" / "left" / "krl").glob("*_001.dat")).read_text()
     e1 = [float(line.split("E1 ")[1].split(",")[0]) for line in left.splitlines() if "E1 " in line]
-    lo, hi = written["cell"].robots[0].track.range_mm
+    lo, hi = runs["krl"]["cell"].robots[0].track.range_mm
     assert e1 and all(lo - 1e-6 <= v <= hi + 1e-6 for v in e1) and len(set(e1)) > 1
 
 
 @pytest.mark.parametrize("fmt", FORMATS)
-def test_the_schedules_waits_are_in_the_programs_before_their_strokes(written, tmp_path, fmt):
+def test_the_schedules_waits_are_in_the_programs_before_their_strokes(runs, tmp_path, fmt):
     """A robot whose schedule waits before some strokes (``RobotWork.wait_s``, as ``cells.schedule`` sets it):
     each wait is written once, before the approach of its stroke's first run, read back there, and the check
     fails when a written wait is changed."""
@@ -242,6 +260,7 @@ def test_the_schedules_waits_are_in_the_programs_before_their_strokes(written, t
     from sprayplan.io.load import load_part
     from sprayplan.programs.arms import arm_plan, build_cell_programs, write_cell_programs
 
+    written = runs[fmt]
     job = JobConfig()
     plan = plan_cell(load_part(str(written["part"])), written["cell"], job)
     work = plan.robots[1]
@@ -268,32 +287,33 @@ def test_the_schedules_waits_are_in_the_programs_before_their_strokes(written, t
     assert not bad.ok and any("waits 1.5 s" in f for f in bad.failures)
 
 
-def test_export_of_a_cell_plan_folder_writes_the_same_programs(written, tmp_path, capsys):
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_export_of_a_cell_plan_folder_writes_the_same_programs(runs, tmp_path, capsys, fmt):
     """``sprayplan export OUT --format rapid`` on a cell plan folder rebuilds each robot's programs from
     cell_plan.json alone (its settings: the gun speed the plan chose): the same files, and read back the same
     moves (the joints kept to 1e-12 rad in the file move a blend's last written digit at most)."""
+    written = runs[fmt]
     out = tmp_path / "progs"
-    assert main(["-q", "export", str(written["out"]), "--format", "rapid", "--format", "krl", "-o", str(out)]) == 0
+    assert main(["-q", "export", str(written["out"]), "--format", fmt, "-o", str(out)]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
-    assert len(lines) == 4 and all("read back and checked" in line for line in lines)
+    assert len(lines) == 2 and all("read back and checked" in line for line in lines)
     for robot in ("left", "right"):
-        for fmt in FORMATS:
-            mine = out / robot / fmt
-            theirs = written["out"] / "programs" / robot / fmt
-            names = sorted(p.name for p in theirs.iterdir() if p.name != "summary.json")
-            assert names == sorted(p.name for p in mine.iterdir() if p.name != "summary.json")
-            axes = 1 if robot == "left" else 0
-            a = read_programs(mine, JobConfig(), fmt, axes).moves
-            b = read_programs(theirs, JobConfig(), fmt, axes).moves
-            assert len(a) == len(b)
-            for m, n in zip(a, b):
-                assert (m.kind, m.config, len(m.events), m.wait_s) == (n.kind, n.config, len(n.events), n.wait_s)
-                assert np.allclose(m.external_mm, n.external_mm, atol=1e-4)
-                assert abs(m.speed_mm_s - n.speed_mm_s) <= 1e-3 and abs(m.blend_mm - n.blend_mm) <= 2e-4
-                if m.kind == "linear":
-                    assert np.allclose(m.pose, n.pose, atol=1e-4)
-                else:
-                    assert np.allclose(m.joints, n.joints, atol=1e-8)
+        mine = out / robot / fmt
+        theirs = written["out"] / "programs" / robot / fmt
+        names = sorted(p.name for p in theirs.iterdir() if p.name != "summary.json")
+        assert names == sorted(p.name for p in mine.iterdir() if p.name != "summary.json")
+        axes = 1 if robot == "left" else 0
+        a = read_programs(mine, JobConfig(), fmt, axes).moves
+        b = read_programs(theirs, JobConfig(), fmt, axes).moves
+        assert len(a) == len(b)
+        for m, n in zip(a, b):
+            assert (m.kind, m.config, len(m.events), m.wait_s) == (n.kind, n.config, len(n.events), n.wait_s)
+            assert np.allclose(m.external_mm, n.external_mm, atol=1e-4)
+            assert abs(m.speed_mm_s - n.speed_mm_s) <= 1e-3 and abs(m.blend_mm - n.blend_mm) <= 2e-4
+            if m.kind == "linear":
+                assert np.allclose(m.pose, n.pose, atol=1e-4)
+            else:
+                assert np.allclose(m.joints, n.joints, atol=1e-8)
 
 
 def test_export_of_a_cell_plan_without_settings_or_with_urscript_is_exit_2(written, tmp_path, capsys):
@@ -349,8 +369,8 @@ def csv_rows(path):
         yield from csv.DictReader(handle)
 
 
-@pytest.mark.parametrize("robot", ["ur5", "kuka-kr6-r700-sixx"])
-def test_one_fixed_robot_gets_its_programs_checked(tmp_path, robot):
+@pytest.mark.parametrize("robot, formats", [("ur5", FORMATS), ("kuka-kr6-r700-sixx", ("krl",))])
+def test_one_fixed_robot_gets_its_programs_checked(tmp_path, robot, formats):
     """``plan --robot NAME --program krl --program rapid``: a UR arm (the gantry's convention for its data) and
     the KUKA arm (axes 1, 4, 6 turning the other way) get programs that read back as the plan; no external axis."""
     from sprayplan.types import Part
@@ -359,11 +379,11 @@ def test_one_fixed_robot_gets_its_programs_checked(tmp_path, robot):
     part = tmp_path / "plate.stl"
     part.write_bytes(write_stl_binary(Part(plate.vertices + [420.0, 0.0, 60.0], plate.faces).triangles))
     out = tmp_path / "out"
-    argv = ["-q", "plan", str(part), "--robot", robot, "--spacing-mm", "40", "--program", "krl", "--program", "rapid"]
-    assert main([*argv, "-o", str(out)]) == 0
+    argv = ["-q", "plan", str(part), "--robot", robot, "--spacing-mm", "40"]
+    assert main([*argv, *(a for f in formats for a in ("--program", f)), "-o", str(out)]) == 0
     plan = read_cell_plan(out / "cell_plan.json")
     reached = sum(int(s["reachable"].sum()) for s in plan["robots"][0]["strokes"] if s["kind"] != "transfer")
-    for fmt in FORMATS:
+    for fmt in formats:
         summary = json.loads((out / "programs" / robot / fmt / "summary.json").read_text())
         assert summary["check"]["waypoints"] > 0.9 * reached
         read = read_programs(out / "programs" / robot / fmt, JobConfig(), fmt, 0)
@@ -409,3 +429,17 @@ def test_program_motions_are_checked_with_the_collision_model(written, tmp_path)
     hit = motions_checked(arm, [at(home), at(q[0])])
     clear = motions_checked(arm, [at(home), at(turned)])
     assert hit["motions_in_collision"] == 1 and clear["motions_in_collision"] == 0
+
+
+def test_an_abb_arm_gets_no_krl_and_a_kuka_arm_no_rapid(runs, tmp_path, capsys):
+    """Each maker's controller runs its own format: the other is refused with one line, before any planning."""
+    for fmt, run in (("krl", runs["rapid"]), ("rapid", runs["krl"])):
+        out = tmp_path / fmt
+        argv = ["plan", str(run["part"]), "--cell", str(run["toml"]), "--program", fmt, "-o", str(out)]
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and f"not {fmt}" in err[0] and "left" in err[0]
+        assert not out.exists()
+        assert main(["export", str(run["out"]), "--format", fmt, "-o", str(out)]) == 2
+        assert f"not {fmt}" in capsys.readouterr().err
+        assert not out.exists()

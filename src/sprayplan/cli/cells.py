@@ -227,12 +227,8 @@ def cmd_plan_cell(args, job, cell=None) -> int:
     if cell.is_gantry:
         raise ConfigError(f"--cell {cell.name}: the gantry cell is planned without --cell")
     formats = tuple(job.export.programs)
-    if "urscript" in formats:
-        raise ConfigError(
-            "--program urscript: URScript is written for the gantry's UR arm; a cell's robots get rapid or krl"
-        )
     if formats:
-        _programs_possible(cell)
+        _programs_possible(cell, formats)
     inputs = [(args.part, "part"), (args.config, "-c"), (file_input(getattr(args, "cell", None)), "--cell")]
     outputs = CELL_FILES + (("programs",) if formats else ())
     check_folder_outputs(args.output, outputs, "-o", inputs)
@@ -311,13 +307,18 @@ def cmd_plan_cell(args, job, cell=None) -> int:
     return 0
 
 
-def _programs_possible(cell) -> None:
-    """Every robot of ``cell`` has a program format (six axes): checked before the plan, so that a refusal
-    costs no planning time."""
+def _programs_possible(cell, formats) -> None:
+    """Every robot of ``cell`` can have each of ``formats`` (six axes; its maker's format,
+    ``programs.arms.format_refusal``): checked before the plan, so that a refusal costs no planning time."""
     from sprayplan.errors import ConfigError
+    from sprayplan.programs.arms import format_refusal
     from sprayplan.robots.interface import robot_from_name
 
     for r in cell.robots:
+        for fmt in formats:
+            why = format_refusal(r.name, r.model, fmt)
+            if why:
+                raise ConfigError(f"--program {fmt}: {why}")
         dof = robot_from_name(r.model, None).dof
         if dof != 6:
             raise ConfigError(

@@ -103,11 +103,14 @@ def _export_cell(args, plan_file) -> int:
     inputs = [(plan_file, "cell_plan.json"), (args.config, "-c")]
     check_outputs([(folder, "-o")], inputs, folder=True)
     formats = tuple(dict.fromkeys(args.formats))
-    if "urscript" in formats:
-        raise ConfigError(
-            "--format urscript: URScript is written for the gantry's UR arm; a cell's robots get rapid or krl"
-        )
     plan = cell_plan_from_file(plan_file)
+    from sprayplan.programs.arms import format_refusal
+
+    for r in plan.cell.robots:
+        for fmt in formats:
+            why = format_refusal(r.name, r.model, fmt)
+            if why:
+                raise ConfigError(f"--format {fmt}: {why}")
     job = plan.job
     if args.config:
         from sprayplan.config import job_from_toml

@@ -83,6 +83,23 @@ def kuka_status_turn(params, q6) -> np.ndarray:
     return np.column_stack([status, turn])
 
 
+#: The program format each maker's controller runs (a preset's name starts with the maker).
+MAKER_FORMATS = {"abb": "rapid", "kuka": "krl"}
+
+
+def format_refusal(name: str, model: str, fmt: str) -> str | None:
+    """Why robot ``name`` (``model``) gets no ``fmt`` program, or None: an ABB arm's controller runs RAPID and a
+    KUKA arm's KRL (the other format's configuration data and axis conventions are not the arm's); URScript is
+    the gantry's; a UR arm or an arm from a robot file takes RAPID or KRL with the gantry's convention."""
+    if fmt == "urscript":
+        return f"robot {name}: URScript is written for the gantry's UR arm; a cell's robots get rapid or krl"
+    maker = str(model).split("-", 1)[0].lower()
+    wanted = MAKER_FORMATS.get(maker)
+    if wanted is not None and wanted != fmt:
+        return f"robot {name} is a {maker.upper()} arm ({model}): its controller runs {wanted}, not {fmt}"
+    return None
+
+
 @dataclass(frozen=True)
 class _Solutions:
     q: np.ndarray
@@ -307,6 +324,11 @@ def build_cell_programs(plan, job, formats, strict=None) -> list[RobotPrograms]:
     """
     from sprayplan.programs.stage import build
 
+    for cr in plan.cell.robots:
+        for fmt in formats:
+            why = format_refusal(cr.name, cr.model, fmt)
+            if why:
+                raise ConfigError(f"--program {fmt}: {why}")
     out = []
     for cr, work in zip(plan.cell.robots, plan.robots):
         cell = ArmCell(cr, job.paths.standoff_mm)
