@@ -4,10 +4,10 @@ how long building, writing, reading back and checking them takes.
     python bench/bench_cell_programs.py [--body bmw] [--cell line3] [--thickness-um 50] [--repeat 3]
 
 The body is planned once (``plan_cell``, as ``sprayplan plan BODY --cell CELL --thickness-um T`` does); then,
-``--repeat`` times, every robot's RAPID programs (its maker's format) are built in memory (``build_cell_programs``) and
-written, read back and checked in a temporary folder (``write_cell_programs``). Printed per robot and format:
-files, moves, bytes, the waypoints left out and why, and the medians of the build and the write-and-check
-seconds; one JSON line at the end.
+``--repeat`` times, every robot's RAPID programs (its maker's format) are built in memory
+(``build_cell_programs``) and written, read back and checked in a temporary folder (``write_cell_programs``).
+Printed per robot: files, moves, bytes, the waypoints left out and why, and the medians of the build and the
+write-and-check seconds; one JSON line at the end.
 """
 
 from __future__ import annotations
