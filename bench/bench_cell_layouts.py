@@ -82,7 +82,9 @@ def main() -> None:
         painted, _ = drop_floor_facing(place_part(part, cell).part, job.collision.floor_facing_deg)
         areas = segment_areas(painted)
         reach = reach_matrix(cell, painted, areas.face_normals, job.paths.standoff_mm, arms=arms)
-        out["unreached_with_collision_model_mm2"] = round(assign_areas(areas, painted.face_areas, reach).unreached_mm2, 1)
+        out["unreached_with_collision_model_mm2"] = round(
+            assign_areas(areas, painted.face_areas, reach).unreached_mm2, 1
+        )
         out["wall_s"] = round(time.perf_counter() - start, 1)
         print(json.dumps(out), flush=True)
 

@@ -76,7 +76,9 @@ def one_gantry(body: str) -> dict:
 
     full = film_report(result.film, job, samples=420) if result.film is not None else {}
     keep = ("count", "area_mm2", "mean_um", "std_um", "share_in_spec")
-    report = {k: {x: v[x] for x in keep if x in v} for k, v in full.items() if k in ("painted", "all", "measuring_points")}
+    report = {
+        k: {x: v[x] for x in keep if x in v} for k, v in full.items() if k in ("painted", "all", "measuring_points")
+    }
     return {
         "body": body,
         "cell": "gantry-ur5 (one job)",

@@ -249,7 +249,10 @@ def test_strict_refuses_a_plan_left_in_collision(testdata, tmp_path, capsys):
         ("[collision]\nplatform_search_mm = -50\n", "collision.platform_search_mm"),
         ("[collision]\nplatform_search_mm = nan\n", "collision.platform_search_mm"),
         ("[collision]\nplatform_search_step_mm = 0\n", "collision.platform_search_step_mm"),
-        ("[collision]\nplatform_search_mm = 100000\nplatform_search_step_mm = 1\n", "collision.platform_search_step_mm"),
+        (
+            "[collision]\nplatform_search_mm = 100000\nplatform_search_step_mm = 1\n",
+            "collision.platform_search_step_mm",
+        ),
     ],
 )
 def test_bad_collision_settings_exit_2_naming_the_key(testdata, tmp_path, capsys, text, key):
@@ -294,10 +297,14 @@ def test_a_point_cloud_plan_is_checked_against_the_cloud(testdata):
     from sprayplan.job import run_job
 
     cloud = testdata / "pointclouds" / "reach_part_normals_ascii.pcd"
-    job = JobConfig().replace(load={"units": "m"}, collision={"check": True, "repair": False}, timing={"enabled": False})
+    job = JobConfig().replace(
+        load={"units": "m"}, collision={"check": True, "repair": False}, timing={"enabled": False}
+    )
     result = run_job(cloud, job, until="totals")
     summary = result.totals["collisions"]
-    assert summary["checked"] and summary["waypoints_checked"] == sum(int(s.reachable.sum()) for s in result.plan.stations)
+    assert summary["checked"] and summary["waypoints_checked"] == sum(
+        int(s.reachable.sum()) for s in result.plan.stations
+    )
     flagged = sum(int(s.collision.sum()) for s in result.plan.stations)
     assert flagged == summary["flagged_waypoints"] == summary["in_collision_before_repair"] > 0
 
