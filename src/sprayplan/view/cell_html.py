@@ -26,7 +26,7 @@ import numpy as np
 
 from sprayplan.view.colours import GREY, ROBOT_COLOURS, film_scale
 from sprayplan.view.decimate import thin_indices, thin_surface
-from sprayplan.view.scene import Surface, vertex_areas
+from sprayplan.view.scene import Surface, vertex_areas, vertex_normals
 
 PLOT_ID = "sprayplan-cell"
 MAX_FACES = 60_000
@@ -37,18 +37,8 @@ def _f4(a) -> np.ndarray:
     return np.asarray(a, dtype=np.float32)
 
 
-def _normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    n = np.zeros_like(vertices)
-    tri = vertices[faces]
-    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    for k in range(3):
-        np.add.at(n, faces[:, k], cross)
-    length = np.linalg.norm(n, axis=1, keepdims=True)
-    return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
-
-
 def _surface(vertices, faces, thickness=None) -> Surface:
-    return Surface(vertices, faces, _normals(vertices, faces), vertex_areas(vertices, faces), thickness)
+    return Surface(vertices, faces, vertex_normals(vertices, faces), vertex_areas(vertices, faces), thickness)
 
 
 def _sub_mesh(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -121,12 +121,13 @@ def _bare(part) -> Surface:
     faces = np.asarray(part.faces, np.int64).reshape(-1, 3)
     normals = getattr(part, "vertex_normals", None)
     if normals is None or len(normals) != len(vertices):
-        normals = _vertex_normals(vertices, faces)
+        normals = vertex_normals(vertices, faces)
     area = vertex_areas(vertices, faces) if len(faces) else np.ones(len(vertices))
     return Surface(vertices, faces, np.asarray(normals, float), area)
 
 
-def _vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(n, 3) unit normals at the vertices: the sum of the area-weighted normals of their triangles."""
     out = np.zeros_like(vertices)
     if len(faces):
         tri = vertices[faces]
