@@ -187,7 +187,10 @@ p { font-size: 13px; margin: 2px 0; }
 
 
 def _name(plan) -> str:
-    return plan.name or (plan.part.name if plan.part is not None else "") or "cell plan"
+    import os
+
+    name = plan.name or (plan.part.name if plan.part is not None else "")
+    return os.path.basename(name) or "cell plan"
 
 
 def _header(plan, drawn: dict) -> str:
