@@ -443,3 +443,9 @@ def test_an_abb_arm_gets_no_krl_and_a_kuka_arm_no_rapid(runs, tmp_path, capsys):
         assert main(["export", str(run["out"]), "--format", fmt, "-o", str(out)]) == 2
         assert f"not {fmt}" in capsys.readouterr().err
         assert not out.exists()
+
+
+def test_view_of_a_cell_folder_names_its_viewer(written, capsys):
+    assert main(["view", str(written["out"])]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cell.html" in err[0]

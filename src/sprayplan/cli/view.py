@@ -18,6 +18,12 @@ def cmd_view(args) -> int:
     if not (viewer or report):
         raise ConfigError("--no-viewer and --no-report: nothing left to draw")
     outdir = os.fspath(args.outdir)
+    if not os.path.exists(os.path.join(outdir, "plan.json")) and os.path.exists(os.path.join(outdir, "cell_plan.json")):
+        from sprayplan.errors import PartFileError
+
+        raise PartFileError(
+            outdir, "a cell plan folder: its 3D viewer is cell.html, written with the plan (plan --cell)"
+        )
     with stage("scene"):
         scene = scene_from_folder(outdir)  # the whole folder is read and checked before anything is written
     own = [name for name, on in zip(VIEW_FILES, (viewer, report)) if on]
