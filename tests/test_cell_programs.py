@@ -187,7 +187,7 @@ def test_each_robots_program_read_back_moves_to_its_waypoints(runs, fmt):
         duplicates = summary["counts"]["duplicate_waypoints"]
         assert len(hit) >= len(want) - unapproachable - duplicates
         assert len(hit) <= len(want)
-        assert summary["counts"]["waypoints_in_collision_left_out"] == 0
+        assert summary["left_out"]["colliding_waypoints"] == []  # planned without --collisions
 
 
 def test_a_wrong_configuration_in_a_program_fails_the_check(written, tmp_path):
@@ -413,6 +413,12 @@ def test_program_motions_are_checked_with_the_collision_model(written, tmp_path)
             1 for a, b in itertools.pairwise(moves) if a.kind == "joint" and b.kind == "linear"
         )
         assert found["motions_checked"] == expected and found["samples"] >= expected
+        # the plan's waypoints still in collision are left out, each listed
+        data = read_cell_plan(out / "cell_plan.json")
+        work = next(r for r in data["robots"] if r["name"] == robot)
+        hit = sum(int((s["collides"] & s["reachable"]).sum()) for s in work["strokes"] if s["kind"] != "transfer")
+        left = json.loads((folder / "summary.json").read_text())["left_out"]["colliding_waypoints"]
+        assert len(left) == hit
     # a constructed motion: from the start joints into the box's middle, and a small turn of axis 1 up high
     job = JobConfig().replace(collision={"check": True})
     plan = plan_cell(load_part(str(written["part"])), written["cell"], job)

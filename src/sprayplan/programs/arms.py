@@ -264,6 +264,7 @@ class ArmStation:
     repair: np.ndarray
     method: np.ndarray
     wait_s: np.ndarray | None = None
+    collides: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -293,11 +294,18 @@ def arm_plan(work, cell: ArmCell, name: str = "") -> ArmPlan:
         q9 = np.column_stack([q9, np.asarray(work.track_mm, float)])
     reachable = np.asarray(work.reachable, bool).copy()
     colliding = np.zeros(n, bool) if work.collides is None else np.asarray(work.collides, bool) & reachable
-    reachable &= ~colliding
     home = q9[0, 6:].copy() if n else np.zeros(cell.external_axes)
     waits = None if work.wait_s is None else np.asarray(work.wait_s, float)
     station = ArmStation(
-        0, tuple(work.strokes), q9, reachable, home, np.full(n, "", dtype=object), np.full(n, "analytic"), waits
+        0,
+        tuple(work.strokes),
+        q9,
+        reachable,
+        home,
+        np.full(n, "", dtype=object),
+        np.full(n, "analytic"),
+        waits,
+        colliding,
     )
     return ArmPlan(name or work.name, (station,), home, int(colliding.sum()))
 
@@ -334,8 +342,6 @@ def build_cell_programs(plan, job, formats, strict=None) -> list[RobotPrograms]:
         cell = ArmCell(cr, job.paths.standoff_mm)
         robot_plan = arm_plan(work, cell, f"{plan.name} {cr.name}".strip())
         builts = tuple(build(robot_plan, job, fmt, strict, cell) for fmt in formats)
-        for built in builts:
-            built.program.report["waypoints_in_collision_left_out"] = robot_plan.left_in_collision
         out.append(RobotPrograms(cr.name, robot_plan, builts))
     if job.collision.check and getattr(plan, "part", None) is not None:
         check_program_motions(plan, job, out)

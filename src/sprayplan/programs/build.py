@@ -139,19 +139,25 @@ def spray_runs(plan, job, fmt: str, cell: Cell | None = None) -> tuple[list[list
     """The runs of every station (in visiting order) and what was left out: ``unreachable_waypoints`` (spray
     waypoints the plan does not reach), ``gantry_offset_waypoints`` (URScript: the plan moves the gantry there
     farther than ``ur_gantry_offset_mm`` from the station),
-    ``split_runs`` (runs longer than a file allows, split with one waypoint in both parts), ``duplicate_waypoints``
-    (a target equal to the one before)."""
+    ``colliding_waypoints`` (a cell robot's waypoints still in collision after the plan's repairs), ``split_runs``
+    (runs longer than a file allows, split with one waypoint in both parts), ``duplicate_waypoints`` (a target
+    equal to the one before)."""
     cell = cell or Cell(gantry_for(job.kinematics))
     limit = run_limit(job, fmt)
     tol = job.export.ur_gantry_offset_mm + 1e-9
-    report: dict = {"unreachable_waypoints": [], "gantry_offset_waypoints": [], "split_runs": 0,
-                    "duplicate_waypoints": 0}  # fmt: skip
+    report: dict = {"unreachable_waypoints": [], "gantry_offset_waypoints": [], "colliding_waypoints": [],
+                    "split_runs": 0, "duplicate_waypoints": 0}  # fmt: skip
     out = []
     for order, st in enumerate(plan.stations):
         data = station_arrays(st, job)
         ok = st.reachable & data["spray"]
         for k in np.flatnonzero(data["spray"] & ~st.reachable):
             report["unreachable_waypoints"].append(_where(order, data, k))
+        collides = getattr(st, "collides", None)  # a cell robot's waypoints still in collision after the repairs
+        if collides is not None:
+            for k in np.flatnonzero(ok & collides):
+                report["colliding_waypoints"].append(_where(order, data, k))
+            ok &= ~collides
         q9 = target_q9(st, fmt)
         poses = cell.poses(q9[:, :6], q9[:, 6:]) if len(q9) else np.zeros((0, 4, 4))
         if fmt == "urscript" and len(q9):
@@ -289,6 +295,7 @@ def _refuse(report: dict) -> None:
     for key, what in (
         ("unreachable_waypoints", "spray waypoints the plan marks unreachable"),
         ("gantry_offset_waypoints", "spray waypoints where the plan moves the gantry (URScript cannot)"),
+        ("colliding_waypoints", "spray waypoints the plan finds in collision after its repairs"),
         ("unapproachable_waypoints", "spray waypoints at a run's end the arm cannot back off from along the gun axis"),
     ):
         found = report[key]

@@ -197,6 +197,9 @@ class _Station:
         self.wanted = wanted_targets(self.data["tcp"], self.data["normals"], cell.spray_distance_mm)
         self.branch = cell.branches(self.q9[:, :6]) if n else np.zeros(0, int)
         self.spray = self.data["spray"] & st.reachable
+        collides = getattr(st, "collides", None)  # a cell robot's waypoints left out in collision
+        if collides is not None:
+            self.spray &= ~collides
         # (move, joints, branch, gantry, exact pose) whose configuration data are checked at the end
         self.pending: list = []
         self.waited: set = set()  # the strokes whose first run was seen

@@ -32,6 +32,7 @@ SUMMARY_FORMAT = "sprayplan.programs"
 LEFT_OUT = {
     "unreachable_waypoints": "unreachable in the plan",
     "gantry_offset_waypoints": "where the plan moves the gantry within a station (URScript cannot)",
+    "colliding_waypoints": "in collision in the plan after its repairs",
     "unapproachable_waypoints": "at a run's end the arm cannot back off from along the gun axis",
 }
 
