@@ -1,6 +1,6 @@
 """The speed work keeps the same plans (issue 17): each faster computation against the one it replaced.
 
-- the deposit matrix built as a product of sparse matrices equals the one built from four COO entries a pair;
+- the deposit matrix of the compiled kernel equals the sparse product of the pairs' film and the time shares;
 - the tuning's Jacobian (rows kept or dropped, sliced once) equals ``diags(slope) @ system``;
 - edges made unique through one int64 key equal ``np.unique(edges, axis=0)``;
 - a remembered SQP solve is the solve itself, and a path solved again after a cut (as the touch-ups do) is
@@ -18,7 +18,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import sparse
 
-import sprayplan.coating.thickness as thickness
 import sprayplan.robots.gantry as gantry_module
 from sprayplan.coating import Process, SprayPattern, deposit_matrix
 from sprayplan.coating.thickness import CoatingConfig
@@ -27,19 +26,10 @@ from sprayplan.robots.gantry import Gantry, remembered_sqp, solve_sqp
 from sprayplan.surface.pairs import unique_pairs
 from sprayplan.types import Paths, Stroke
 from tests.helpers import plate
+from tests.reference_film import deposit_reference, reference_setup
 
 H = 113.0
 PATTERN = SprayPattern("parabolic", 50.0, H)
-
-
-def _reference_entries(pairs, guns, n, waypoints):
-    """The deposit entries as built before: four COO entries a pair, COO -> CSR -> COO to sum repeats."""
-    sample, gun, value = pairs
-    vals = (value[:, None] * guns.node_share[gun]).reshape(-1)
-    batch = sparse.coo_matrix((vals, (np.repeat(sample, 4), guns.node[gun].reshape(-1))), shape=(n, waypoints))
-    batch = batch.tocsr().tocoo()
-    keep = batch.data != 0.0
-    return batch.row[keep], batch.col[keep], batch.data[keep]
 
 
 def _strokes(ys) -> Paths:
@@ -58,19 +48,22 @@ def _strokes(ys) -> Paths:
 
 
 @pytest.mark.parametrize("batch", [4096, 97])
-def test_the_deposit_matrix_as_a_sparse_product_equals_the_coo_build(monkeypatch, batch):
+def test_the_deposit_matrix_is_the_sparse_product_of_the_pairs(batch):
+    """The compiled deposit kernel gives the matrix the sparse product of the (samples x gun samples) film and
+    the (gun samples x waypoints) shares gave, entry for entry and bit for bit (batches of 97 split the
+    waypoints' gun samples between batches, whose sums are added when the matrix is assembled)."""
     panel = plate(-260, 260, -200, 200, 5.0)
     paths = _strokes([-60.0, -15.0, 35.0, 80.0])
     process = Process(PATTERN, speed_mm_s=300.0)
     config = CoatingConfig(batch=batch, workers=1)
     samples, new = deposit_matrix(panel, paths, process, config=config)
-    monkeypatch.setattr(thickness, "_deposit_entries", _reference_entries)
-    _, reference = deposit_matrix(panel, paths, process, config=config, samples=samples)
+    reference = deposit_reference(*reference_setup(panel, paths, process, config, samples))
     assert reference.nnz > 1000 and new.shape == reference.shape
     assert new.nnz == reference.nnz  # the same entries: none added, none dropped
     assert (new != 0).astype(int).sum() == new.nnz
-    difference = abs(new - reference)
-    assert difference.max() <= 1e-12 * abs(reference).max()
+    np.testing.assert_array_equal(new.indptr, reference.indptr)
+    np.testing.assert_array_equal(new.indices, reference.indices)
+    np.testing.assert_array_equal(new.data, reference.data)
 
 
 def test_the_tunings_jacobian_equals_the_diagonal_product():

@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sprayplan.coating import kernels
 from sprayplan.errors import ConfigError
 
 log = logging.getLogger(__name__)
@@ -233,33 +234,51 @@ def compute_occlusion(
         centres = splat_points(vertices, tri, pixel_on_surface)
         radius = 0.0
         centre_cols = (centres - origin).T.astype(np.float32)
-    if method in ("zbuffer", "raster"):
+    if method == "zbuffer":
         centre_tree = cKDTree(centres)
-
-    grid = (float(pattern_standoff_mm), float(half_width_mm), int(pixels))
+    elif method == "raster":
+        # triangles found by their centres in a grid of cells about a quarter of the views' reach
+        grid = kernels.CellGrid(centres, max(float(np.median(views.reach_mm)) / 2.0, 4.0 * radius, 1.0))
+        aim_depth = np.einsum("ij,ij->i", views.aim - views.position, views.axis)
+        # the triangles in the grid's order: centres, and corners as float32 rows relative to the origin
+        centres_g = np.ascontiguousarray(centres[grid.order])
+        corners_g = np.ascontiguousarray(corner_cols.T[faces[grid.order]].reshape(-1, 9))
+    h32, half32 = np.float32(pattern_standoff_mm), np.float32(half_width_mm)
+    to_pixel32 = np.float32(pixels / (2.0 * float(half_width_mm)))
+    pixel_scale32 = np.float32(2.0 * float(half_width_mm) / pixels)
+    normals = np.ascontiguousarray(samples.normals, dtype=np.float64)
 
     def one(start):
         sl = slice(start, min(start + batch, nv))
         if method == "rays":
             view_idx, sample_idx = _view_sample_pairs(views, sl, tree)
             hid = _hidden_by_rays(intersector, samples, views, view_idx, sample_idx)
+            return view_idx[hid].astype(np.int64) * n + sample_idx[hid]
+        zbuf = np.full((sl.stop - sl.start) * pixels * pixels, np.inf)
+        if method == "raster":
+            view_idx, sample_idx = _view_sample_pairs(views, sl, tree)
+            kernels.raster_depths(
+                sl.start, sl.stop, views.position, views.axis, views.aim, views.reach_mm, aim_depth, centres_g,
+                radius, grid.start, grid.low, grid.dims, grid.cell, corners_g, frames, h32, half32, to_pixel32,
+                int(pixels), zbuf,
+            )  # fmt: skip
         else:
             pv, pt, in_ball = _frustum_pairs(centres, centre_tree, radius, views, sl, pattern_standoff_mm)
-            if method == "zbuffer" and samples_are_vertices:
+            if samples_are_vertices:
                 own = in_ball & (pt < n)
                 view_idx, sample_idx = pv[own], pt[own]
             else:
                 view_idx, sample_idx = _view_sample_pairs(views, sl, tree)
-            zbuf = np.full((sl.stop - sl.start) * pixels * pixels, np.inf)
             for c in range(0, len(pv), _PAIR_CHUNK):
                 chunk = slice(c, c + _PAIR_CHUNK)
-                if method == "raster":
-                    _rasterise(corner_cols, faces, frames, pv[chunk], pt[chunk], sl.start, grid, zbuf)
-                else:
-                    _splat(centre_cols, frames, pv[chunk], pt[chunk], sl.start, grid, zbuf)
-            hid = _hidden_by_depth(zbuf, sample_cols, samples.normals, frames, sl.start, view_idx, sample_idx, grid)
+                _splat(centre_cols, frames, pv[chunk], pt[chunk], sl.start, (h, half, m), zbuf)
+        hid = kernels.hidden_by_depth(
+            zbuf, sample_cols, normals, frames, sl.start, view_idx, sample_idx, h32, half32, to_pixel32,
+            int(pixels), pixel_scale32, np.float32(math.sqrt(2.0)),
+        )  # fmt: skip
         return view_idx[hid].astype(np.int64) * n + sample_idx[hid]
 
+    h, half, m = float(pattern_standoff_mm), float(half_width_mm), int(pixels)
     starts = range(0, nv, batch)
     if workers > 1 and len(starts) > 1 and method != "rays":
         with ThreadPoolExecutor(max_workers=workers) as pool:

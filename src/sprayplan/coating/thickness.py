@@ -53,6 +53,7 @@ from scipy import sparse
 from scipy.spatial import cKDTree
 
 from sprayplan.checks import MAX_FILM_SAMPLES, MIN_STEP_MM, check_work, round_up
+from sprayplan.coating import kernels
 from sprayplan.coating.occlusion import METHODS, compute_occlusion, make_views
 from sprayplan.coating.patterns import SprayPattern
 from sprayplan.coating.process import Process, StrokeOverride
@@ -274,15 +275,12 @@ def simulate(
     thickness = np.zeros(n)
     deposit = np.zeros(len(paths.strokes))
     if setup.occlusion is not None:
-        parts = _in_batches(setup, lambda pairs: _summed(pairs, setup, len(paths.strokes)), progress)
-        thickness = np.sum([p[0] for p in parts], axis=0) if parts else np.zeros(n)
-        deposit = np.sum([p[1] for p in parts], axis=0) if parts else np.zeros(len(paths.strokes))
-        log.debug(
-            "coating: %d gun samples, %d surface samples, %d pairs",
-            len(setup.guns.position),
-            n,
-            sum(p[2] for p in parts),
-        )
+        count = 0
+        for part_film, part_deposit, pairs in _in_batches(setup, _summed, progress):
+            thickness += part_film
+            deposit += part_deposit
+            count += pairs
+        log.debug("coating: %d gun samples, %d surface samples, %d pairs", len(setup.guns.position), n, count)
     paint = setup.flows * setup.times / 60.0
     return CoatingResult(
         samples.points,
@@ -327,7 +325,7 @@ def deposit_matrix(
     waypoints = int(sum(len(s) for s in paths.strokes))
     entries = []
     if setup.occlusion is not None:
-        entries = _in_batches(setup, lambda pairs: _deposit_entries(pairs, setup.guns, n, waypoints), progress)
+        entries = _in_batches(setup, _deposit_entries, progress)
     if entries:
         rows, cols, vals = (np.concatenate([e[k] for e in entries]) for k in range(3))
     else:
@@ -336,31 +334,20 @@ def deposit_matrix(
     return setup.samples, sparse.coo_matrix((vals, (rows, cols)), shape=(n, waypoints)).tocsr()
 
 
-def _deposit_entries(pairs, guns: GunSamples, n: int, waypoints: int):
+def _deposit_entries(setup: _Setup, sl: slice, vt: np.ndarray, gt: np.ndarray):
     """One batch's (sample, waypoint, mm) entries of the deposit matrix, each (sample, waypoint) once.
 
-    The batch's film is (samples x gun samples) ``P``, each gun sample's time spread over its waypoints by
-    (gun samples x waypoints) ``S`` (``node_share`` at ``node``, four a row): the entries are those of the
-    product ``P @ S``, neighbouring time steps' shares of a waypoint summed (a sparse product, with no
-    sorting of the four entries a pair would make)."""
-    sample, gun, value = pairs
-    keep = value != 0.0
-    sample, gun, value = sample[keep], gun[keep], value[keep]
-    if not len(gun):
-        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
-    lo, hi = int(gun.min()), int(gun.max()) + 1
-    order = np.argsort(gun, kind="stable")
-    column = gun[order] - lo
-    # P by columns (one a gun sample), its rows the samples
-    indptr = np.r_[0, np.cumsum(np.bincount(column, minlength=hi - lo))]
-    film = sparse.csc_matrix((value[order], sample[order], indptr), shape=(n, hi - lo))
-    share = sparse.csr_matrix(
-        (guns.node_share[lo:hi].reshape(-1), guns.node[lo:hi].reshape(-1), np.arange(0, 4 * (hi - lo) + 1, 4)),
-        shape=(hi - lo, waypoints),
-    )
-    batch = (film.tocsr() @ share).tocoo()
-    keep = batch.data != 0.0
-    return batch.row[keep].astype(np.int64), batch.col[keep].astype(np.int64), batch.data[keep]
+    Each pair's film (``_pairs``' formula) times each of its gun sample's shares of its waypoints' time factors
+    (``node_share`` at ``node``, four a gun sample), summed per (sample, waypoint) over the batch's gun samples
+    in order (``kernels.deposit_entries``; the sparse product ``P @ S`` of the (samples x gun samples) film
+    and the (gun samples x waypoints) shares, summed in the same order)."""
+    grid, occ = setup.grid, setup.occlusion
+    kind, params = kernels.pattern_code(setup.pattern)
+    return kernels.deposit_entries(
+        sl.start, sl.stop, setup.guns.aim, setup.reach, setup.points_g, grid.order, grid.rank, grid.start,
+        grid.low, grid.dims, grid.cell, vt, gt, kind, params, np.float32(setup.pattern.standoff_mm), occ.of_gun,
+        occ.hidden_keys, occ.view_has_hidden, setup.guns.node, setup.guns.node_share,
+    )  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -370,11 +357,13 @@ class _Setup:
     times: np.ndarray
     flows: np.ndarray
     pattern: SprayPattern
-    tree: cKDTree | None = None
+    grid: kernels.CellGrid | None = None
     reach: np.ndarray | None = None
     occlusion: object = None  # None: nothing to compute (no gun samples or no surface samples)
     batch: int = 4096
     workers: int = 1
+    strokes: int = 0
+    points_g: np.ndarray | None = None  # the samples' points in the grid's order
 
 
 def _setup(part, paths, process, overrides, config: CoatingConfig, targets, nodes: bool, samples=None) -> _Setup:
@@ -415,7 +404,12 @@ def _setup(part, paths, process, overrides, config: CoatingConfig, targets, node
         workers=workers,
         samples_are_vertices=on_vertices,
     )
-    return _Setup(samples, guns, times, flows, pattern, tree, reach, occlusion, int(config.batch), workers)
+    # the samples in a grid of cells half a gun sample's median reach wide, for the film's pairs
+    grid = kernels.CellGrid(samples.points, float(np.median(reach)) / 2.0)
+    return _Setup(
+        samples, guns, times, flows, pattern, grid, reach, occlusion, int(config.batch), workers, len(paths.strokes),
+        np.ascontiguousarray(samples.points[grid.order]),
+    )  # fmt: skip
 
 
 def _check_sample_count(part: Part, edge: float, config: CoatingConfig) -> None:
@@ -454,24 +448,15 @@ def _check_gun_samples(paths: Paths, process: Process, config: CoatingConfig) ->
 
 
 def _in_batches(setup: _Setup, reduce, progress=None) -> list:
-    """``reduce(pairs)`` over batches of ``setup.batch`` gun samples, on ``setup.workers`` threads (numpy
-    releases the GIL in its array loops); ``pairs`` is :func:`_pairs`'s (sample, gun, film) of the batch.
-    ``progress(done, total)`` after each batch, from the calling thread."""
+    """``reduce(setup, sl, vt, gt)`` over slices ``sl`` of ``setup.batch`` gun samples, on ``setup.workers``
+    threads (the kernels release the GIL); ``vt``, ``gt`` are the float32 rows of the samples and the gun
+    samples the film kernels read (:func:`_pair_rows`). ``progress(done, total)`` after each batch, from the
+    calling thread."""
     guns = setup.guns
-    samples = setup.samples
-    origin = samples.points.mean(axis=0)
-    vt = np.vstack([(samples.points - origin).T, samples.normals.T]).astype(np.float32)
-    pos = guns.position - origin
-    rows = [pos[:, 0], pos[:, 1], pos[:, 2], guns.volume_rate_mm3_s * guns.dt_s]
-    rows += [guns.axis[:, 0], guns.axis[:, 1], guns.axis[:, 2]]
-    if setup.pattern.kind == "double_beta":  # a round pattern needs no pattern axes
-        across = np.cross(guns.axis, guns.along)
-        rows += [guns.along[:, 0], guns.along[:, 1], guns.along[:, 2], across[:, 0], across[:, 1], across[:, 2]]
-    gt = np.array(rows, dtype=np.float32)
+    vt, gt = _pair_rows(setup)
 
     def one(start):
-        sl = slice(start, min(start + setup.batch, len(guns.position)))
-        return reduce(_pairs(setup, vt, gt, sl))
+        return reduce(setup, slice(start, min(start + setup.batch, len(guns.position))), vt, gt)
 
     starts = range(0, len(guns.position), setup.batch)
     if setup.workers > 1 and len(starts) > 1:
@@ -491,44 +476,37 @@ def _in_batches(setup: _Setup, reduce, progress=None) -> list:
     return out
 
 
-def _pairs(setup: _Setup, vt: np.ndarray, gt: np.ndarray, sl: slice):
-    """(sample, gun, film in mm) of every (sample, gun sample) pair within reach, gun samples ``sl``.
+def _pair_rows(setup: _Setup) -> tuple[np.ndarray, np.ndarray]:
+    """The float32 rows the film kernels read: ``vt`` (n, 6), the samples' coordinates relative to their
+    centroid and their normals, in the order of ``setup.grid``; ``gt`` (7 or 13, k), the gun samples' tip (same origin), Q dt, axis and, for a
+    pattern that is not round, its along and across axes.
 
-    Pairs come from a k-d tree ball query (``sparse_distance_matrix``, all in C); the formula of the module
-    docstring is evaluated in float32 on coordinates relative to the samples' centroid (``vt``: samples'
-    coordinates and normals; ``gt``: gun samples' tip, Q dt, axis and pattern axes), and returned in float64.
-    """
-    guns, pattern, reach = setup.guns, setup.pattern, setup.reach
-    found = cKDTree(guns.aim[sl]).sparse_distance_matrix(setup.tree, float(reach[sl].max()), output_type="ndarray")
-    gun = found["i"].astype(np.int64) + sl.start
-    sample = found["j"].astype(np.int64)
-    keep = found["v"] <= reach[gun]
-    gun, sample = gun[keep], sample[keep]
-    px, py, pz, nx, ny, nz = np.take(vt, sample, axis=1)
-    g = np.take(gt, gun, axis=1)
-    vx, vy, vz = px - g[0], py - g[1], pz - g[2]  # gun tip -> sample
-    z = vx * g[4] + vy * g[5] + vz * g[6]
-    zs = np.where(z > 1e-6, z, np.float32(1.0))
-    scale = np.float32(pattern.standoff_mm) / zs
-    cos_term = -(vx * nx + vy * ny + vz * nz)
-    if pattern.kind != "double_beta":  # a round pattern's density depends on r^2 = (|v|^2 - z^2) (h / z)^2 only
-        r2 = (vx * vx + vy * vy + vz * vz - z * z) * (scale * scale)
-        flux = pattern.radial_density(r2)
-    else:
-        x = (vx * g[7] + vy * g[8] + vz * g[9]) * scale
-        y = (vx * g[10] + vy * g[11] + vz * g[12]) * scale
-        flux = pattern.density(x, y)
-    value = flux.astype(np.float32) * (scale * scale) * cos_term / zs * g[3]
-    ok = (z > 1e-6) & (cos_term > 0) & setup.occlusion.visible(sample, gun)
-    return sample, gun, np.where(ok, value, np.float32(0.0)).astype(np.float64)
+    The formula of the module docstring is evaluated in float32 on these (``kernels._pair_value``), and each
+    pair's film returned in float64."""
+    guns, samples = setup.guns, setup.samples
+    origin = samples.points.mean(axis=0)
+    # a row a sample, in the grid's order
+    vt = np.hstack([samples.points - origin, samples.normals]).astype(np.float32)[setup.grid.order]
+    pos = guns.position - origin
+    rows = [pos[:, 0], pos[:, 1], pos[:, 2], guns.volume_rate_mm3_s * guns.dt_s]
+    rows += [guns.axis[:, 0], guns.axis[:, 1], guns.axis[:, 2]]
+    if setup.pattern.kind == "double_beta":  # a round pattern needs no pattern axes
+        across = np.cross(guns.axis, guns.along)
+        rows += [guns.along[:, 0], guns.along[:, 1], guns.along[:, 2], across[:, 0], across[:, 1], across[:, 2]]
+    return vt, np.array(rows, dtype=np.float32)
 
 
-def _summed(pairs, setup: _Setup, n_strokes: int):
-    """Film per sample, dry volume per stroke and the number of pairs of one batch."""
-    sample, gun, value = pairs
-    n = len(setup.samples.points)
-    return (
-        np.bincount(sample, value, n),
-        np.bincount(setup.guns.stroke[gun], value * setup.samples.area_mm2[sample], n_strokes),
-        len(gun),
-    )
+def _summed(setup: _Setup, sl: slice, vt: np.ndarray, gt: np.ndarray):
+    """Film per sample, dry volume per stroke and the number of pairs of one batch of gun samples (every
+    sample within a gun sample's reach of its aim point, ``kernels.film_sums``)."""
+    grid, occ = setup.grid, setup.occlusion
+    kind, params = kernels.pattern_code(setup.pattern)
+    film = np.zeros(len(setup.samples.points))  # in the grid's order
+    deposit = np.zeros(setup.strokes)
+    count = kernels.film_sums(
+        sl.start, sl.stop, setup.guns.aim, setup.reach, setup.points_g, grid.rank, grid.start, grid.low,
+        grid.dims, grid.cell, vt, gt, kind, params, np.float32(setup.pattern.standoff_mm), occ.of_gun,
+        occ.hidden_keys, occ.view_has_hidden, setup.guns.stroke, setup.samples.area_mm2[grid.order], film,
+        deposit,
+    )  # fmt: skip
+    return film[grid.rank], deposit, count
