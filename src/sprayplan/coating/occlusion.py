@@ -13,7 +13,7 @@ These methods give, for each view, the surface samples it cannot see:
     widths on the surface times the tangent of the incidence angle) absorbs the depth change of the sample's
     own surface across a pixel. Occluders thinner than the bias in depth, or much nearer the gun than the
     surface (and so sparser than a pixel), can leak paint.
-``raster`` (numpy)
+``raster`` (compiled, ``coating.kernels``)
     The same depth test, with the mesh's triangles rasterised into the depth map (pixel centres, depth
     interpolated as 1/z, exact for planar triangles in perspective): no holes.
 ``rays``
@@ -409,66 +409,6 @@ def _splat(cols, frames, pv, pt, first_view: int, grid, zbuf) -> None:
     ok = (z > 1.0) & (px >= 0) & (px < m) & (py >= 0) & (py < m)
     index = (pv[ok] - first_view) * (m * m) + py[ok] * m + px[ok]
     np.minimum.at(zbuf, index, z[ok].astype(np.float64))
-
-
-def _rasterise(cols, faces, frames, pv, pt, first_view: int, grid, zbuf) -> None:
-    """Rasterise (view, triangle) pairs into ``zbuf`` (pixel centres, perspective-correct 1/z)."""
-    h, half, m = grid
-    zs, xs, ys = [], [], []
-    for c in range(3):
-        z, x, y = _project(cols, faces[pt, c], frames, pv, h)
-        zs.append(z)
-        xs.append((x + half) * (m / (2.0 * half)))
-        ys.append((y + half) * (m / (2.0 * half)))
-    z, x, y = np.stack(zs, 1), np.stack(xs, 1), np.stack(ys, 1)
-    ok = (z > 1.0).all(axis=1)
-    x0 = np.clip(np.ceil(x.min(axis=1) - 0.5), 0, m).astype(np.int64)
-    x1 = np.clip(np.floor(x.max(axis=1) - 0.5), -1, m - 1).astype(np.int64)
-    y0 = np.clip(np.ceil(y.min(axis=1) - 0.5), 0, m).astype(np.int64)
-    y1 = np.clip(np.floor(y.max(axis=1) - 0.5), -1, m - 1).astype(np.int64)
-    nx, ny = x1 - x0 + 1, y1 - y0 + 1
-    count = np.where(ok & (nx > 0) & (ny > 0), nx * ny, 0)
-    total = int(count.sum())
-    if total == 0:
-        return
-    owner = np.repeat(np.arange(len(pv)), count)
-    offset = np.arange(total) - np.repeat(np.cumsum(count) - count, count)
-    px = x0[owner] + offset % nx[owner]
-    py = y0[owner] + offset // nx[owner]
-    cx, cy = px + 0.5, py + 0.5
-    ax, ay = x[owner, 0], y[owner, 0]
-    bx, by = x[owner, 1], y[owner, 1]
-    qx, qy = x[owner, 2], y[owner, 2]
-    area = (bx - ax) * (qy - ay) - (by - ay) * (qx - ax)
-    area = np.where(np.abs(area) > 1e-12, area, 1e-12)
-    w1 = ((cx - ax) * (qy - ay) - (cy - ay) * (qx - ax)) / area
-    w2 = ((bx - ax) * (cy - ay) - (by - ay) * (cx - ax)) / area
-    w0 = 1.0 - w1 - w2
-    eps = -1e-7
-    inside = (w0 >= eps) & (w1 >= eps) & (w2 >= eps)
-    inv_z = w0 / z[owner, 0] + w1 / z[owner, 1] + w2 / z[owner, 2]
-    depth = 1.0 / np.maximum(inv_z, 1e-12)
-    index = (pv[owner] - first_view) * (m * m) + py * m + px
-    np.minimum.at(zbuf, index[inside], depth[inside])
-
-
-def _hidden_by_depth(zbuf, cols, normals, frames, first_view, view_idx, sample_idx, grid) -> np.ndarray:
-    """(p,) bool: pairs whose sample lies behind the depth map by more than the bias."""
-    h, half, m = grid
-    z, x, y = _project(cols, sample_idx, frames, view_idx, h)
-    px = np.floor((x + half) * (m / (2.0 * half))).astype(np.int64)
-    py = np.floor((y + half) * (m / (2.0 * half))).astype(np.int64)
-    inside = (px >= 0) & (px < m) & (py >= 0) & (py < m) & (z > 1.0)
-    index = (view_idx - first_view) * (m * m) + np.clip(py, 0, m - 1) * m + np.clip(px, 0, m - 1)
-    front = zbuf[index]
-    to_gun = np.take(frames[12:15], view_idx, axis=1) - np.take(cols, sample_idx, axis=1)
-    dist = np.sqrt((to_gun * to_gun).sum(axis=0))
-    cos_a = (to_gun * np.take(normals.T, sample_idx, axis=1)).sum(axis=0) / np.maximum(dist, 1e-6)
-    cos_a = np.clip(cos_a, 0.05, 1.0)
-    tan_a = np.sqrt(1.0 - cos_a**2) / cos_a
-    pixel_on_surface = (2.0 * half / m) * z / h * math.sqrt(2.0)
-    bias = 1.0 + pixel_on_surface * tan_a
-    return inside & (z > front + bias)
 
 
 def _ray_intersector(vertices: np.ndarray, faces: np.ndarray):
