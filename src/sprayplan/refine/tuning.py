@@ -33,6 +33,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from scipy import sparse
 from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
@@ -278,7 +279,6 @@ def _solve(
     rows = np.flatnonzero(tuned)
     cols = np.flatnonzero(free)
     weight = area[rows] / area[rows].mean()
-    fit = matrix[rows][:, cols] / tol
     # neighbouring free waypoints of the same stroke
     position = np.full(len(free), -1)
     position[cols] = np.arange(len(cols))
@@ -286,15 +286,7 @@ def _solve(
     same_stroke[starts[1:-1][(starts[1:-1] > 0) & (starts[1:-1] < len(free))] - 1] = False
     pairs = np.flatnonzero(free[:-1] & free[1:] & same_stroke)
     scale = config.smoothing * math.sqrt(len(rows) / len(cols)) * target / tol
-    rows_d = np.arange(len(pairs))
-    smooth = sparse.csr_matrix(
-        (
-            np.r_[np.full(len(pairs), -scale), np.full(len(pairs), scale)],
-            (np.r_[rows_d, rows_d], np.r_[position[pairs], position[pairs + 1]]),
-        ),
-        shape=(len(pairs), len(cols)),
-    )
-    system = sparse.vstack([fit, smooth]).tocsr()
+    system = _system(matrix, rows, position, len(cols), 1.0 / tol, position[pairs], scale)
     target_vec = np.r_[np.full(len(rows), target / tol), np.zeros(len(pairs))]
     low, high = low[cols], high[cols]
     if (high - low < 1e-12).all():
@@ -346,6 +338,55 @@ def _solve(
     return np.clip(result.x, low, high)
 
 
+def _system(deposit_um, rows, position, n_cols, inv_tol, pair_first, scale) -> sparse.csr_matrix:
+    """The tuning's sparse system in tolerances: the film rows ``deposit_um[rows][:, cols] / tol`` (``cols``
+    where ``position >= 0``, in that order), then a smoothness row ``(-scale, scale)`` on the columns
+    ``pair_first + (0, 1)`` of each pair of neighbouring waypoints; entries that are 0 left out.
+
+    Built in one pass (``_system_rows``): the same entries, in the same order and with the same values, as
+    scipy's row and column slicing, its ``/ tol`` (a product with 1 / tol) and ``vstack`` gave."""
+    deposit_um = deposit_um.tocsr()
+    indptr, indices, data = _system_rows(
+        deposit_um.indptr, deposit_um.indices, deposit_um.data, rows, position, inv_tol, pair_first, float(scale)
+    )
+    shape = (len(rows) + len(pair_first), n_cols)
+    return sparse.csr_matrix((data, indices, indptr), shape=shape)
+
+
+@njit(cache=True, nogil=True)
+def _system_rows(indptr, indices, data, rows, position, inv_tol, pair_first, scale):
+    total = 0
+    for r in rows:
+        for k in range(indptr[r], indptr[r + 1]):
+            if position[indices[k]] >= 0 and data[k] * inv_tol != 0.0:
+                total += 1
+    if scale != 0.0:
+        total += 2 * len(pair_first)
+    out_indptr = np.zeros(len(rows) + len(pair_first) + 1, indices.dtype)
+    out_indices = np.empty(total, indices.dtype)
+    out_data = np.empty(total, np.float64)
+    at = 0
+    for i in range(len(rows)):
+        r = rows[i]
+        for k in range(indptr[r], indptr[r + 1]):
+            column = position[indices[k]]
+            value = data[k] * inv_tol
+            if column >= 0 and value != 0.0:
+                out_indices[at] = column
+                out_data[at] = value
+                at += 1
+        out_indptr[i + 1] = at
+    for j in range(len(pair_first)):
+        if scale != 0.0:
+            out_indices[at] = pair_first[j]
+            out_data[at] = -scale
+            out_indices[at + 1] = pair_first[j] + 1
+            out_data[at + 1] = scale
+            at += 2
+        out_indptr[len(rows) + j + 1] = at
+    return out_indptr, out_indices, out_data
+
+
 def _residuals(system: sparse.csr_matrix, target_vec: np.ndarray, n_fit: int, band: float):
     """The tuning's residual function and its Jacobian: ``system @ x - target_vec``, the first ``n_fit`` rows
     (the film terms, in tolerances) through the dead band ``d(u) = sign(u) max(|u| - band, 0)``, whose
@@ -360,22 +401,35 @@ def _residuals(system: sparse.csr_matrix, target_vec: np.ndarray, n_fit: int, ba
 
     if band <= 0:
         return residual, lambda x: system
-    # the film rows sliced once; the slope (0 or 1 a row) keeps or drops whole rows of ``system``, which is
-    # ``diags(slope) @ system`` without the product (and without its explicit zeros): the entries are
-    # compacted once, and each call keeps the runs of the rows outside the band
+    # the film rows sliced once; the slope (0 or 1 a row) keeps or drops whole rows of ``system``: its
+    # ``diags(slope) @ system`` without the product (the system holds no zeros), in one pass a call
     fit = system[:n_fit]
-    nonzero = system.data != 0.0
-    row_of_value = np.repeat(np.arange(system.shape[0]), np.diff(system.indptr))
-    lengths = np.bincount(row_of_value[nonzero], minlength=system.shape[0])
-    data, indices = system.data[nonzero], system.indices[nonzero]
     outside = np.ones(system.shape[0], bool)
 
     def jacobian(x):
         f = fit @ x - target_vec[:n_fit]
         np.greater(np.abs(f), band, out=outside[:n_fit])
-        kept = np.repeat(outside, lengths)
-        indptr = np.zeros(system.shape[0] + 1, dtype=system.indptr.dtype)
-        np.cumsum(np.where(outside, lengths, 0), out=indptr[1:])
-        return sparse.csr_matrix((data[kept], indices[kept], indptr), shape=system.shape)
+        return sparse.csr_matrix(_kept_rows(system.indptr, system.indices, system.data, outside), shape=system.shape)
 
     return residual, jacobian
+
+
+@njit(cache=True, nogil=True)
+def _kept_rows(indptr, indices, data, keep):
+    """(data, indices, indptr) of a CSR matrix with the rows where ``keep`` is False emptied."""
+    total = 0
+    for r in range(len(keep)):
+        if keep[r]:
+            total += indptr[r + 1] - indptr[r]
+    out_indptr = np.zeros(len(keep) + 1, indices.dtype)
+    out_indices = np.empty(total, indices.dtype)
+    out_data = np.empty(total, np.float64)
+    at = 0
+    for r in range(len(keep)):
+        if keep[r]:
+            for k in range(indptr[r], indptr[r + 1]):
+                out_indices[at] = indices[k]
+                out_data[at] = data[k]
+                at += 1
+        out_indptr[r + 1] = at
+    return out_data, out_indices, out_indptr
