@@ -281,24 +281,26 @@ def test_the_new_plan_settings_are_checked():
 def test_the_dead_bands_jacobian_is_the_derivative_of_its_residuals():
     from scipy import sparse
 
-    from sprayplan.refine.tuning import _residuals
+    from sprayplan.refine.tuning import System, _residuals
 
     rng = np.random.default_rng(3)
-    system = sparse.random(40, 12, density=0.3, random_state=rng, format="csr") * 3.0
+    deposit = sparse.random(30, 12, density=0.3, random_state=rng, format="csr") * 0.003  # mm: 3 um at most
+    system = System(deposit, np.arange(30), np.arange(12), 12, 1.0, np.arange(10), 0.7)
+    whole = system.csr()  # 30 film rows and 10 smoothness rows
     target = np.r_[rng.normal(2.0, 1.0, 30), np.zeros(10)]
     for band in (0.0, 0.3):
-        residual, jacobian = _residuals(system, target, 30, band)
+        residual, jacobian = _residuals(system, target, band)
         for _ in range(20):
             x = rng.uniform(0.5, 2.0, 12)
             r = residual(x)
-            inside = np.abs((system @ x - target)[:30]) <= band
+            inside = np.abs((whole @ x - target)[:30]) <= band
             assert (r[:30][inside] == 0).all()  # the band costs nothing
             step = 1e-6
             numeric = np.column_stack(
                 [(residual(x + step * e) - residual(x - step * e)) / (2 * step) for e in np.eye(12)]
             )
             # the kinks at |u| = band: compare rows away from them
-            away = np.r_[np.abs(np.abs((system @ x - target)[:30]) - band) > 1e-4, np.ones(10, bool)]
+            away = np.r_[np.abs(np.abs((whole @ x - target)[:30]) - band) > 1e-4, np.ones(10, bool)]
             np.testing.assert_allclose(jacobian(x).toarray()[away], numeric[away], atol=1e-6)
 
 

@@ -21,7 +21,7 @@ from scipy import sparse
 import sprayplan.robots.gantry as gantry_module
 from sprayplan.coating import Process, SprayPattern, deposit_matrix
 from sprayplan.coating.thickness import CoatingConfig
-from sprayplan.refine.tuning import _residuals
+from sprayplan.refine.tuning import System, _residuals
 from sprayplan.robots.gantry import Gantry, remembered_sqp, solve_sqp
 from sprayplan.surface.pairs import unique_pairs
 from sprayplan.types import Paths, Stroke
@@ -66,24 +66,51 @@ def test_the_deposit_matrix_is_the_sparse_product_of_the_pairs(batch):
     np.testing.assert_array_equal(new.data, reference.data)
 
 
-def test_the_tunings_jacobian_equals_the_diagonal_product():
+def _scipy_system(deposit_mm, rows, cols, tol, pair_first, scale):
+    """The tuning's system as scipy's scaling, slicing and stacking built it before ``tuning.System``."""
+    fit = (deposit_mm * 1000.0)[rows][:, cols] / tol
+    k = np.arange(len(pair_first))
+    smooth = sparse.csr_matrix(
+        (np.r_[np.full(len(k), -scale), np.full(len(k), scale)], (np.r_[k, k], np.r_[pair_first, pair_first + 1])),
+        shape=(len(k), len(cols)),
+    )
+    return sparse.vstack([fit, smooth]).tocsr()
+
+
+def test_the_tunings_system_and_jacobian_are_scipys_bit_for_bit():
+    """``tuning.System`` reads the deposit matrix in place: its products, its rows and the dead band's
+    Jacobian (rows inside the band emptied) are those of the system scipy built, ``diags(slope) @ system``."""
     rng = np.random.default_rng(5)
-    system = sparse.random(400, 60, density=0.1, random_state=2, format="csr")
-    target = rng.uniform(0.0, 0.6, 400)
-    n_fit, band = 300, 0.3
-    _, jacobian = _residuals(system, target, n_fit, band)
+    deposit = sparse.random(500, 80, density=0.1, random_state=2, format="csr") * 0.00025  # mm
+    rows = np.sort(rng.choice(500, 400, replace=False))
+    cols = np.sort(rng.choice(80, 60, replace=False))
+    position = np.full(80, -1)
+    position[cols] = np.arange(60)
+    pair_first = np.flatnonzero(np.diff(cols) == 1)  # neighbouring free columns
+    tol, scale = 5.0, 0.8
+    system = System(deposit, rows, position, 60, 1.0 / tol, pair_first, scale)
+    reference = _scipy_system(deposit, rows, cols, tol, pair_first, scale)
+    got = system.csr()
+    for name in ("indptr", "indices", "data"):
+        np.testing.assert_array_equal(getattr(got, name), getattr(reference, name))
+    target = np.r_[rng.uniform(0.0, 0.8, 400), np.zeros(len(pair_first))]
+    band = 0.3
+    residual, jacobian = _residuals(system, target, band)
     for _ in range(3):
         x = rng.uniform(0.5, 2.0, 60)
-        f = system[:n_fit] @ x - target[:n_fit]
+        np.testing.assert_array_equal(system.matvec(x), reference @ x)
+        f = reference[:400] @ x - target[:400]
         inside = np.abs(f) <= band
-        assert 0 < inside.sum() < n_fit  # some rows dropped, some kept
-        slope = np.r_[(~inside).astype(float), np.ones(400 - n_fit)]
-        reference = sparse.diags(slope) @ system
+        assert 0 < inside.sum() < 400  # some rows dropped, some kept
+        slope = np.r_[(~inside).astype(float), np.ones(len(pair_first))]
+        expected = sparse.diags(slope) @ reference
+        expected.eliminate_zeros()
         got = jacobian(x)
-        assert got.nnz == reference.nnz
-        assert abs(got - reference).max() == 0.0
-    # the system itself is left as it was
-    assert abs(system - sparse.random(400, 60, density=0.1, random_state=2, format="csr")).max() == 0.0
+        assert got.nnz == expected.nnz
+        assert abs(got - expected).max() == 0.0
+        r = reference @ x - target
+        r[:400] = np.sign(r[:400]) * np.maximum(np.abs(r[:400]) - band, 0.0)
+        np.testing.assert_array_equal(residual(x), r)
 
 
 @settings(max_examples=60, deadline=None)

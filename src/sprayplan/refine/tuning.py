@@ -204,15 +204,15 @@ def tune_speeds(
     samples, deposit_mm = deposit
     if deposit_mm.shape[1] != sum(len(s) for s in paths.strokes):
         raise ConfigError(f"the deposit matrix has {deposit_mm.shape[1]} columns, the paths other waypoints")
-    matrix = deposit_mm * 1000.0  # um
+    deposit_mm = deposit_mm.tocsr()
+    n = deposit_mm.shape[1]
     starts = np.r_[0, np.cumsum([len(s) for s in paths.strokes])]
-    free = np.zeros(matrix.shape[1], bool)
+    free = np.zeros(n, bool)
     for stroke, start in zip(paths.strokes, starts):
         free[start : start + len(stroke)] = stroke.spray_on
-    before = np.asarray(matrix @ np.ones(matrix.shape[1])).ravel()
+    before = _film_um(deposit_mm, np.ones(n))
     tuned = (samples.area_mm2 > 0) & (before >= config.painted_fraction * target_um)
-    dwell = np.ones(matrix.shape[1])
-    n = matrix.shape[1]
+    dwell = np.ones(n)
     low = np.full(n, config.min_dwell) if lower is None else np.asarray(lower, float)
     high = np.full(n, config.max_dwell) if upper is None else np.asarray(upper, float)
     if low.shape != (n,) or not (np.isfinite(low) & (low > 0)).all():
@@ -224,9 +224,10 @@ def tune_speeds(
         raise ConfigError(f"initial must hold one finite factor per waypoint ({n})")
     if tuned.any() and free.any():
         dwell[free] = _solve(
-            matrix, samples.area_mm2, tuned, free, starts, target_um, tolerance_um, config, low, high, first, progress
-        )
-    after = np.asarray(matrix @ dwell).ravel()
+            deposit_mm, samples.area_mm2, tuned, free, starts, target_um, tolerance_um, config, low, high, first,
+            progress,
+        )  # fmt: skip
+    after = _film_um(deposit_mm, dwell)
     strokes = tuple(s.with_dwell(dwell[a : a + len(s)]) for s, a in zip(paths.strokes, starts))
     log.info(
         "speeds tuned: %d waypoints, time factors %.3g-%.3g",
@@ -241,7 +242,7 @@ def tune_speeds(
         samples.area_mm2,
         tuned,
         samples,
-        deposit_mm.tocsr(),
+        deposit_mm,
     )
 
 
@@ -274,7 +275,7 @@ def tuned_film(tuning: Tuning, process: Process, coating: CoatingConfig | None =
 
 
 def _solve(
-    matrix, area, tuned, free, starts, target, tol, config: TuningConfig, low, high, first, progress=None
+    deposit_mm, area, tuned, free, starts, target, tol, config: TuningConfig, low, high, first, progress=None
 ) -> np.ndarray:
     rows = np.flatnonzero(tuned)
     cols = np.flatnonzero(free)
@@ -286,7 +287,7 @@ def _solve(
     same_stroke[starts[1:-1][(starts[1:-1] > 0) & (starts[1:-1] < len(free))] - 1] = False
     pairs = np.flatnonzero(free[:-1] & free[1:] & same_stroke)
     scale = config.smoothing * math.sqrt(len(rows) / len(cols)) * target / tol
-    system = _system(matrix, rows, position, len(cols), 1.0 / tol, position[pairs], scale)
+    system = System(deposit_mm, rows, position, len(cols), 1.0 / tol, position[pairs], scale)
     target_vec = np.r_[np.full(len(rows), target / tol), np.zeros(len(pairs))]
     low, high = low[cols], high[cols]
     if (high - low < 1e-12).all():
@@ -312,7 +313,7 @@ def _solve(
         out[:, :n_fit] *= weight
         return out
 
-    residual, jacobian = _residuals(system, target_vec, n_fit, float(config.band))
+    residual, jacobian = _residuals(system, target_vec, float(config.band))
     if progress is not None:
         evaluations = 0
         plain = residual
@@ -338,98 +339,147 @@ def _solve(
     return np.clip(result.x, low, high)
 
 
-def _system(deposit_um, rows, position, n_cols, inv_tol, pair_first, scale) -> sparse.csr_matrix:
-    """The tuning's sparse system in tolerances: the film rows ``deposit_um[rows][:, cols] / tol`` (``cols``
-    where ``position >= 0``, in that order), then a smoothness row ``(-scale, scale)`` on the columns
-    ``pair_first + (0, 1)`` of each pair of neighbouring waypoints; entries that are 0 left out.
+#: The deposit matrix is in mm; the tuning works in um.
+UM_PER_MM = 1000.0
 
-    Built in one pass (``_system_rows``): the same entries, in the same order and with the same values, as
-    scipy's row and column slicing, its ``/ tol`` (a product with 1 / tol) and ``vstack`` gave."""
-    deposit_um = deposit_um.tocsr()
-    indptr, indices, data = _system_rows(
-        deposit_um.indptr, deposit_um.indices, deposit_um.data, rows, position, inv_tol, pair_first, float(scale)
-    )
-    shape = (len(rows) + len(pair_first), n_cols)
-    return sparse.csr_matrix((data, indices, indptr), shape=shape)
+
+def _film_um(deposit_mm: sparse.csr_matrix, dwell: np.ndarray) -> np.ndarray:
+    """The film in um at every sample for time factors ``dwell``: ``(deposit_mm * 1000) @ dwell``, summed as
+    scipy's CSR product of the scaled matrix sums it, without the scaled copy."""
+    return _scaled_matvec(deposit_mm.indptr, deposit_mm.indices, deposit_mm.data, UM_PER_MM, np.asarray(dwell, float))
 
 
 @njit(cache=True, nogil=True)
-def _system_rows(indptr, indices, data, rows, position, inv_tol, pair_first, scale):
-    total = 0
-    for r in rows:
+def _scaled_matvec(indptr, indices, data, factor, x):
+    out = np.empty(len(indptr) - 1)
+    for r in range(len(indptr) - 1):
+        total = 0.0
         for k in range(indptr[r], indptr[r + 1]):
-            if position[indices[k]] >= 0 and data[k] * inv_tol != 0.0:
-                total += 1
-    if scale != 0.0:
-        total += 2 * len(pair_first)
-    out_indptr = np.zeros(len(rows) + len(pair_first) + 1, indices.dtype)
-    out_indices = np.empty(total, indices.dtype)
-    out_data = np.empty(total, np.float64)
-    at = 0
+            total += (data[k] * factor) * x[indices[k]]
+        out[r] = total
+    return out
+
+
+class System:
+    """The tuning's sparse system in tolerances, read from the deposit matrix in place: the film rows
+    ``(deposit_mm * 1000)[rows][:, cols] / tol`` (``cols`` where ``position >= 0``, in that order), then a
+    smoothness row ``(-scale, scale)`` on the columns ``pair_first + (0, 1)`` of each pair of neighbouring
+    waypoints; entries that are 0 left out.
+
+    Nothing of it is copied: its products with a vector (``matvec``, ``fit_matvec``) and its rows outside the
+    dead band (``kept``) are computed from the deposit matrix's own arrays, every entry ``(a * 1000) * (1 /
+    tol)`` as scipy's scaling, slicing and ``/ tol`` made it, each row summed in order as scipy's CSR product
+    sums it, so that the tuning is the same bit for bit as with the system built by scipy (``csr``, which
+    builds it, for the tests)."""
+
+    def __init__(self, deposit_mm, rows, position, n_cols, inv_tol, pair_first, scale):
+        self.deposit = deposit_mm.tocsr()
+        self.rows = np.asarray(rows, np.int64)
+        self.position = np.asarray(position, np.int64)
+        self.inv_tol, self.scale = float(inv_tol), float(scale)
+        self.pair_first = np.asarray(pair_first, np.int64)
+        self.n_fit = len(self.rows)
+        self.shape = (self.n_fit + len(self.pair_first), int(n_cols))
+
+    def _arrays(self):
+        d = self.deposit
+        return d.indptr, d.indices, d.data, self.rows, self.position, UM_PER_MM, self.inv_tol
+
+    def matvec(self, x) -> np.ndarray:
+        """The system times ``x``: the film rows, then the smoothness rows."""
+        out = np.empty(self.shape[0])
+        out[: self.n_fit] = _system_matvec(*self._arrays(), np.asarray(x, float))
+        first = self.pair_first
+        if self.scale != 0.0:
+            out[self.n_fit :] = (0.0 + (-self.scale) * x[first]) + self.scale * x[first + 1]
+        else:
+            out[self.n_fit :] = 0.0
+        return out
+
+    def fit_matvec(self, x) -> np.ndarray:
+        """The film rows times ``x``."""
+        return _system_matvec(*self._arrays(), np.asarray(x, float))
+
+    def kept(self, outside: np.ndarray) -> sparse.csr_matrix:
+        """The system with the rows where ``outside`` is False emptied, as a CSR matrix of its own."""
+        data, indices, indptr = _system_kept(*self._arrays(), self.pair_first, self.scale, outside)
+        return sparse.csr_matrix((data, indices, indptr), shape=self.shape)
+
+    def csr(self) -> sparse.csr_matrix:
+        """The whole system as a CSR matrix."""
+        return self.kept(np.ones(self.shape[0], bool))
+
+
+@njit(cache=True, nogil=True)
+def _system_matvec(indptr, indices, data, rows, position, factor, inv_tol, x):
+    out = np.empty(len(rows))
     for i in range(len(rows)):
         r = rows[i]
+        total = 0.0
         for k in range(indptr[r], indptr[r + 1]):
             column = position[indices[k]]
-            value = data[k] * inv_tol
+            value = (data[k] * factor) * inv_tol
             if column >= 0 and value != 0.0:
-                out_indices[at] = column
-                out_data[at] = value
-                at += 1
+                total += value * x[column]
+        out[i] = total
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _system_kept(indptr, indices, data, rows, position, factor, inv_tol, pair_first, scale, keep):
+    n_fit = len(rows)
+    most = 2 * len(pair_first)  # room for every kept entry, allocated once (pages past the end stay untouched)
+    for i in range(n_fit):
+        if keep[i]:
+            most += indptr[rows[i] + 1] - indptr[rows[i]]
+    out_indptr = np.zeros(n_fit + len(pair_first) + 1, indices.dtype)
+    out_indices = np.empty(most, indices.dtype)
+    out_data = np.empty(most, np.float64)
+    at = 0
+    for i in range(n_fit):
+        if keep[i]:
+            r = rows[i]
+            for k in range(indptr[r], indptr[r + 1]):
+                column = position[indices[k]]
+                value = (data[k] * factor) * inv_tol
+                if column >= 0 and value != 0.0:
+                    out_indices[at] = column
+                    out_data[at] = value
+                    at += 1
         out_indptr[i + 1] = at
     for j in range(len(pair_first)):
-        if scale != 0.0:
+        if scale != 0.0 and keep[n_fit + j]:
             out_indices[at] = pair_first[j]
             out_data[at] = -scale
             out_indices[at + 1] = pair_first[j] + 1
             out_data[at + 1] = scale
             at += 2
-        out_indptr[len(rows) + j + 1] = at
-    return out_indptr, out_indices, out_data
+        out_indptr[n_fit + j + 1] = at
+    return out_data[:at], out_indices[:at], out_indptr
 
 
-def _residuals(system: sparse.csr_matrix, target_vec: np.ndarray, n_fit: int, band: float):
-    """The tuning's residual function and its Jacobian: ``system @ x - target_vec``, the first ``n_fit`` rows
-    (the film terms, in tolerances) through the dead band ``d(u) = sign(u) max(|u| - band, 0)``, whose
-    derivative is 1 outside the band and 0 inside."""
+def _residuals(system: System, target_vec: np.ndarray, band: float):
+    """The tuning's residual function and its Jacobian: ``system @ x - target_vec``, the film rows (in
+    tolerances) through the dead band ``d(u) = sign(u) max(|u| - band, 0)``, whose derivative is 1 outside
+    the band and 0 inside: the Jacobian is ``diags(slope) @ system``, the system's rows inside the band
+    emptied (``System.kept``)."""
+    n_fit = system.n_fit
 
     def residual(x):
-        r = system @ x - target_vec
+        r = system.matvec(x) - target_vec
         if band > 0:
             f = r[:n_fit]
             r[:n_fit] = np.sign(f) * np.maximum(np.abs(f) - band, 0.0)
         return r
 
     if band <= 0:
-        return residual, lambda x: system
-    # the film rows sliced once; the slope (0 or 1 a row) keeps or drops whole rows of ``system``: its
-    # ``diags(slope) @ system`` without the product (the system holds no zeros), in one pass a call
-    fit = system[:n_fit]
+        whole = system.csr()
+        return residual, lambda x: whole
     outside = np.ones(system.shape[0], bool)
 
     def jacobian(x):
-        f = fit @ x - target_vec[:n_fit]
+        f = system.fit_matvec(x) - target_vec[:n_fit]
         np.greater(np.abs(f), band, out=outside[:n_fit])
-        return sparse.csr_matrix(_kept_rows(system.indptr, system.indices, system.data, outside), shape=system.shape)
+        return system.kept(outside)
 
     return residual, jacobian
-
-
-@njit(cache=True, nogil=True)
-def _kept_rows(indptr, indices, data, keep):
-    """(data, indices, indptr) of a CSR matrix with the rows where ``keep`` is False emptied."""
-    total = 0
-    for r in range(len(keep)):
-        if keep[r]:
-            total += indptr[r + 1] - indptr[r]
-    out_indptr = np.zeros(len(keep) + 1, indices.dtype)
-    out_indices = np.empty(total, indices.dtype)
-    out_data = np.empty(total, np.float64)
-    at = 0
-    for r in range(len(keep)):
-        if keep[r]:
-            for k in range(indptr[r], indptr[r + 1]):
-                out_indices[at] = indices[k]
-                out_data[at] = data[k]
-                at += 1
-        out_indptr[r + 1] = at
-    return out_data, out_indices, out_indptr
