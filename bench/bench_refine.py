@@ -59,6 +59,10 @@ def planned(name: str, cache: str | None):
 def child(name: str, cache: str | None, profile: str | None) -> None:
     import hashlib
 
+    from sprayplan.heap import reuse_freed_memory
+
+    reuse_freed_memory()  # as the command line does
+
     import numpy as np
 
     from sprayplan.refine.stage import tune_plan

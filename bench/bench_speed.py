@@ -66,6 +66,10 @@ def part_and_job(name: str):
 def child(name: str, profile: str | None) -> None:
     import resource
 
+    from sprayplan.heap import reuse_freed_memory
+
+    reuse_freed_memory()  # as the command line does
+
     from sprayplan.job import run_job
 
     source, job = part_and_job(name)

@@ -28,6 +28,7 @@ import uuid
 from collections.abc import Iterator
 
 from sprayplan.batch.task import Task, failed_row, rss_mb, run_task, run_task_remote
+from sprayplan.heap import reuse_freed_memory
 
 log = logging.getLogger(__name__)
 
@@ -80,6 +81,7 @@ def _context():
 
 def _child(conn, task: Task, staging: str, placed: str) -> None:
     """A local job's process: run the job, send its row."""
+    reuse_freed_memory()  # as the command line does: the process is the job's own
     try:
         row = run_task(task, staging, placed)
     except BaseException as exc:  # interrupted: still a row, so the parent knows

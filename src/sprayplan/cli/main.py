@@ -31,6 +31,7 @@ from sprayplan.cli.common import (
     stage,
 )
 from sprayplan.errors import ConfigError, InputError, OutputError, PartFileError, StageError
+from sprayplan.heap import reuse_freed_memory
 
 log = logging.getLogger("sprayplan.cli")
 
@@ -635,6 +636,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     handler = _setup_logging(args.verbose, args.quiet)
     terminate = _on_sigterm()
+    reuse_freed_memory()  # large arrays from freed memory, not fresh pages (sprayplan.heap)
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _log_warning
