@@ -32,4 +32,23 @@ def test_a_freed_large_array_is_kept_and_used_again():
 
 def test_off_linux_it_does_nothing(monkeypatch):
     monkeypatch.setattr(sys, "platform", "darwin")
+    heap._libc.cache_clear()
     assert heap.reuse_freed_memory() is False
+    heap._libc.cache_clear()
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's malloc only")
+def test_released_memory_goes_back_to_the_kernel():
+    assert heap.reuse_freed_memory()
+    block = np.ones(200 * 2**20 // 8)
+    del block
+    kept = _rss_mb()
+    assert heap.release_freed_memory()
+    assert kept - _rss_mb() > 150  # the 200 MB kept for reuse are given back
+
+
+def test_off_linux_nothing_is_released(monkeypatch):
+    monkeypatch.setattr(sys, "platform", "darwin")
+    heap._libc.cache_clear()
+    assert heap.release_freed_memory() is False
+    heap._libc.cache_clear()

@@ -21,6 +21,7 @@ from scipy import sparse
 import sprayplan.robots.gantry as gantry_module
 from sprayplan.coating import Process, SprayPattern, deposit_matrix
 from sprayplan.coating.thickness import CoatingConfig
+from sprayplan.refine.stage import merged_columns
 from sprayplan.refine.tuning import System, _residuals
 from sprayplan.robots.gantry import Gantry, remembered_sqp, solve_sqp
 from sprayplan.surface.pairs import unique_pairs
@@ -111,6 +112,25 @@ def test_the_tunings_system_and_jacobian_are_scipys_bit_for_bit():
         r = reference @ x - target
         r[:400] = np.sign(r[:400]) * np.maximum(np.abs(r[:400]) - band, 0.0)
         np.testing.assert_array_equal(residual(x), r)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.integers(1, 40), st.integers(0, 30), st.integers(0, 30))
+def test_merged_columns_equal_the_stacked_and_permuted_matrix(seed, rows, old, new):
+    """``refine.stage.merged_columns`` (an extended plan's deposit matrix) is scipy's ``hstack`` with the
+    columns put in place, entry for entry."""
+    rng = np.random.default_rng(seed)
+    first = sparse.random(rows, old, density=0.3, random_state=rng, format="csr")
+    second = sparse.random(rows, new, density=0.3, random_state=rng, format="csr")
+    order = rng.permutation(old + new)
+    first_at, second_at = np.sort(order[:old]), np.sort(order[old:])
+    got = merged_columns(first, second, first_at, second_at)
+    position = np.concatenate([first_at, second_at])
+    expected = sparse.hstack([first, second]).tocsc()[:, np.argsort(position)].tocsr()
+    assert got.shape == expected.shape
+    np.testing.assert_array_equal(got.indptr, expected.indptr)
+    np.testing.assert_array_equal(got.indices, expected.indices)
+    np.testing.assert_array_equal(got.data, expected.data)
 
 
 @settings(max_examples=60, deadline=None)

@@ -11,13 +11,16 @@ resident size after a peak stays nearer it).
 
 It changes the whole process's allocator, so the library never calls it on its own: the command line does
 (``cli.main``), and so does each local batch job's process; a program that calls ``run_job`` may call it
-first to plan as fast as ``sprayplan plan`` does.
+first to plan as fast as ``sprayplan plan`` does. The freed memory kept is handed back to the kernel
+(:func:`release_freed_memory`, glibc's ``malloc_trim``) after every stage of the main job and after each
+speed tuning, where the big blocks of a stage are freed.
 """
 
 from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import functools
 import logging
 import sys
 
@@ -31,16 +34,37 @@ M_MMAP_THRESHOLD = -3
 THRESHOLD_BYTES = 1 << 30
 
 
+@functools.cache
+def _libc():
+    """glibc, or None (off Linux, or another C library); looked up once."""
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        libc.mallopt, libc.malloc_trim  # noqa: B018 (glibc has both)
+    except (OSError, AttributeError):
+        return None
+    return libc
+
+
+def release_freed_memory() -> bool:
+    """Hand the memory the process has freed back to the kernel (glibc's ``malloc_trim(0)``); returns
+    whether any was (False off glibc)."""
+    libc = _libc()
+    if libc is None:
+        return False
+    libc.malloc_trim.argtypes = [ctypes.c_size_t]
+    libc.malloc_trim.restype = ctypes.c_int
+    return bool(libc.malloc_trim(0))
+
+
 def reuse_freed_memory() -> bool:
     """Make glibc's ``malloc`` serve blocks up to ``THRESHOLD_BYTES`` from the heap and keep that much freed
     memory for reuse. Returns whether it did (False off Linux, or with another C library)."""
-    if not sys.platform.startswith("linux"):
+    libc = _libc()
+    if libc is None:
         return False
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-        mallopt = libc.mallopt
-    except (OSError, AttributeError):
-        return False
+    mallopt = libc.mallopt
     mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
     mallopt.restype = ctypes.c_int
     done = bool(mallopt(M_MMAP_THRESHOLD, THRESHOLD_BYTES)) and bool(mallopt(M_TRIM_THRESHOLD, THRESHOLD_BYTES))

@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 
 from sprayplan.config import JobConfig
 from sprayplan.errors import InputError, StageError
+from sprayplan.heap import release_freed_memory
 from sprayplan.progress import Progress, no_progress, per_stage
 from sprayplan.types import Part, Plan
 
@@ -425,5 +426,6 @@ def _run_stage(stage: Stage, state: JobState, progress: Progress) -> JobState:
         exc.add_note(f"sprayplan: in the {stage.name} stage of {state.name}")
         raise
     seconds = time.perf_counter() - began
+    release_freed_memory()  # a stage's big arrays are freed at its end (sprayplan.heap)
     log.info("%s done in %.2f s", stage.name, seconds)
     return dataclasses.replace(after, timings_s={**after.timings_s, stage.name: round(seconds, 3)})

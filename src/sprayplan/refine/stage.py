@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from numba import njit
 from scipy import sparse
 
 from sprayplan.coating.stage import plan_paths_in_order, process_for
@@ -63,9 +64,13 @@ def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None
     report = per_stage(progress, "refine")
 
     def tuned(plan_, earlier=None):
+        """The plan's speeds tuned; ``earlier``: a list holding the plan it extends, its samples and deposit
+        matrix, emptied once the new matrix is made (so that the earlier one is freed before the tuning)."""
         paths = plan_paths_in_order(plan_, job.paths.standoff_mm, job.paths.spacing or 0.0)
         lower = lower_dwell(paths, settings)
         deposit = None if earlier is None else extended_deposit(part, plan_, *earlier, process, coating)
+        if earlier is not None:
+            earlier.clear()
         return tune_speeds(
             part,
             paths,
@@ -115,7 +120,9 @@ def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None
         previous, plan = plan, with_added_strokes(plan, extra, job, new_stations=spare)
         if sum(len(st.strokes) for st in plan.stations) == before:
             break  # the arm reaches none of them
-        tuning = tuned(plan, (previous, tuning.samples, tuning.deposit_mm))
+        earlier = [previous, tuning.samples, tuning.deposit_mm]
+        tuning = None  # the earlier deposit matrix is freed once the extended one is made
+        tuning = tuned(plan, earlier)
     strokes = iter(tuning.paths.strokes)
     stations = tuple(dataclasses.replace(st, strokes=tuple(next(strokes) for _ in st.strokes)) for st in plan.stations)
     summary = tuning.summary(target, tolerance)
@@ -163,6 +170,47 @@ def extended_deposit(part, plan: Plan, earlier: Plan, samples, deposit_mm, proce
         return samples, deposit_mm
     _, new_mm = deposit_matrix(part, Paths(tuple(added), 0.0, 0.0, plan.name), process, config=coating, samples=samples)
     # columns: the earlier plan's waypoints, then the appended ones; put each where it is in the new plan
-    position = np.concatenate([np.flatnonzero(~is_new), np.flatnonzero(is_new)])
-    stacked = sparse.hstack([deposit_mm, new_mm]).tocsc()
-    return samples, stacked[:, np.argsort(position)].tocsr()
+    old_columns, new_columns = np.flatnonzero(~is_new), np.flatnonzero(is_new)
+    return samples, merged_columns(deposit_mm, new_mm, old_columns, new_columns)
+
+
+def merged_columns(first, second, first_at, second_at) -> sparse.csr_matrix:
+    """The CSR matrix whose columns ``first_at`` are ``first``'s and ``second_at`` are ``second``'s (each
+    increasing; together every column once), built row by row by merging the two rows' entries
+    (``_merge_rows``): the matrix ``hstack([first, second])`` with its columns put in place gave, with no
+    copies in between."""
+    first, second = first.tocsr(), second.tocsr()
+    first.sort_indices()
+    second.sort_indices()
+    shape = (first.shape[0], len(first_at) + len(second_at))
+    wide = max(shape[1], first.nnz + second.nnz) > np.iinfo(np.int32).max
+    data, indices, indptr = _merge_rows(
+        first.indptr, first.indices, first.data, second.indptr, second.indices, second.data,
+        np.asarray(first_at, np.int64), np.asarray(second_at, np.int64), np.zeros(0, np.int64 if wide else np.int32),
+    )  # fmt: skip
+    return sparse.csr_matrix((data, indices, indptr), shape=shape)
+
+
+@njit(cache=True, nogil=True)
+def _merge_rows(p1, i1, d1, p2, i2, d2, at1, at2, index_like):
+    rows = len(p1) - 1
+    total = (p1[rows] - p1[0]) + (p2[rows] - p2[0])
+    indptr = np.zeros(rows + 1, index_like.dtype)
+    indices = np.empty(total, index_like.dtype)
+    data = np.empty(total, np.float64)
+    out = 0
+    for r in range(rows):
+        a, a_end = p1[r], p1[r + 1]
+        b, b_end = p2[r], p2[r + 1]
+        while a < a_end or b < b_end:
+            if b >= b_end or (a < a_end and at1[i1[a]] < at2[i2[b]]):
+                indices[out] = at1[i1[a]]
+                data[out] = d1[a]
+                a += 1
+            else:
+                indices[out] = at2[i2[b]]
+                data[out] = d2[b]
+                b += 1
+            out += 1
+        indptr[r + 1] = out
+    return data, indices, indptr

@@ -43,6 +43,7 @@ from sprayplan.coating.process import Process
 from sprayplan.coating.sampling import SurfaceSamples, gun_samples
 from sprayplan.coating.thickness import CoatingConfig, CoatingResult, deposit_matrix
 from sprayplan.errors import ConfigError
+from sprayplan.heap import release_freed_memory
 from sprayplan.types import Part, Paths, read_only
 
 log = logging.getLogger(__name__)
@@ -228,6 +229,7 @@ def tune_speeds(
             progress,
         )  # fmt: skip
     after = _film_um(deposit_mm, dwell)
+    release_freed_memory()  # the solver's copies of the Jacobian (sprayplan.heap)
     strokes = tuple(s.with_dwell(dwell[a : a + len(s)]) for s, a in zip(paths.strokes, starts))
     log.info(
         "speeds tuned: %d waypoints, time factors %.3g-%.3g",
