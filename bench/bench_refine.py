@@ -59,9 +59,12 @@ def planned(name: str, cache: str | None):
 def child(name: str, cache: str | None, profile: str | None) -> None:
     import hashlib
 
-    from sprayplan.heap import reuse_freed_memory
+    try:  # as the command line does (a checkout before sprayplan.heap: as its command line did)
+        from sprayplan.heap import reuse_freed_memory
 
-    reuse_freed_memory()  # as the command line does
+        reuse_freed_memory()
+    except ImportError:
+        pass
 
     import numpy as np
 

@@ -66,9 +66,12 @@ def part_and_job(name: str):
 def child(name: str, profile: str | None) -> None:
     import resource
 
-    from sprayplan.heap import reuse_freed_memory
+    try:  # as the command line does (a checkout before sprayplan.heap: as its command line did)
+        from sprayplan.heap import reuse_freed_memory
 
-    reuse_freed_memory()  # as the command line does
+        reuse_freed_memory()
+    except ImportError:
+        pass
 
     from sprayplan.job import run_job
 
