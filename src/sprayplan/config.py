@@ -879,6 +879,10 @@ class TimingConfig(Section):
         The gantry's x, y, z axis speeds; None: ``[motion] platform_speed_mm_s`` on each.
     gantry_max_acceleration_mm_s2 : list of 3 float
         The gantry's x, y, z axis accelerations (the seed gives none: an assumption, 500 mm/s^2).
+    track_max_acceleration_mm_s2 : float
+        A cell robot's track acceleration (``sprayplan plan --cell``; the track's speed is the cell file's;
+        no maker's figure: an assumption, 500 mm/s^2 as the gantry's axes). In a cell the arm settings above
+        apply to every robot's arm of their number of axes (``cells.timing``).
     check_steps : int
         The time-parameterised strokes are checked against every limit at this many points per grid interval
         (toppra holds the limits at its grid points only), and refined where they do not hold.
@@ -901,6 +905,7 @@ class TimingConfig(Section):
     arm_max_acceleration_deg_s2: tuple | None = None
     gantry_max_velocity_mm_s: tuple | None = None
     gantry_max_acceleration_mm_s2: tuple = (500.0, 500.0, 500.0)
+    track_max_acceleration_mm_s2: float = 500.0
     check_steps: int = 4
     max_rounds: int = 2
     joint_jump_deg: float = 30.0
@@ -929,6 +934,7 @@ class TimingConfig(Section):
             except ConfigError as exc:
                 raise ConfigError(str(exc).replace(" (one per joint)", "")) from None
             object.__setattr__(self, name, tuple(float(v) for v in checked))
+        _within(TimingConfig, "track_max_acceleration_mm_s2", self.track_max_acceleration_mm_s2, 1e-6, 1e9)
         _within(TimingConfig, "check_steps", self.check_steps, 1, 100)
         _within(TimingConfig, "max_rounds", self.max_rounds, 0, 100)
         _within(TimingConfig, "joint_jump_deg", self.joint_jump_deg, 1e-6, 360.0)

@@ -5,11 +5,12 @@ Every face has one robot, but the spaces the arms sweep overlap where their area
 over the upper edge of a side while the side robot paints below it; ``cells.collide``'s ``robot_gap_mm``), so
 keeping them apart in space alone is not proven. :func:`schedule_cell` keeps them apart in time:
 
-1. **Each robot's timeline** is the plan's own timing, path length over speed (:meth:`RobotWork.cycle_time_s`'s
-   rule): a spray segment at ``[motion] gun_speed_mm_s`` divided by its time factor, a transfer at
-   ``transfer_speed_mm_s``, but no step faster than the arm's axis speeds (the maker's, ``robots.opw``) and the
-   track's speed allow for its largest joint or track move; the joints and the track move linearly between
-   waypoints. An unreached waypoint (no joints) holds the last reached configuration (the first reached one
+1. **Each robot's timeline** is its timing within its axes' limits (:mod:`~sprayplan.cells.timing`, with
+   ``[timing] enabled``, the default), or else the plan's own timing, path length over speed
+   (:meth:`RobotWork.cycle_time_s`'s rule): a spray segment at ``[motion] gun_speed_mm_s`` divided by its time
+   factor, a transfer at ``transfer_speed_mm_s``, but no step faster than the arm's axis speeds (the maker's,
+   ``robots.opw``) and the track's speed allow for its largest joint or track move; the joints and the track
+   move linearly between waypoints. An unreached waypoint (no joints) holds the last reached configuration (the first reached one
    before any).
 2. **Priority in the cell's order**: the first robot (the roof robot of ``line3``) never waits. Each later
    robot is scheduled against the timelines of the robots before it, stroke by stroke: before a stroke starts
@@ -332,17 +333,21 @@ def _refined_conflict(line_a, arm_a, line_b, arm_b, t: float, clearance_mm: floa
 
 
 def schedule_cell(
-    robots, arms, speed_mm_s: float, transfer_speed_mm_s: float, clearance_mm: float, track_speeds=None
+    robots, arms, speed_mm_s: float, transfer_speed_mm_s: float, clearance_mm: float, track_speeds=None, times=None
 ) -> Schedule:
     """Schedule the robots' work (``RobotWork`` each, in the cell's order) with their ``ArmCollision`` models
-    (module docstring); ``track_speeds``: each robot's track speed, mm/s (None without a track)."""
+    (module docstring); ``track_speeds``: each robot's track speed, mm/s (None without a track); ``times``:
+    each robot's timed arrival at its waypoints (``cells.timing``), in place of :func:`waypoint_times`."""
     names = [w.name for w in robots]
     timelines: list[Timeline] = []
     sampled: list[_Sampled] = []
     waits: dict = {}
     for k, (w, arm) in enumerate(zip(robots, arms)):
         track_speed = None if track_speeds is None else track_speeds[k]
-        t0 = waypoint_times(w, speed_mm_s, transfer_speed_mm_s, arm.params.max_speed, track_speed)
+        if times is not None:
+            t0 = np.asarray(times[k], dtype=float)
+        else:
+            t0 = waypoint_times(w, speed_mm_s, transfer_speed_mm_s, arm.params.max_speed, track_speed)
         q, track = _held(np.asarray(w.q, dtype=float), np.asarray(w.track_mm, dtype=float), w.reachable)
         starts = np.cumsum([0] + [len(s) for s in w.strokes])[:-1]
         chosen = np.zeros(len(starts))
@@ -402,8 +407,15 @@ def scheduled(cell, robots: tuple, arms, job) -> tuple[tuple, dict]:
     with the ``[motion]`` speeds, the tracks' speeds and the ``[collision]`` clearance), and the schedule's
     summary."""
     tracks = [None if r.track is None else r.track.speed_mm_s for r in cell.robots]
+    timed = job.timing.enabled and all(r.t_s is not None for r in robots)
     plan = schedule_cell(
-        robots, arms, job.motion.gun_speed_mm_s, job.motion.transfer_speed_mm_s, job.collision.clearance_mm, tracks
+        robots,
+        arms,
+        job.motion.gun_speed_mm_s,
+        job.motion.transfer_speed_mm_s,
+        job.collision.clearance_mm,
+        tracks,
+        times=[r.t_s for r in robots] if timed else None,
     )
     out = tuple(
         replace(r, t_s=line.arrive_s.copy(), wait_s=line.wait_s.copy()) for r, line in zip(robots, plan.timelines)

@@ -1,0 +1,244 @@
+"""The robots of a cell timed within their axes' limits (issue 18: "joint-limited timing for a cell's arms").
+
+Each robot's work is timed as the main job times the gantry (:mod:`sprayplan.timing.stage`), on its own axes:
+its arm's joints and, on a track, the track position (mm) as one more axis. From its first reached
+configuration (time 0) it runs its strokes in order:
+
+- every stretch of a spray stroke whose waypoints it reaches, and where no arm joint jumps by more than
+  ``[timing] joint_jump_deg`` between two waypoints, along its joint path, time-optimal from rest to rest within
+  the axes' speeds and accelerations and never faster than the planned gun-tip speed (its time factors
+  included): :func:`sprayplan.timing.path.time_paths`, toppra with the dense check, every stretch of every robot
+  of the cell together;
+- between them, a point-to-point joint move from rest to rest (ruckig, :func:`sprayplan.timing.moves.
+  point_to_point`): to the first waypoint of each stretch, and for a transfer to its last reached waypoint (its
+  waypoints stamped at their share of its length, as the programs' joint moves run them).
+
+A waypoint the robot does not reach gets the time at which it passes on (it holds its last configuration), so
+that every waypoint has a time, as the schedule needs.
+
+The limits (:func:`cell_limits`): the arm's joint speeds are ``[timing] arm_max_velocity_deg_s`` when given,
+else the maker's (``robots.opw`` presets; the UR and R5150 models' own), and its accelerations
+``[timing] arm_max_acceleration_deg_s2`` when given, else the model's (the UR arms' 80.2 deg/s^2, the R5150's
+assumed 180 deg/s^2), else, for the industrial arms whose makers publish none, an assumption: each axis reaches
+its top speed in ``ACCELERATION_TIME_S``. The track runs at its ``speed_mm_s`` (the cell file) and accelerates
+at ``[timing] track_max_acceleration_mm_s2``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from sprayplan.errors import ConfigError
+from sprayplan.paths.speed import segment_speeds
+from sprayplan.timing.limits import AxisLimits
+from sprayplan.timing.moves import point_to_point
+from sprayplan.timing.path import time_paths
+
+#: An industrial arm without published accelerations is assumed to reach each axis's top speed in this time, s.
+ACCELERATION_TIME_S = 0.5
+#: A spray waypoint is "slowed" where the robot makes less than this share of the planned tip speed.
+SLOWED_SHARE = 0.99
+
+
+@dataclass(frozen=True)
+class WorkTiming:
+    """One robot's work timed within its limits.
+
+    Attributes
+    ----------
+    t_s : (n,) float
+        When the robot reaches each waypoint (an unreached one: when it passes on), s from its start.
+    speed_mm_s : (n,) float
+        The gun tip's timed speed at each spray waypoint it follows (NaN elsewhere).
+    spray_s, move_s : float
+        Time along the spray stretches, and in the joint moves between them (transfers, moves across unreached
+        waypoints and joint jumps).
+    cycle_s : float
+        The whole work's time (its last waypoint's).
+    slowed : int
+        Spray waypoints where the robot makes less than ``SLOWED_SHARE`` of the planned tip speed (a stretch's
+        two ends, at rest, among them, as the gantry's timing counts them).
+    worst : dict
+        The largest ratio to each limit over the stretches (velocity, acceleration, tip speed) and how many
+        stretches were slowed uniformly to hold them (``stretched``).
+    """
+
+    t_s: np.ndarray
+    speed_mm_s: np.ndarray
+    spray_s: float
+    move_s: float
+    cycle_s: float
+    slowed: int
+    worst: dict
+
+    def summary(self) -> dict:
+        return {
+            "cycle_time_s": round(self.cycle_s, 3),
+            "spray_s": round(self.spray_s, 3),
+            "moves_s": round(self.move_s, 3),
+            "slowed_spray_waypoints": self.slowed,
+            "worst_ratio": {k: (round(v, 4) if isinstance(v, float) else v) for k, v in self.worst.items()},
+        }
+
+
+def cell_limits(robot, timing) -> AxisLimits:
+    """The axes' limits of a cell robot (``cells.spec.CellRobot``): its arm's joints, then its track if it has
+    one (module docstring)."""
+    arm = robot.robot(0.0)
+    model = getattr(arm, "model", None)
+    if timing.arm_max_velocity_deg_s is not None and arm.dof == len(timing.arm_max_velocity_deg_s):
+        velocity = np.radians(np.asarray(timing.arm_max_velocity_deg_s, float))
+    elif hasattr(arm, "max_speed"):
+        velocity = np.asarray(arm.max_speed, float)
+    else:
+        velocity = None if model is None else model.max_velocity
+    if velocity is None or not np.isfinite(velocity).all():
+        raise ConfigError(
+            f"robot {robot.name} ({robot.model}): its axis speeds are not known: set [timing] arm_max_velocity_deg_s"
+        )
+    if timing.arm_max_acceleration_deg_s2 is not None and arm.dof == len(timing.arm_max_acceleration_deg_s2):
+        acceleration = np.radians(np.asarray(timing.arm_max_acceleration_deg_s2, float))
+    elif model is not None and model.max_acceleration is not None:
+        acceleration = np.asarray(model.max_acceleration, float)
+    else:
+        acceleration = velocity / ACCELERATION_TIME_S
+    if robot.track is not None:
+        velocity = np.r_[velocity, robot.track.speed_mm_s]
+        acceleration = np.r_[acceleration, timing.track_max_acceleration_mm_s2]
+    return AxisLimits(velocity, acceleration)
+
+
+class _Axes:
+    """A cell robot's axes as the timing sees them: joints, then the track (mm); the gun tip by forward
+    kinematics with the base moved along the track."""
+
+    def __init__(self, robot):
+        self.arm = robot.robot(0.0)
+        self.dof = self.arm.dof
+        self.axis = None if robot.track is None else np.asarray(robot.track.axis, float)
+
+    def of(self, work) -> np.ndarray:
+        q = np.asarray(work.q, float)[:, : self.dof]
+        if self.axis is None:
+            return q
+        return np.column_stack([q, np.asarray(work.track_mm, float)])
+
+    def tip(self, q) -> np.ndarray:
+        q = np.atleast_2d(np.asarray(q, float))
+        out = self.arm.fk(q[:, : self.dof])[:, :3, 3]
+        if self.axis is not None:
+            out = out + q[:, self.dof : self.dof + 1] * self.axis
+        return out
+
+
+def _runs(ok: np.ndarray, q: np.ndarray, jump_rad: float) -> list[np.ndarray]:
+    """Runs of consecutive reached waypoints, also cut where an arm joint jumps by more than ``jump_rad``."""
+    where = np.flatnonzero(ok)
+    if not len(where):
+        return []
+    jump = np.abs(np.diff(q[where], axis=0)).max(axis=1) > jump_rad
+    return np.split(where, np.flatnonzero((np.diff(where) > 1) | jump) + 1)
+
+
+def _stretches(work, axes: _Axes, q: np.ndarray, motion, jump_rad: float):
+    """Every stretch the timing follows along its joint path, in the order :func:`_timed` takes them:
+    (waypoint indices, planned tip speeds of its segments)."""
+    start = 0
+    for s in work.strokes:
+        idx = np.arange(start, start + len(s))
+        start += len(s)
+        if not s.spray_on:
+            continue
+        cap = segment_speeds(
+            s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio, s.dwell
+        )
+        for run in _runs(work.reachable[idx], q[idx, : axes.dof], jump_rad):
+            if len(run) >= 2:
+                yield idx[run], cap[run[:-1]]
+
+
+def time_cell(cell, robots, job) -> list[WorkTiming]:
+    """Each robot's work (``RobotWork``, in the cell's order) timed within its limits (module docstring); the
+    spray stretches of all robots go to toppra's analysis together."""
+    timing, motion = job.timing, job.motion
+    jump = math.radians(timing.joint_jump_deg)
+    plans = []
+    for robot, work in zip(cell.robots, robots):
+        axes, limits = _Axes(robot), cell_limits(robot, timing)
+        q = axes.of(work)
+        stretches = list(_stretches(work, axes, q, motion, jump))
+        timed = time_paths(
+            [(q[idx], cap) for idx, cap in stretches],
+            limits,
+            axes.tip,
+            check_steps=timing.check_steps,
+            max_rounds=timing.max_rounds,
+        ) if stretches else []  # fmt: skip
+        plans.append(_timed(work, q, axes, limits, dict(zip((int(i[0]) for i, _ in stretches), timed)), motion, jump))
+    return plans
+
+
+def _timed(work, q, axes: _Axes, limits, timed: dict, motion, jump_rad: float) -> WorkTiming:
+    """The time stamps of one robot's work, given its stretches' timings by their first waypoint."""
+    n = len(q)
+    t = np.full(n, np.nan)
+    speed = np.full(n, np.nan)
+    reached = np.flatnonzero(work.reachable)
+    clock, spray, moves, slowed = 0.0, 0.0, 0.0, 0
+    worst = {"velocity": 0.0, "acceleration": 0.0, "tip_speed": 0.0, "stretched": 0}
+    current = q[reached[0]] if len(reached) else None
+    start = 0
+    for s in work.strokes:
+        idx = np.arange(start, start + len(s))
+        start += len(s)
+        ok = work.reachable[idx]
+        if current is None or not ok.any():
+            continue
+        if not s.spray_on:
+            last = idx[ok][-1]
+            move = point_to_point(current, q[last], limits).duration_s
+            along = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(s.tcp, axis=0), axis=1))]
+            share = along / along[-1] if along[-1] > 0 else np.linspace(0.0, 1.0, len(s))
+            t[idx[ok]] = clock + move * share[ok]
+            clock += move
+            moves += move
+            current = q[last]
+            continue
+        cap = segment_speeds(
+            s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio, s.dwell
+        )
+        bound = np.minimum(np.r_[cap[:1], cap], np.r_[cap, cap[-1:]]) if len(cap) else np.full(len(s), np.inf)
+        for run in _runs(ok, q[idx, : axes.dof], jump_rad):
+            move = point_to_point(current, q[idx[run[0]]], limits).duration_s
+            clock += move
+            moves += move
+            stretch = timed.get(int(idx[run[0]])) if len(run) >= 2 else None
+            if stretch is None:
+                t[idx[run]] = clock
+            else:
+                t[idx[run]] = clock + stretch.t_s
+                speed[idx[run]] = stretch.speed_mm_s
+                slowed += int((stretch.speed_mm_s < SLOWED_SHARE * bound[run]).sum())
+                clock += stretch.duration_s
+                spray += stretch.duration_s
+                for key in ("velocity", "acceleration", "tip_speed"):
+                    worst[key] = max(worst[key], float(stretch.worst[key]))
+                worst["stretched"] += int(stretch.stretch > 1.0)
+            current = q[idx[run[-1]]]
+    # unreached waypoints: when the robot passes on (its last time before them; 0 before any)
+    filled = np.where(np.isnan(t), -np.inf, t)
+    t = np.maximum.accumulate(filled) if n else filled
+    t = np.where(np.isfinite(t), t, 0.0)
+    return WorkTiming(t, speed, float(spray), float(moves), float(t[-1]) if n else 0.0, slowed, worst)
+
+
+def timed_work(robots, timings) -> tuple:
+    """The robots' work with the timed arrival at every waypoint (``RobotWork.t_s``), no waits."""
+    return tuple(
+        dataclasses.replace(r, t_s=tm.t_s.copy(), wait_s=np.zeros(sum(1 for _ in r.strokes)))
+        for r, tm in zip(robots, timings)
+    )

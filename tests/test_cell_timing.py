@@ -1,0 +1,151 @@
+"""A cell's robots timed within their axes' limits (cells.timing; issue 18)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from sprayplan.cells import load_cell
+from sprayplan.cells.plan import plan_cell
+from sprayplan.cells.spec import cell_from_dict
+from sprayplan.cells.timing import ACCELERATION_TIME_S, _Axes, cell_limits, time_cell
+from sprayplan.config import JobConfig, TimingConfig
+from sprayplan.errors import ConfigError
+from sprayplan.paths.speed import segment_speeds
+from tests.helpers import grid_box
+
+CELL = {
+    "name": "small2",
+    "robot": [
+        {
+            "name": "left",
+            "model": "abb-irb2400-10",
+            "base_mm": [0.0, 900.0, 0.0],
+            "base_rpy_deg": [0.0, 0.0, -90.0],
+            "track": {"axis": "x", "range_mm": [-400.0, 400.0], "speed_mm_s": 600.0},
+        },
+        {"name": "right", "model": "abb-irb2400-10", "base_mm": [0.0, -900.0, 0.0], "base_rpy_deg": [0.0, 0.0, 90.0]},
+    ],
+}
+
+
+@pytest.fixture(scope="module")
+def box_plan():
+    cell = cell_from_dict(CELL)
+    job = JobConfig().replace(coating={"thickness_um": 50.0}, tuning={"touch_up_rounds": 0})
+    plan = plan_cell(grid_box(n=8, size=(600.0, 300.0, 200.0)), cell, job)
+    return cell, job, plan
+
+
+def _stretches(work, jump_rad):
+    """(indices) of every run of reached spray waypoints the timing follows (no joint jump inside)."""
+    start = 0
+    for s in work.strokes:
+        idx = np.arange(start, start + len(s))
+        start += len(s)
+        if not s.spray_on:
+            continue
+        ok = np.flatnonzero(work.reachable[idx])
+        if len(ok) < 2:
+            continue
+        cut = (np.diff(ok) > 1) | (np.abs(np.diff(work.q[idx[ok]], axis=0)).max(axis=1) > jump_rad)
+        for run in np.split(ok, np.flatnonzero(cut) + 1):
+            if len(run) >= 2:
+                yield s, idx, run
+
+
+def test_every_robot_is_timed_within_its_limits_and_its_planned_speeds(box_plan):
+    cell, _, plan = box_plan
+    job = plan.job  # with the gun speed chosen for the film target
+    jump = np.radians(job.timing.joint_jump_deg)
+    report = plan.report
+    assert report["cycle_time_s"] == pytest.approx(max(r["cycle_time_s"] for r in report["robots"].values()))
+    checked = 0
+    for robot, work in zip(cell.robots, plan.robots):
+        t = work.t_s
+        assert t[0] == 0.0 and (np.diff(t) >= -1e-12).all()  # every waypoint a time, never back in time
+        limits = cell_limits(robot, job.timing)
+        axes = _Axes(robot)
+        q = axes.of(work)
+        entry = report["robots"][work.name]
+        assert entry["cycle_time_s"] == pytest.approx(t[-1], abs=1e-3)
+        spray_planned = 0.0
+        for s, idx, run in _stretches(work, jump):
+            dt = np.diff(t[idx[run]])
+            assert (dt > 0).all()
+            # the mean speed of every axis over a step is at most its top speed
+            mean = np.abs(np.diff(q[idx[run]], axis=0)) / dt[:, None]
+            assert (mean <= limits.velocity * (1 + 1e-6)).all()
+            # the gun tip never runs faster than planned (its mean speed over each segment)
+            cap = segment_speeds(
+                s.tcp, s.points, job.motion.gun_speed_mm_s, job.motion.speed_along, job.motion.max_speed_ratio, s.dwell
+            )[run[:-1]]
+            tip = np.linalg.norm(np.diff(axes.tip(q[idx[run]]), axis=0), axis=1)
+            assert (tip / dt <= cap * (1 + 1e-6)).all()
+            spray_planned += float((tip / cap).sum())
+            checked += len(run)
+        # no faster than the planned speeds allow along the spray, and the moves take time as well
+        assert entry["timing"]["spray_s"] >= spray_planned * (1 - 1e-9)
+        assert entry["cycle_time_s"] >= entry["timing"]["spray_s"]
+        assert entry["length_over_speed_s"] > 0
+    assert checked > 100
+
+
+def test_a_slower_arm_takes_longer(box_plan):
+    cell, _, plan = box_plan
+    job = plan.job
+    fast = time_cell(cell, plan.robots, job)
+    slow_job = job.replace(timing={"arm_max_acceleration_deg_s2": [40.0] * 6, "track_max_acceleration_mm_s2": 50.0})
+    slow = time_cell(cell, plan.robots, slow_job)
+    for f, s in zip(fast, slow):
+        assert s.cycle_s > f.cycle_s
+        assert s.slowed >= f.slowed
+
+
+def test_the_limits_of_a_cell_robot():
+    cell = cell_from_dict(CELL)
+    left, right = cell.robots
+    arm = left.robot(0.0)
+    limits = cell_limits(left, TimingConfig())
+    # the maker's axis speeds, an assumed acceleration (top speed in ACCELERATION_TIME_S), then the track's
+    np.testing.assert_allclose(limits.velocity[:6], arm.max_speed)
+    np.testing.assert_allclose(limits.acceleration[:6], arm.max_speed / ACCELERATION_TIME_S)
+    assert limits.velocity[6] == 600.0 and limits.acceleration[6] == 500.0
+    assert cell_limits(right, TimingConfig()).dof == 6  # no track
+    given = cell_limits(left, TimingConfig(arm_max_acceleration_deg_s2=(100.0,) * 6, track_max_acceleration_mm_s2=80.0))
+    np.testing.assert_allclose(given.acceleration, np.r_[np.radians([100.0] * 6), 80.0])
+    # a UR arm has its model's limits
+    ur = cell_from_dict({"robot": [{"name": "a", "model": "ur5", "base_mm": [0.0, 500.0, 0.0]}]}).robots[0]
+    np.testing.assert_allclose(cell_limits(ur, TimingConfig()).acceleration, [1.4] * 6)
+
+
+def test_an_arm_without_known_speeds_is_refused(monkeypatch):
+    cell = cell_from_dict(CELL)
+    left = cell.robots[0]
+    arm = left.robot(0.0)
+    unknown = dataclasses.replace(arm.params, max_speed=np.full(6, np.nan))
+    monkeypatch.setattr(type(left), "robot", lambda self, track_mm=0.0: dataclasses.replace(arm, params=unknown))
+    with pytest.raises(ConfigError, match="arm_max_velocity_deg_s"):
+        cell_limits(left, TimingConfig())
+
+
+@pytest.mark.parametrize("bad", [0.0, -5.0, float("nan")])
+def test_a_bad_track_acceleration_names_its_key(bad):
+    with pytest.raises(ConfigError, match="timing.track_max_acceleration_mm_s2"):
+        TimingConfig(track_max_acceleration_mm_s2=bad)
+
+
+def test_without_timing_the_cycle_is_length_over_speed(box_plan):
+    cell, job, _ = box_plan
+    plan = plan_cell(grid_box(n=8, size=(600.0, 300.0, 200.0)), cell, job.replace(timing={"enabled": False}))
+    assert all(r.t_s is None for r in plan.robots)
+    assert "length over speed" in plan.report["cycle_time_rule"]
+
+
+def test_line3_names_its_limits():
+    cell = load_cell("line3")
+    for robot in cell.robots:
+        limits = cell_limits(robot, TimingConfig())
+        assert limits.dof == 7 and np.isfinite(limits.velocity).all()
