@@ -14,7 +14,7 @@ import numpy as np
 from scipy import sparse
 from scipy.spatial import cKDTree
 
-from sprayplan.coating.occlusion import Occlusion, _frames, _frustum_pairs, _view_sample_pairs
+from sprayplan.coating.occlusion import Occlusion, _frames, _frustum_pairs, _project, _view_sample_pairs
 from sprayplan.coating.thickness import _setup
 
 
@@ -47,16 +47,6 @@ def occlusion_reference(samples, vertices, faces, views, pattern_standoff_mm, ha
     has = np.zeros(nv, bool)
     has[np.unique(keys // max(n, 1))] = True
     return Occlusion(views.of_gun, keys, has, n, "raster")
-
-
-def _project(cols, index, frames, view_idx, h):
-    px, py, pz = np.take(cols, index, axis=1)
-    g = np.take(frames, view_idx, axis=1)
-    z = px * g[0] + py * g[1] + pz * g[2] + g[3]
-    scale = np.float32(h) / np.where(z > 1e-6, z, np.float32(1e-6))
-    x = (px * g[4] + py * g[5] + pz * g[6] + g[7]) * scale
-    y = (px * g[8] + py * g[9] + pz * g[10] + g[11]) * scale
-    return z, x, y
 
 
 def _rasterise(cols, faces, frames, pv, pt, first_view: int, grid, zbuf) -> None:

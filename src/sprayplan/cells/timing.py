@@ -37,6 +37,7 @@ from sprayplan.paths.speed import segment_speeds
 from sprayplan.timing.limits import AxisLimits
 from sprayplan.timing.moves import point_to_point
 from sprayplan.timing.path import time_paths
+from sprayplan.timing.stage import joint_runs
 
 #: An industrial arm without published accelerations is assumed to reach each axis's top speed in this time, s.
 ACCELERATION_TIME_S = 0.5
@@ -135,15 +136,6 @@ class _Axes:
         return out
 
 
-def _runs(ok: np.ndarray, q: np.ndarray, jump_rad: float) -> list[np.ndarray]:
-    """Runs of consecutive reached waypoints, also cut where an arm joint jumps by more than ``jump_rad``."""
-    where = np.flatnonzero(ok)
-    if not len(where):
-        return []
-    jump = np.abs(np.diff(q[where], axis=0)).max(axis=1) > jump_rad
-    return np.split(where, np.flatnonzero((np.diff(where) > 1) | jump) + 1)
-
-
 def _stretches(work, axes: _Axes, q: np.ndarray, motion, jump_rad: float):
     """Every stretch the timing follows along its joint path, in the order :func:`_timed` takes them:
     (waypoint indices, planned tip speeds of its segments)."""
@@ -156,7 +148,7 @@ def _stretches(work, axes: _Axes, q: np.ndarray, motion, jump_rad: float):
         cap = segment_speeds(
             s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio, s.dwell
         )
-        for run in _runs(work.reachable[idx], q[idx, : axes.dof], jump_rad):
+        for run in joint_runs(work.reachable[idx], q[idx, : axes.dof], jump_rad):
             if len(run) >= 2:
                 yield idx[run], cap[run[:-1]]
 
@@ -212,7 +204,7 @@ def _timed(work, q, axes: _Axes, limits, timed: dict, motion, jump_rad: float) -
             s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio, s.dwell
         )
         bound = np.minimum(np.r_[cap[:1], cap], np.r_[cap, cap[-1:]]) if len(cap) else np.full(len(s), np.inf)
-        for run in _runs(ok, q[idx, : axes.dof], jump_rad):
+        for run in joint_runs(ok, q[idx, : axes.dof], jump_rad):
             move = point_to_point(current, q[idx[run[0]]], limits).duration_s
             clock += move
             moves += move

@@ -328,6 +328,40 @@ def _cells(point, r, grid_low, grid_dims, grid_cell, lo, hi):
 
 
 @njit(cache=True, nogil=True)
+def _gun_pairs(
+    g, aim, reach, points, grid_start, grid_low, grid_dims, grid_cell, vt, gt, kind, params, h32, hidden, lo, hi,
+    pair_s, pair_v,
+):  # fmt: skip
+    """The film of gun sample ``g`` at every sample within its reach of its aim point, hidden ones (``hidden``)
+    and zeros left out: ``(m, within, pair_s, pair_v)``, the first ``m`` of ``pair_s`` / ``pair_v`` (grown when
+    full) the samples (in the grid's order) and their film, ``within`` the samples within reach."""
+    r = reach[g]
+    _cells(aim[g], r, grid_low, grid_dims, grid_cell, lo, hi)
+    m = 0
+    within = 0
+    for ix in range(lo[0], hi[0] + 1):
+        for iy in range(lo[1], hi[1] + 1):
+            row = (ix * grid_dims[1] + iy) * grid_dims[2]
+            for s in range(grid_start[row + lo[2]], grid_start[row + hi[2] + 1]):
+                dx = points[s, 0] - aim[g, 0]
+                dy = points[s, 1] - aim[g, 1]
+                dz = points[s, 2] - aim[g, 2]
+                if math.sqrt(dx * dx + dy * dy + dz * dz) > r:
+                    continue
+                within += 1
+                value = _pair_value(vt, gt, g, s, kind, params, h32)
+                if value == 0.0 or hidden[s]:
+                    continue
+                if m == len(pair_s):
+                    pair_s = _grown_int(pair_s, m, 2 * m)
+                    pair_v = _grown_float(pair_v, m, 2 * m)
+                pair_s[m] = s
+                pair_v[m] = value
+                m += 1
+    return m, within, pair_s, pair_v
+
+
+@njit(cache=True, nogil=True)
 def film_sums(
     first, last, aim, reach, points, rank, grid_start, grid_low, grid_dims, grid_cell, vt, gt, kind, params, h32,
     of_gun, hidden_keys, view_has_hidden, stroke, area, thickness, deposit,
@@ -339,27 +373,21 @@ def film_sums(
     n = len(points)
     lo = np.empty(3, np.int64)
     hi = np.empty(3, np.int64)
+    pair_s = np.empty(1024, np.int64)
+    pair_v = np.empty(1024, np.float64)
     hidden = np.zeros(n, np.bool_)
     view = -1
     count = 0
     for g in range(first, last):
         view = _mark_view(of_gun[g], view, hidden_keys, view_has_hidden, n, rank, hidden)
-        r = reach[g]
-        _cells(aim[g], r, grid_low, grid_dims, grid_cell, lo, hi)
-        for ix in range(lo[0], hi[0] + 1):
-            for iy in range(lo[1], hi[1] + 1):
-                row = (ix * grid_dims[1] + iy) * grid_dims[2]
-                for s in range(grid_start[row + lo[2]], grid_start[row + hi[2] + 1]):
-                    dx = points[s, 0] - aim[g, 0]
-                    dy = points[s, 1] - aim[g, 1]
-                    dz = points[s, 2] - aim[g, 2]
-                    if math.sqrt(dx * dx + dy * dy + dz * dz) > r:
-                        continue
-                    count += 1
-                    value = _pair_value(vt, gt, g, s, kind, params, h32)
-                    if value != 0.0 and not hidden[s]:
-                        thickness[s] += value
-                        deposit[stroke[g]] += value * area[s]
+        m, within, pair_s, pair_v = _gun_pairs(
+            g, aim, reach, points, grid_start, grid_low, grid_dims, grid_cell, vt, gt, kind, params, h32, hidden, lo,
+            hi, pair_s, pair_v,
+        )  # fmt: skip
+        count += within
+        for i in range(m):
+            thickness[pair_s[i]] += pair_v[i]
+            deposit[stroke[g]] += pair_v[i] * area[pair_s[i]]
     return count
 
 
@@ -398,27 +426,10 @@ def deposit_entries(
     view = -1
     for g in range(first, last):
         view = _mark_view(of_gun[g], view, hidden_keys, view_has_hidden, n, rank, hidden)
-        r = reach[g]
-        _cells(aim[g], r, grid_low, grid_dims, grid_cell, lo, hi)
-        m = 0
-        for ix in range(lo[0], hi[0] + 1):
-            for iy in range(lo[1], hi[1] + 1):
-                row = (ix * grid_dims[1] + iy) * grid_dims[2]
-                for s in range(grid_start[row + lo[2]], grid_start[row + hi[2] + 1]):
-                    dx = points[s, 0] - aim[g, 0]
-                    dy = points[s, 1] - aim[g, 1]
-                    dz = points[s, 2] - aim[g, 2]
-                    if math.sqrt(dx * dx + dy * dy + dz * dz) > r:
-                        continue
-                    value = _pair_value(vt, gt, g, s, kind, params, h32)
-                    if value == 0.0 or hidden[s]:
-                        continue
-                    if m == len(pair_s):
-                        pair_s = _grown_int(pair_s, m, 2 * m)
-                        pair_v = _grown_float(pair_v, m, 2 * m)
-                    pair_s[m] = s
-                    pair_v[m] = value
-                    m += 1
+        m, _, pair_s, pair_v = _gun_pairs(
+            g, aim, reach, points, grid_start, grid_low, grid_dims, grid_cell, vt, gt, kind, params, h32, hidden, lo,
+            hi, pair_s, pair_v,
+        )  # fmt: skip
         if m == 0:
             continue
         for c in range(4):

@@ -205,7 +205,7 @@ def time_plan(plan: Plan, job, gantry, progress: Progress | None = None) -> Plan
             else:
                 bound[idx] = motion.gun_speed_mm_s
             local_t = np.full(len(s), np.nan)
-            for run in _runs(ok, st.q9[idx], jump):
+            for run in joint_runs(ok, st.q9[idx, :6], jump):
                 move = point_to_point(current, st.q9[idx[run[0]]], limits)
                 clock += move.duration_s
                 totals["transfer"] += move.duration_s
@@ -266,26 +266,27 @@ def _spray_runs(plan: Plan, motion, jump_rad: float):
             if not s.spray_on:
                 continue
             cap = _planned_speeds(s, motion)
-            for run in _runs(st.reachable[idx], st.q9[idx], jump_rad):
+            for run in joint_runs(st.reachable[idx], st.q9[idx, :6], jump_rad):
                 if len(run) >= 2:
                     yield st, idx, cap, run
 
 
-def _runs(ok: np.ndarray, q: np.ndarray, jump_rad: float) -> list[np.ndarray]:
-    """The index runs of consecutive reachable waypoints, also cut where an arm joint jumps by more than
-    ``jump_rad`` from one waypoint to the next (a change of IK branch, an SQP solution far from its
-    neighbours): the arm cannot follow the stroke across it and makes a joint move instead."""
+def joint_runs(ok: np.ndarray, q: np.ndarray, jump_rad: float) -> list[np.ndarray]:
+    """The index runs of consecutive reachable waypoints, also cut where an arm joint (a column of ``q``: pass
+    the arm's joints only) jumps by more than ``jump_rad`` from one waypoint to the next (a change of IK branch,
+    an SQP solution far from its neighbours): the arm cannot follow the stroke across it and makes a joint move
+    instead."""
     where = np.flatnonzero(ok)
     if not len(where):
         return []
-    jump = np.abs(np.diff(q[where, :6], axis=0)).max(axis=1) > jump_rad
+    jump = np.abs(np.diff(q[where], axis=0)).max(axis=1) > jump_rad
     cuts = np.flatnonzero((np.diff(where) > 1) | jump) + 1
     return np.split(where, cuts)
 
 
 def timed_dwell(plan: Plan, t_s, job) -> tuple:
     """Per station, each waypoint's time factor (``Stroke.dwell``) from the time stamps ``t_s`` (per station,
-    NaN where unreachable): on a spray stroke's timed stretches (the runs :func:`_runs` cuts, as
+    NaN where unreachable): on a spray stroke's timed stretches (the runs :func:`joint_runs` cuts, as
     :func:`time_plan` times them), a waypoint's time (half of each adjacent segment's) over its time at the
     process speed with factors 1; the planned factor elsewhere and where a waypoint's time at the process
     speed is 0 (the tip does not move)."""
@@ -303,7 +304,7 @@ def timed_dwell(plan: Plan, t_s, job) -> tuple:
             base = np.linalg.norm(np.diff(s.tcp, axis=0), axis=1) / segment_speeds(
                 s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio
             )
-            for run in _runs(st.reachable[idx], st.q9[idx], jump):
+            for run in joint_runs(st.reachable[idx], st.q9[idx, :6], jump):
                 if len(run) < 2:
                     continue
                 real = np.diff(t[idx[run]])
