@@ -149,3 +149,49 @@ def test_line3_names_its_limits():
     for robot in cell.robots:
         limits = cell_limits(robot, TimingConfig())
         assert limits.dof == 7 and np.isfinite(limits.velocity).all()
+
+
+def test_the_deposit_after_touch_ups_takes_over_the_earlier_columns(box_plan):
+    """``cells.plan.extended_deposit``: a touch-up round's matrix from the last one's columns and the new runs'
+    own equals the matrix made anew (to rounding: batches of gun samples fall differently)."""
+    from sprayplan.cells.plan import extended_deposit, reached_strokes, with_touch_ups
+    from sprayplan.coating.stage import process_for
+    from sprayplan.coating.thickness import deposit_matrix
+    from sprayplan.types import Paths
+
+    cell, _, plan = box_plan
+    job = plan.job
+    process, coating = process_for(job), job.coating.simulation(job.motion)
+    strokes, owners = reached_strokes(plan.robots)
+    samples, old = deposit_matrix(plan.part, Paths(tuple(strokes), 113.0, 0.0), process, config=coating)
+    # two touch-ups: spray runs of the plan again, 15 mm higher
+    extra = [dataclasses.replace(s, tcp=s.tcp + [0.0, 0.0, 15.0], kind="touch-up") for s in strokes[:2]]
+    grown, added = with_touch_ups(cell, plan.robots, extra)
+    assert added >= 1
+    new_strokes, new_owners = reached_strokes(grown)
+    assert len(new_strokes) > len(strokes)
+    got_samples, got = extended_deposit(plan.part, new_strokes, new_owners, owners, samples, old, process, coating)
+    assert got_samples is samples
+    _, full = deposit_matrix(plan.part, Paths(tuple(new_strokes), 113.0, 0.0), process, config=coating, samples=samples)
+    assert got.shape == full.shape and full.nnz > old.nnz
+    lengths = np.array([len(x) for x in new_strokes])
+    starts = np.r_[0, np.cumsum(lengths)]
+    where = {o: k for k, o in enumerate(new_owners)}
+    kept = np.concatenate([np.arange(starts[where[o]], starts[where[o] + 1]) for o in owners])
+    added_cols = np.setdiff1d(np.arange(full.shape[1]), kept)
+    # the earlier runs' columns are the earlier matrix's, and those of a matrix made anew (to rounding)
+    assert abs(got[:, kept] - old).max() == 0.0
+    assert abs(got[:, kept] - full[:, kept]).max() <= 1e-12 * abs(full).max()
+    # the new runs' columns are the film of the new runs computed alone, put in their places
+    added_runs = [x for x, o in zip(new_strokes, new_owners) if o not in set(owners)]
+    _, alone = deposit_matrix(plan.part, Paths(tuple(added_runs), 113.0, 0.0), process, config=coating, samples=samples)
+    assert abs(got[:, added_cols] - alone).max() == 0.0
+    # against the matrix made anew: there the occlusion's depth map is sized by the median depth of all the
+    # strokes (here of the new ones alone, 15 mm deeper), so pairs at its edges differ; the film they add
+    # differs by a few per cent at the most at a run's ends, and by less than 1 % in all
+    new_sum = np.asarray(got[:, added_cols].sum(axis=0)).ravel()
+    full_sum = np.asarray(full[:, added_cols].sum(axis=0)).ravel()
+    assert new_sum.sum() > 0
+    assert abs(new_sum.sum() - full_sum.sum()) <= 0.01 * full_sum.sum()
+    # a run of the earlier tuning that is gone: made anew
+    assert extended_deposit(plan.part, new_strokes[1:], new_owners[1:], owners, samples, old, process, coating) is None

@@ -473,6 +473,34 @@ def reached_strokes(robots) -> tuple[list, list]:
     return out, owners
 
 
+def extended_deposit(part, strokes, owners, old_owners, samples, old_mm, process, coating):
+    """The deposit matrix of the reached strokes ``strokes`` (``owners`` as :func:`reached_strokes` gives them)
+    from the last tuning's (``old_owners``, its samples and matrix), after touch-ups were appended to the robots:
+    the columns of every run the last tuning had are taken over, only the new runs' are computed, on the same
+    samples (the film of a time step does not depend on the other strokes), and the two merged in the new
+    order (``refine.stage.merged_columns``). Returns ``(samples, matrix)``, or None when a run of the last
+    tuning is gone (then the matrix is made anew)."""
+    from sprayplan.coating.thickness import deposit_matrix
+    from sprayplan.refine.stage import merged_columns
+
+    where = {owner: k for k, owner in enumerate(owners)}
+    if any(owner not in where for owner in old_owners):
+        return None
+    lengths = np.array([len(s) for s in strokes])
+    starts = np.r_[0, np.cumsum(lengths)]
+    is_old = np.zeros(len(strokes), bool)
+    is_old[[where[o] for o in old_owners]] = True
+    old_at = np.concatenate([np.arange(starts[where[o]], starts[where[o] + 1]) for o in old_owners] or [[]])
+    if len(old_at) != old_mm.shape[1] or not (np.diff(old_at) > 0).all():
+        return None
+    new = [s for s, keep in zip(strokes, is_old) if not keep]
+    new_at = np.concatenate([np.arange(starts[k], starts[k + 1]) for k in np.flatnonzero(~is_old)] or [[]])
+    if not new:
+        return samples, old_mm
+    _, new_mm = deposit_matrix(part, Paths(tuple(new), 0.0, 0.0, part.name), process, config=coating, samples=samples)
+    return samples, merged_columns(old_mm, new_mm, old_at.astype(np.int64), new_at.astype(np.int64))
+
+
 def with_tuned_dwell(robots, tuned, owners) -> tuple:
     """The robots' strokes with the time factors the tuning chose for their reached runs (unreached waypoints
     keep theirs)."""
@@ -687,12 +715,16 @@ def plan_cell(
         from sprayplan.refine.touchup import TOUCH_UP_MIN_DWELL, touch_up_strokes
         from sprayplan.refine.tuning import tune_speeds, tuned_film
 
+        earlier: list = []  # the last tuning's owners, samples and deposit matrix, for the next round
+
         def tuned(robots_):
             strokes, owners_ = reached_strokes(robots_)
             lower = np.concatenate(
                 [np.full(len(s), TOUCH_UP_MIN_DWELL if s.kind == "touch-up" else job.tuning.min_dwell) for s in strokes]
             )
             paths_ = Paths(tuple(strokes), job.paths.standoff_mm, job.paths.spacing or 0.0, part.name)
+            deposit = extended_deposit(painted, strokes, owners_, *earlier, process, coating) if earlier else None
+            earlier.clear()  # the earlier matrix is freed before the tuning
             tuning_ = tune_speeds(
                 painted,
                 paths_,
@@ -702,8 +734,10 @@ def plan_cell(
                 config=tuning_settings(job.tuning),
                 coating=coating,
                 lower=lower,
+                deposit=deposit,
                 progress=per_stage(progress, "film"),
             )
+            earlier[:] = [owners_, tuning_.samples, tuning_.deposit_mm]
             return tuning_, with_tuned_dwell(robots_, tuning_.paths.strokes, owners_)
 
         tuning, robots = tuned(robots)
@@ -726,6 +760,7 @@ def plan_cell(
                 break
             robots, count = grown
             added += count
+            tuning = None  # (its deposit matrix lives on in ``earlier`` until the extended one is made)
             tuning, robots = tuned(robots)
         report["touch_up_strokes"] = added
         film = tuned_film(tuning, process, coating)
