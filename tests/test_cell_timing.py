@@ -14,6 +14,7 @@ from sprayplan.cells.timing import ACCELERATION_TIME_S, _Axes, cell_limits, time
 from sprayplan.config import JobConfig, TimingConfig
 from sprayplan.errors import ConfigError
 from sprayplan.paths.speed import segment_speeds
+from sprayplan.timing.stage import joint_runs
 from tests.helpers import grid_box
 
 CELL = {
@@ -40,20 +41,15 @@ def box_plan():
 
 
 def _stretches(work, jump_rad):
-    """(indices) of every run of reached spray waypoints the timing follows (no joint jump inside)."""
+    """(stroke, its waypoint indices, a run) of every run of reached spray waypoints the timing follows."""
     start = 0
     for s in work.strokes:
         idx = np.arange(start, start + len(s))
         start += len(s)
-        if not s.spray_on:
-            continue
-        ok = np.flatnonzero(work.reachable[idx])
-        if len(ok) < 2:
-            continue
-        cut = (np.diff(ok) > 1) | (np.abs(np.diff(work.q[idx[ok]], axis=0)).max(axis=1) > jump_rad)
-        for run in np.split(ok, np.flatnonzero(cut) + 1):
-            if len(run) >= 2:
-                yield s, idx, run
+        if s.spray_on:
+            for run in joint_runs(work.reachable[idx], work.q[idx], jump_rad):
+                if len(run) >= 2:
+                    yield s, idx, run
 
 
 def test_every_robot_is_timed_within_its_limits_and_its_planned_speeds(box_plan):

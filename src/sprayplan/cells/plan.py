@@ -476,18 +476,15 @@ def reached_strokes(robots) -> tuple[list, list]:
 def extended_deposit(part, strokes, owners, old_owners, samples, old_mm, process, coating):
     """The deposit matrix of the reached strokes ``strokes`` (``owners`` as :func:`reached_strokes` gives them)
     from the last tuning's (``old_owners``, its samples and matrix), after touch-ups were appended to the robots:
-    the columns of every run the last tuning had are taken over, only the new runs' are computed, on the same
-    samples (the film of a time step does not depend on the other strokes), and the two merged in the new
-    order (``refine.stage.merged_columns``). Returns ``(samples, matrix)``, or None when a run of the last
-    tuning is gone (then the matrix is made anew)."""
-    from sprayplan.coating.thickness import deposit_matrix
-    from sprayplan.refine.stage import merged_columns
+    the columns of every run the last tuning had are taken over and only the new runs' computed
+    (``refine.stage.with_added_columns``). Returns ``(samples, matrix)``, or None when a run of the last tuning
+    is gone (then the matrix is made anew)."""
+    from sprayplan.refine.stage import with_added_columns
 
     where = {owner: k for k, owner in enumerate(owners)}
     if any(owner not in where for owner in old_owners):
         return None
-    lengths = np.array([len(s) for s in strokes])
-    starts = np.r_[0, np.cumsum(lengths)]
+    starts = np.r_[0, np.cumsum([len(s) for s in strokes])]
     is_old = np.zeros(len(strokes), bool)
     is_old[[where[o] for o in old_owners]] = True
     old_at = np.concatenate([np.arange(starts[where[o]], starts[where[o] + 1]) for o in old_owners] or [[]])
@@ -495,10 +492,7 @@ def extended_deposit(part, strokes, owners, old_owners, samples, old_mm, process
         return None
     new = [s for s, keep in zip(strokes, is_old) if not keep]
     new_at = np.concatenate([np.arange(starts[k], starts[k + 1]) for k in np.flatnonzero(~is_old)] or [[]])
-    if not new:
-        return samples, old_mm
-    _, new_mm = deposit_matrix(part, Paths(tuple(new), 0.0, 0.0, part.name), process, config=coating, samples=samples)
-    return samples, merged_columns(old_mm, new_mm, old_at.astype(np.int64), new_at.astype(np.int64))
+    return samples, with_added_columns(part, old_mm, samples, old_at, new, new_at, process, coating)
 
 
 def with_tuned_dwell(robots, tuned, owners) -> tuple:
@@ -801,22 +795,10 @@ def plan_cell(
         robots, report["collisions"] = check_cell(plan, job.collision, repaired_work, arms=arms)
         plan = dataclasses.replace(plan, robots=robots)
     if job.timing.enabled:
-        from sprayplan.cells.timing import time_cell, timed_work
+        from sprayplan.cells.timing import timed_cell
 
         begin("timing")
-        timed = time_cell(cell, robots, job)
-        robots = timed_work(robots, timed)
-        for r, tm in zip(robots, timed):
-            entry = report["robots"][r.name]
-            entry["length_over_speed_s"] = entry["cycle_time_s"]
-            entry["cycle_time_s"] = round(tm.cycle_s, 3)
-            entry["timing"] = tm.summary()
-        report["cycle_time_length_over_speed_s"] = report["cycle_time_s"]
-        report["cycle_time_s"] = max((round(tm.cycle_s, 3) for tm in timed), default=0.0)
-        report["cycle_time_rule"] = (
-            "each robot timed within its axes' limits (toppra along the spray stretches, ruckig between them); "
-            "the cell's is the longest robot's"
-        )
+        robots = timed_cell(cell, robots, job, report)
         plan = dataclasses.replace(plan, robots=robots)
     if job.collision.check:
         begin("schedule")

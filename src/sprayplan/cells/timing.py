@@ -228,9 +228,22 @@ def _timed(work, q, axes: _Axes, limits, timed: dict, motion, jump_rad: float) -
     return WorkTiming(t, speed, float(spray), float(moves), float(t[-1]) if n else 0.0, slowed, worst)
 
 
-def timed_work(robots, timings) -> tuple:
-    """The robots' work with the timed arrival at every waypoint (``RobotWork.t_s``), no waits."""
+def timed_cell(cell, robots, job, report: dict) -> tuple:
+    """The robots' work (``RobotWork``) with the timed arrival at every waypoint (``t_s``; no waits: ``wait_s``
+    0), timed by :func:`time_cell`; ``report`` (the cell plan's) gets each robot's timed cycle and timing
+    summary beside its length over speed, and the cell's timed cycle, the longest robot's."""
+    timed = time_cell(cell, robots, job)
+    for r, tm in zip(robots, timed):
+        entry = report["robots"][r.name]
+        entry["length_over_speed_s"] = entry["cycle_time_s"]
+        entry["cycle_time_s"] = round(tm.cycle_s, 3)
+        entry["timing"] = tm.summary()
+    report["cycle_time_length_over_speed_s"] = report["cycle_time_s"]
+    report["cycle_time_s"] = max((round(tm.cycle_s, 3) for tm in timed), default=0.0)
+    report["cycle_time_rule"] = (
+        "each robot timed within its axes' limits (toppra along the spray stretches, ruckig between them); "
+        "the cell's is the longest robot's"
+    )
     return tuple(
-        dataclasses.replace(r, t_s=tm.t_s.copy(), wait_s=np.zeros(sum(1 for _ in r.strokes)))
-        for r, tm in zip(robots, timings)
+        dataclasses.replace(r, t_s=tm.t_s.copy(), wait_s=np.zeros(len(r.strokes))) for r, tm in zip(robots, timed)
     )

@@ -166,12 +166,19 @@ def extended_deposit(part, plan: Plan, earlier: Plan, samples, deposit_mm, proce
             if appended:
                 added.append(stroke)
     is_new = np.concatenate(is_new)
+    return samples, with_added_columns(
+        part, deposit_mm, samples, np.flatnonzero(~is_new), added, np.flatnonzero(is_new), process, coating
+    )
+
+
+def with_added_columns(part, deposit_mm, samples, kept_at, added, added_at, process, coating) -> sparse.csr_matrix:
+    """A deposit matrix grown by the columns of ``added`` strokes: ``deposit_mm``'s columns go to ``kept_at``,
+    the added strokes' waypoints (their columns computed here, on the same ``samples``: the film of a time step
+    does not depend on the other strokes) to ``added_at`` (:func:`merged_columns`)."""
     if not added:
-        return samples, deposit_mm
-    _, new_mm = deposit_matrix(part, Paths(tuple(added), 0.0, 0.0, plan.name), process, config=coating, samples=samples)
-    # columns: the earlier plan's waypoints, then the appended ones; put each where it is in the new plan
-    old_columns, new_columns = np.flatnonzero(~is_new), np.flatnonzero(is_new)
-    return samples, merged_columns(deposit_mm, new_mm, old_columns, new_columns)
+        return deposit_mm
+    _, new_mm = deposit_matrix(part, Paths(tuple(added), 0.0, 0.0, part.name), process, config=coating, samples=samples)
+    return merged_columns(deposit_mm, new_mm, np.asarray(kept_at, np.int64), np.asarray(added_at, np.int64))
 
 
 def merged_columns(first, second, first_at, second_at) -> sparse.csr_matrix:
