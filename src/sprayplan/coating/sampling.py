@@ -18,6 +18,7 @@ from sprayplan.errors import ConfigError, InputError
 from sprayplan.paths.speed import segment_speeds
 from sprayplan.surface import normals as nm
 from sprayplan.surface.pairs import unique_rows
+from sprayplan.surface.subdivide import subdivide_to_size
 from sprayplan.types import Part, Paths, Targets, read_only
 
 
@@ -156,9 +157,7 @@ def _subdivided(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray, ma
     edges = vertices[faces] - vertices[np.roll(faces, 1, axis=1)]
     if len(faces) == 0 or np.linalg.norm(edges, axis=2).max() <= max_edge:
         return vertices, faces, normals
-    from trimesh import remesh
-
-    new_v, new_f, index = remesh.subdivide_to_size(vertices, faces, max_edge, max_iter=30, return_index=True)
+    new_v, new_f, index = subdivide_to_size(vertices, faces, max_edge, max_rounds=30)
     scale = max(float(np.abs(vertices).max()), 1.0) * 1e-9
     _, first, inverse = unique_rows(np.round(new_v / scale).astype(np.int64))
     new_f = inverse.reshape(-1)[new_f]

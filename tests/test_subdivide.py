@@ -1,0 +1,88 @@
+"""The mesh split to a largest edge (``surface.subdivide``): short edges, no cracks, the same surface, and the
+same mesh, vertex for vertex and face for face, as trimesh 5's split it stands in for."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from sprayplan.errors import InputError
+from sprayplan.io.load import load_part
+from sprayplan.surface import normals as nm
+from sprayplan.surface.subdivide import subdivide_to_size
+
+
+def _areas_normals(v, f):
+    cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    return 0.5 * np.linalg.norm(cross, axis=1), cross
+
+
+def _edges(f):
+    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    return np.sort(e, axis=1)
+
+
+@pytest.fixture(scope="module")
+def suv(testdata):
+    part = load_part(testdata / "meshes" / "gazebo_suv_body_m.ply", units="m")
+    faces, _ = nm.outward_face_normals(part.vertices, part.faces)
+    return part.vertices, faces
+
+
+@pytest.mark.parametrize("edge", [80.0, 35.0])
+def test_edges_short_surface_kept_no_cracks(suv, edge):
+    v, f = suv
+    new_v, new_f, index = subdivide_to_size(v, f, edge)
+    assert len(new_f) > len(f)
+    assert np.array_equal(new_v[: len(v)], v)  # the given vertices first, unchanged
+    lengths = np.linalg.norm(new_v[new_f] - new_v[np.roll(new_f, 1, axis=1)], axis=2)
+    assert lengths.max() <= edge
+    # every face lies in the face it came from, wound the same way, and the pieces add up to it
+    area, cross = _areas_normals(v, f)
+    new_area, new_cross = _areas_normals(new_v, new_f)
+    assert np.allclose(np.bincount(index, new_area, len(f)), area, rtol=1e-9, atol=1e-9)
+    big = new_area > 1e-6 * area[index]
+    assert (np.einsum("ij,ij->i", new_cross[big], cross[index[big]]) > 0).all()
+    unit = cross[index] / np.linalg.norm(cross[index], axis=1, keepdims=True)
+    for k in range(3):
+        off = np.einsum("ij,ij->i", new_v[new_f[:, k]] - v[f[index, 0]], unit)
+        assert np.abs(off[big]).max() < 1e-6
+    # no T-junctions: an edge used once before is used once after, split edges twice as often as halves
+    old_count = np.unique(_edges(f), axis=0, return_counts=True)[1]
+    new_count = np.unique(_edges(new_f), axis=0, return_counts=True)[1]
+    assert np.bincount(new_count).argmax() == np.bincount(old_count).argmax()
+    assert (new_count <= old_count.max()).all()
+
+
+def test_closed_mesh_stays_closed():
+    sphere = trimesh.creation.icosphere(subdivisions=1, radius=100.0)
+    new_v, new_f, _ = subdivide_to_size(sphere.vertices, sphere.faces, 12.0)
+    counts = np.unique(_edges(new_f), axis=0, return_counts=True)[1]
+    assert (counts == 2).all()  # every edge between exactly two faces: watertight
+    assert len(new_v) - len(_edges(new_f)) // 2 + len(new_f) == 2  # Euler characteristic of a sphere
+
+
+def test_short_enough_mesh_is_unchanged(suv):
+    v, f = suv
+    longest = np.linalg.norm(v[f] - v[np.roll(f, 1, axis=1)], axis=2).max()
+    new_v, new_f, index = subdivide_to_size(v, f, longest)
+    assert np.array_equal(new_v, v) and np.array_equal(new_f, f) and np.array_equal(index, np.arange(len(f)))
+
+
+@pytest.mark.skipif(int(trimesh.__version__.split(".")[0]) < 5, reason="trimesh 4 splits by another rule")
+@pytest.mark.parametrize("edge", [60.0, 25.0])
+def test_same_mesh_as_trimesh(suv, edge):
+    from trimesh import remesh
+
+    v, f = suv
+    want = remesh.subdivide_to_size(v, f, edge, max_iter=30, return_index=True)
+    got = subdivide_to_size(v, f, edge, max_rounds=30)
+    for a, b in zip(want, got):
+        assert a.shape == b.shape and np.array_equal(a, b)
+
+
+def test_too_many_rounds_is_an_input_error(suv):
+    v, f = suv
+    with pytest.raises(InputError, match="after 2 rounds"):
+        subdivide_to_size(v, f, 1.0, max_rounds=2)
