@@ -147,3 +147,33 @@ def test_a_cell_grid_sorts_every_point_into_its_cell():
         members = grid.order[grid.start[cell] : grid.start[cell + 1]]
         np.testing.assert_array_equal(np.sort(members), np.flatnonzero(key == cell))
     assert grid.start[-1] == len(points)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_csr_from_entries_is_scipys_coo_to_csr(seed):
+    """Batches of entries, unique within a batch, a (row, column) in at most two batches (as the deposit
+    matrix's): the same arrays as scipy's COO -> CSR of the concatenation, bit for bit, zeros kept."""
+    from scipy import sparse
+
+    from sprayplan.coating.kernels import csr_from_entries
+
+    rng = np.random.default_rng(seed)
+    n, m = 300, 500
+    keys = rng.choice(n * m, 6000, replace=False)
+    first, second = keys[:4000], np.concatenate([keys[2500:4000], keys[4000:]])  # 1,500 keys in both
+    batches = []
+    for part in (first, second):
+        part = rng.permutation(part)
+        for chunk in np.array_split(part, 3):
+            vals = rng.normal(size=len(chunk)) * 10.0 ** rng.integers(-8, 3, len(chunk))
+            vals[::97] = 0.0
+            batches.append((chunk // m, chunk % m, vals))
+    got = csr_from_entries(batches, (n, m))
+    rows, cols, vals = (np.concatenate([b[k] for b in batches]) for k in range(3))
+    want = sparse.coo_matrix((vals, (rows, cols)), shape=(n, m)).tocsr()
+    assert got.nnz == want.nnz == 6000 and got.has_canonical_format
+    assert got.indices.dtype == want.indices.dtype and got.indptr.dtype == want.indptr.dtype
+    for a, b in ((got.indptr, want.indptr), (got.indices, want.indices), (got.data, want.data)):
+        np.testing.assert_array_equal(a, b)
+    empty = csr_from_entries([], (n, m))
+    assert empty.shape == (n, m) and empty.nnz == 0

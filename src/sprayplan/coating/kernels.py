@@ -511,3 +511,83 @@ def _grown_float(values, n, size):
     for i in range(n):
         out[i] = values[i]
     return out
+
+
+@njit(cache=True, nogil=True)
+def _scatter_rows(rows, cols, vals, fill, indices, data):
+    """Each entry ``(rows[i], cols[i], vals[i])`` put at its row's next free place (``fill``, advanced)."""
+    for i in range(len(rows)):
+        at = fill[rows[i]]
+        indices[at] = cols[i]
+        data[at] = vals[i]
+        fill[rows[i]] = at + 1
+
+
+@njit(cache=True, nogil=True)
+def _sorted_summed_rows(indptr, indices, data):
+    """Each row's entries sorted by column (stable) and repeated columns summed in that order, the rows moved
+    down over the room freed (``indptr`` updated); returns the number of entries kept. Zeros are kept."""
+    nnz = 0
+    start = indptr[0]
+    for r in range(len(indptr) - 1):
+        end = indptr[r + 1]
+        for i in range(start + 1, end):  # insertion sort: a row holds a few dozen entries
+            c = indices[i]
+            v = data[i]
+            j = i - 1
+            while j >= start and indices[j] > c:
+                indices[j + 1] = indices[j]
+                data[j + 1] = data[j]
+                j -= 1
+            indices[j + 1] = c
+            data[j + 1] = v
+        i = start
+        while i < end:
+            c = indices[i]
+            x = data[i]
+            i += 1
+            while i < end and indices[i] == c:
+                x += data[i]
+                i += 1
+            indices[nnz] = c
+            data[nnz] = x
+            nnz += 1
+        start = end
+        indptr[r + 1] = nnz
+    return nnz
+
+
+def csr_from_entries(batches, shape: tuple[int, int]):
+    """The CSR matrix of ``(rows, cols, vals)`` entry batches, repeated (row, column) entries summed: scipy's
+    ``coo_matrix((vals, (rows, cols)), shape).tocsr()`` of the concatenated batches, without the concatenated
+    copies and the COO matrix.
+
+    The same matrix bit for bit where no (row, column) repeats more than twice (a sum of two is the same in
+    either order; scipy's sort of a row is not stable): the deposit matrix's entries are unique within a batch
+    of gun samples and a waypoint's gun samples span at most two batches. Indices are int32 where they fit, as
+    scipy's; the result is in canonical form (sorted, no repeats)."""
+    from scipy import sparse
+
+    n, m = shape
+    counts = np.zeros(n, np.int64)
+    for rows, _cols, _vals in batches:
+        counts += np.bincount(rows, minlength=n)
+    total = int(counts.sum())
+    wide = max(total, n, m) > np.iinfo(np.int32).max
+    index = np.int64 if wide else np.int32
+    indptr = np.zeros(n + 1, np.int64)
+    np.cumsum(counts, out=indptr[1:])
+    del counts
+    fill = indptr[:-1].copy()
+    indices = np.empty(total, index)
+    data = np.empty(total, np.float64)
+    for rows, cols, vals in batches:
+        _scatter_rows(rows, cols, vals, fill, indices, data)
+    del fill
+    nnz = _sorted_summed_rows(indptr, indices, data)
+    if nnz < total:
+        indices, data = indices[:nnz].copy(), data[:nnz].copy()
+    matrix = sparse.csr_matrix((data, indices, indptr.astype(index)), shape=(n, m), copy=False)
+    matrix.has_sorted_indices = True
+    matrix.has_canonical_format = True
+    return matrix

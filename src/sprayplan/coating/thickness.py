@@ -326,12 +326,8 @@ def deposit_matrix(
     entries = []
     if setup.occlusion is not None:
         entries = _in_batches(setup, _deposit_entries, progress)
-    if entries:
-        rows, cols, vals = (np.concatenate([e[k] for e in entries]) for k in range(3))
-    else:
-        rows, cols, vals = np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
-    # repeated (sample, waypoint) entries are summed
-    return setup.samples, sparse.coo_matrix((vals, (rows, cols)), shape=(n, waypoints)).tocsr()
+    # repeated (sample, waypoint) entries (a waypoint's gun samples in two batches) are summed
+    return setup.samples, kernels.csr_from_entries(entries, (n, waypoints))
 
 
 def _deposit_entries(setup: _Setup, sl: slice, vt: np.ndarray, gt: np.ndarray):
