@@ -86,3 +86,42 @@ def test_too_many_rounds_is_an_input_error(suv):
     v, f = suv
     with pytest.raises(InputError, match="after 2 rounds"):
         subdivide_to_size(v, f, 1.0, max_rounds=2)
+
+
+def _normals_every_corner(vertices, faces, normals, new_v, new_f, index):
+    """The film samples' normals the straightforward way: every corner of every face interpolated in its
+    original triangle and written in turn (corner 0 of every face, then 1, then 2)."""
+    a, b, c = (vertices[faces[index, k]] for k in range(3))
+    out = np.zeros((len(new_v), 3))
+    for corner in range(3):
+        p = new_v[new_f[:, corner]]
+        v0, v1, v2 = b - a, c - a, p - a
+        d00, d01, d11 = (v0 * v0).sum(1), (v0 * v1).sum(1), (v1 * v1).sum(1)
+        d20, d21 = (v2 * v0).sum(1), (v2 * v1).sum(1)
+        den = np.where(np.abs(d00 * d11 - d01 * d01) > 0, d00 * d11 - d01 * d01, 1.0)
+        w1 = (d11 * d20 - d01 * d21) / den
+        w2 = (d00 * d21 - d01 * d20) / den
+        w0 = 1.0 - w1 - w2
+        out[new_f[:, corner]] = (
+            w0[:, None] * normals[faces[index, 0]]
+            + w1[:, None] * normals[faces[index, 1]]
+            + w2[:, None] * normals[faces[index, 2]]
+        )
+    return nm.unit(out)
+
+
+def test_film_samples_normals_are_the_every_corner_ones_bit_for_bit(suv):
+    from sprayplan.coating.sampling import _subdivided
+    from sprayplan.surface.pairs import unique_rows
+
+    v, f = suv
+    normals = nm.vertex_normals(v, f, nm.outward_face_normals(v, f)[1])
+    got_v, got_f, got_n = _subdivided(v, f, normals, 40.0)
+    new_v, new_f, index = subdivide_to_size(v, f, 40.0)
+    scale = max(float(np.abs(v).max()), 1.0) * 1e-9
+    _, first, inverse = unique_rows(np.round(new_v / scale).astype(np.int64))
+    new_f, new_v = inverse.reshape(-1)[new_f], new_v[first]
+    assert np.array_equal(got_v, new_v) and np.array_equal(got_f, new_f)
+    want = _normals_every_corner(v, f, normals, new_v, new_f, index)
+    assert np.array_equal(got_n, want)
+    assert np.allclose(np.linalg.norm(got_n, axis=1), 1.0)
