@@ -191,3 +191,53 @@ def test_the_deposit_after_touch_ups_takes_over_the_earlier_columns(box_plan):
     assert abs(new_sum.sum() - full_sum.sum()) <= 0.01 * full_sum.sum()
     # a run of the earlier tuning that is gone: made anew
     assert extended_deposit(plan.part, new_strokes[1:], new_owners[1:], owners, samples, old, process, coating) is None
+
+
+def test_the_film_at_the_timed_speeds_is_the_film_of_the_timed_time_factors(box_plan):
+    """The report's film at the timed speeds against a simulation of the reached runs with time factors
+    worked out here from the time stamps: on each timed stretch a waypoint's time (half of each step beside it)
+    over its time at the process speed with factors 1."""
+    from sprayplan.cells.plan import reached_strokes
+    from sprayplan.coating.report import weighted_stats
+    from sprayplan.coating.stage import process_for
+    from sprayplan.coating.thickness import simulate
+    from sprayplan.types import Paths
+
+    _, _, plan = box_plan
+    job = plan.job
+    motion = job.motion
+    jump = np.radians(job.timing.joint_jump_deg)
+    factors = []
+    for work in plan.robots:
+        w = np.concatenate([s.dwell for s in work.strokes])
+        for s, idx, run in _stretches(work, jump):
+            at_one = np.linalg.norm(np.diff(s.tcp, axis=0), axis=1) / segment_speeds(
+                s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio
+            )
+            steps = np.diff(work.t_s[idx[run]])
+            for k, i in enumerate(run):
+                before = [k - 1] if k > 0 else []
+                after = [k] if k < len(run) - 1 else []
+                base = sum(at_one[run[j]] for j in before + after) / 2
+                if base > 1e-12:
+                    w[idx[i]] = sum(steps[j] for j in before + after) / 2 / base
+        factors.append(w)
+    strokes, owners = reached_strokes(plan.robots)
+    starts = [np.r_[0, np.cumsum([len(s) for s in r.strokes])] for r in plan.robots]
+    timed = [s.with_dwell(factors[r][starts[r][k] + a : starts[r][k] + b]) for s, (r, k, a, b) in zip(strokes, owners)]
+    film = simulate(
+        plan.part,
+        Paths(tuple(timed), job.paths.standoff_mm, 0.0),
+        process_for(job),
+        config=job.coating.simulation(motion),
+    )
+    target, tol = job.coating.thickness_um, job.coating.tolerance
+    want = weighted_stats(film.thickness_um, film.area_mm2, target - tol, target + tol)
+    got = plan.report["film"]["at_timed_speeds"]
+    assert got["whole"]["mean_um"] == pytest.approx(want["mean_um"], rel=1e-9)
+    assert got["whole"]["std_um"] == pytest.approx(want["std_um"], rel=1e-9)
+    # the robots never run faster than planned, so the film is thicker at the timed speeds, not thinner
+    planned = plan.report["film"]["whole"]
+    assert got["whole"]["mean_um"] > planned["mean_um"]
+    assert got["measuring_points"]["count"] == plan.report["film"]["report"]["measuring_points"]["count"]
+    assert set(got["per_robot"]) == {r.name for r in plan.robots}

@@ -568,10 +568,12 @@ def _stats(um: np.ndarray, area: np.ndarray, target: float, tol: float) -> dict:
     return weighted_stats(um, area, target - tol, target + tol)
 
 
-def film_report(plan: CellPlan, target_um: float, tolerance_um: float, samples: int = 420, seed: int = 0) -> dict:
-    """The film over the whole body, per area, per robot and along every seam (the samples within one spray
-    radius of an edge between two robots' faces), and ``samples`` measuring points over the whole body
-    (``coating.report.coating_report``; seed 003 measured 420)."""
+def film_report(
+    plan: CellPlan, target_um: float, tolerance_um: float, samples: int = 420, seed: int = 0, seams: bool = True
+) -> dict:
+    """The film over the whole body, per area, per robot and (with ``seams``) along every seam (the samples
+    within one spray radius of an edge between two robots' faces), and ``samples`` measuring points over the
+    whole body (``coating.report.coating_report``; seed 003 measured 420)."""
     from sprayplan.coating.report import coating_report
 
     film = plan.film
@@ -596,6 +598,8 @@ def film_report(plan: CellPlan, target_um: float, tolerance_um: float, samples: 
         for i, r in enumerate(plan.cell.robots)
     }
     out["unreached"] = _stats(um[robot_of < 0], area[robot_of < 0], target_um, tolerance_um)
+    if not seams:
+        return out
     pairs, _ = face_adjacency(plan.part.faces, plan.part.vertices)
     fr = plan.assignment.face_robot
     a, b = fr[pairs[:, 0]], fr[pairs[:, 1]]
@@ -613,6 +617,43 @@ def film_report(plan: CellPlan, target_um: float, tolerance_um: float, samples: 
             seams[name] = {**_stats(um[near], area[near], target_um, tolerance_um), "band_mm": radius}
     out["per_seam"] = seams
     return out
+
+
+def film_at_timed_speeds(plan: CellPlan, owners, tuning, strokes, process, coating):
+    """The film the robots leave at their timed speeds (``plan.robots``' ``t_s``, :func:`~sprayplan.cells.
+    timing.timed_factors`): the reached runs the film was predicted from (``owners``, as :func:`reached_strokes`
+    gave them; ``strokes`` their strokes when there was no tuning) with the time factors of the timed speeds,
+    from the last tuning's deposit matrix (``tuning``), or simulated anew without one."""
+    from sprayplan.cells.timing import timed_factors
+
+    factors = timed_factors(plan.robots, plan.job)
+    starts = [np.r_[0, np.cumsum([len(s) for s in r.strokes])] for r in plan.robots]
+    runs = tuning.paths.strokes if tuning is not None else strokes
+    timed = tuple(
+        s.with_dwell(factors[r_i][starts[r_i][s_i] + a : starts[r_i][s_i] + b])
+        for s, (r_i, s_i, a, b) in zip(runs, owners)
+    )
+    paths = Paths(timed, plan.job.paths.standoff_mm, plan.job.paths.spacing or 0.0, plan.part.name)
+    if tuning is not None:
+        from sprayplan.refine.tuning import tuned_film
+
+        return tuned_film(dataclasses.replace(tuning, paths=paths), process, coating)
+    from sprayplan.coating.thickness import simulate
+
+    return simulate(plan.part, paths, process, config=coating)
+
+
+def timed_film_summary(plan: CellPlan, target_um: float, tolerance_um: float, samples: int = 420) -> dict:
+    """The film at the timed speeds in brief (``plan.film``): over the whole body, per robot, and at the
+    measuring points of :func:`film_report`."""
+    full = film_report(plan, target_um, tolerance_um, samples=samples, seed=0, seams=False)
+    points = {k: v for k, v in full["report"]["measuring_points"].items() if k != "indices"}
+    return {
+        "rule": "each waypoint's time factor from the timed arrival times (the planned one off the timed stretches)",
+        "whole": full["whole"],
+        "per_robot": full["per_robot"],
+        "measuring_points": points,
+    }
 
 
 def plan_radius(plan: CellPlan) -> float:
@@ -697,13 +738,13 @@ def plan_cell(
     report = {"spray_radius_mm": job.paths.spray_radius_mm, "floor_facing_left_out_mm2": round(left_out, 1)}
     plan = CellPlan(cell, painted, placed.part2cell, areas, assignment, robots, None, report, timings, job=job)
     target = job.coating.thickness_um
-    everything, _ = reached_strokes(robots)
+    everything, film_owners = reached_strokes(robots)
     if not everything:
         raise InputError(f"{part.name}: no robot of cell {cell.name!r} has anything to paint")
     paths = Paths(tuple(everything), job.paths.standoff_mm, job.paths.spacing or 0.0, part.name)
     process = process_for(job)
     coating = job.coating.simulation(job.motion)
-    film = None
+    film = tuning = None
     if target is not None and job.tuning.tune_speed:
         from sprayplan.refine.stage import tuning_settings
         from sprayplan.refine.touchup import TOUCH_UP_MIN_DWELL, touch_up_strokes
@@ -758,6 +799,7 @@ def plan_cell(
             tuning, robots = tuned(robots)
         report["touch_up_strokes"] = added
         film = tuned_film(tuning, process, coating)
+        film_owners = earlier[0]
     elif target is not None or job.output.simulate:
         from sprayplan.coating.thickness import simulate
 
@@ -800,6 +842,11 @@ def plan_cell(
         begin("timing")
         robots = timed_cell(cell, robots, job, report)
         plan = dataclasses.replace(plan, robots=robots)
+        if film is not None and target is not None:
+            timed = film_at_timed_speeds(plan, film_owners, tuning, everything, process, coating)
+            report["film"]["at_timed_speeds"] = timed_film_summary(
+                dataclasses.replace(plan, film=timed), target, job.coating.tolerance, job.output.samples or 420
+            )
     if job.collision.check:
         begin("schedule")
         from sprayplan.cells.schedule import scheduled

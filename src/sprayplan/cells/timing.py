@@ -247,3 +247,12 @@ def timed_cell(cell, robots, job, report: dict) -> tuple:
     return tuple(
         dataclasses.replace(r, t_s=tm.t_s.copy(), wait_s=np.zeros(len(r.strokes))) for r, tm in zip(robots, timed)
     )
+
+
+def timed_factors(robots, job) -> list[np.ndarray]:
+    """Per robot, each waypoint's time factor at the timed speeds (``timing.stage.waypoint_dwell`` over its
+    ``t_s``, as the gantry's film at the timed speeds takes them): the planned factor off the timed stretches."""
+    from sprayplan.timing.stage import waypoint_dwell
+
+    jump = math.radians(job.timing.joint_jump_deg)
+    return [waypoint_dwell(r.strokes, r.reachable, r.q, r.t_s, job.motion, jump) for r in robots]

@@ -286,39 +286,45 @@ def joint_runs(ok: np.ndarray, q: np.ndarray, jump_rad: float) -> list[np.ndarra
 
 def timed_dwell(plan: Plan, t_s, job) -> tuple:
     """Per station, each waypoint's time factor (``Stroke.dwell``) from the time stamps ``t_s`` (per station,
-    NaN where unreachable): on a spray stroke's timed stretches (the runs :func:`joint_runs` cuts, as
-    :func:`time_plan` times them), a waypoint's time (half of each adjacent segment's) over its time at the
-    process speed with factors 1; the planned factor elsewhere and where a waypoint's time at the process
-    speed is 0 (the tip does not move)."""
-    motion = job.motion
+    NaN where unreachable): :func:`waypoint_dwell` of each station's strokes."""
     jump = np.radians(job.timing.joint_jump_deg)
     out = []
     for st, t in zip(plan.stations, t_s):
-        dwell = np.concatenate([s.dwell for s in st.strokes]) if st.strokes else np.zeros(0)
-        start = 0
-        for s in st.strokes:
-            idx = np.arange(start, start + len(s))
-            start += len(s)
-            if not s.spray_on or len(s) < 2:
-                continue
-            base = np.linalg.norm(np.diff(s.tcp, axis=0), axis=1) / segment_speeds(
-                s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio
-            )
-            for run in joint_runs(st.reachable[idx], st.q9[idx, :6], jump):
-                if len(run) < 2:
-                    continue
-                real = np.diff(t[idx[run]])
-                share = np.zeros(len(run))
-                share[:-1] += real / 2
-                share[1:] += real / 2
-                planned = np.zeros(len(run))
-                planned[:-1] += base[run[:-1]] / 2
-                planned[1:] += base[run[:-1]] / 2
-                moving = planned > 1e-12
-                dwell[idx[run[moving]]] = share[moving] / planned[moving]
+        dwell = waypoint_dwell(st.strokes, st.reachable, st.q9[:, :6], t, job.motion, jump)
         dwell.flags.writeable = False
         out.append(dwell)
     return tuple(out)
+
+
+def waypoint_dwell(strokes, reachable: np.ndarray, q: np.ndarray, t: np.ndarray, motion, jump_rad: float) -> np.ndarray:
+    """Each waypoint's time factor (``Stroke.dwell``) of one robot's ``strokes`` (a station's, or a cell
+    robot's) from its time stamps ``t``: on a spray stroke's timed stretches (the runs :func:`joint_runs` cuts
+    over ``reachable`` and the arm joints ``q``, as the timing times them), a waypoint's time (half of each
+    adjacent segment's) over its time at the process speed with factors 1; the planned factor elsewhere and
+    where a waypoint's time at the process speed is 0 (the tip does not move)."""
+    dwell = np.concatenate([s.dwell for s in strokes]) if strokes else np.zeros(0)
+    start = 0
+    for s in strokes:
+        idx = np.arange(start, start + len(s))
+        start += len(s)
+        if not s.spray_on or len(s) < 2:
+            continue
+        base = np.linalg.norm(np.diff(s.tcp, axis=0), axis=1) / segment_speeds(
+            s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio
+        )
+        for run in joint_runs(reachable[idx], q[idx], jump_rad):
+            if len(run) < 2:
+                continue
+            real = np.diff(t[idx[run]])
+            share = np.zeros(len(run))
+            share[:-1] += real / 2
+            share[1:] += real / 2
+            planned = np.zeros(len(run))
+            planned[:-1] += base[run[:-1]] / 2
+            planned[1:] += base[run[:-1]] / 2
+            moving = planned > 1e-12
+            dwell[idx[run[moving]]] = share[moving] / planned[moving]
+    return dwell
 
 
 def real_plan(plan: Plan, timing, job=None) -> Plan:
