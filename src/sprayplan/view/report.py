@@ -25,6 +25,7 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
+from matplotlib.artist import Artist, allow_rasterization
 
 from sprayplan.view.colours import GREY, STATION_COLOURS, film_scale
 from sprayplan.view.decimate import thin_surface
@@ -72,10 +73,11 @@ def view_frame(name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def facing_area(surface: Surface, painted: np.ndarray) -> dict[str, float]:
     """Painted area each view sees, mm^2: the sum over painted vertices of area x max(0, n . toward viewer)."""
+    area, normals = surface.area_mm2[painted], surface.normals[painted]
     out = {}
     for name in VIEWS:
         _, _, toward = view_frame(name)
-        out[name] = float((surface.area_mm2[painted] * np.maximum(surface.normals[painted] @ toward, 0.0)).sum())
+        out[name] = float((area * np.maximum(normals @ toward, 0.0)).sum())
     return out
 
 
@@ -98,13 +100,25 @@ def _figure(settings: ReportSettings):
 
 
 def _save(fig, path: str) -> None:
+    """Draw ``fig`` on its Agg canvas (the one ``_wrapped_title`` measured on, when it did) and write it as a PNG
+    (zlib level 3), without its alpha channel when it is opaque throughout, as the report's images are: a
+    quarter less to compress, the same picture."""
+    from matplotlib import __version__
     from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from PIL import Image, PngImagePlugin
 
     from sprayplan.export.files import atomic_output
 
-    FigureCanvasAgg(fig)
+    canvas = fig.canvas if isinstance(fig.canvas, FigureCanvasAgg) else FigureCanvasAgg(fig)
+    canvas.draw()
+    rgba = np.asarray(canvas.buffer_rgba())
+    image = Image.frombuffer("RGBA", (rgba.shape[1], rgba.shape[0]), rgba, "raw", "RGBA", 0, 1)
+    if (rgba[..., 3] == 255).all():
+        image = image.convert("RGB")
+    info = PngImagePlugin.PngInfo()
+    info.add_text("Software", f"Matplotlib version{__version__}, https://matplotlib.org/")
     with atomic_output(path, "wb") as handle:
-        fig.savefig(handle, format="png", dpi=fig.dpi, pil_kwargs={"compress_level": 3})
+        image.save(handle, format="png", compress_level=3, dpi=(fig.dpi, fig.dpi), pnginfo=info)
 
 
 def _polygons(surface: Surface, name: str):
@@ -227,15 +241,23 @@ def histogram_picture(path: str, scene: Scene, settings: ReportSettings) -> None
 
 
 class _Backdrop:
-    """The part seen from above, light grey, drawn once as an image and shown behind every layout."""
+    """The part seen from above, light grey, drawn once as an image and shown behind every layout.
+
+    Kept as it was drawn (transparent RGBA bytes) and, for drawing, as its colour channels on the axes' white
+    (float images, one for all three when they are equal, as the grey's are): each picture resamples these
+    once, to its own pixels, when it is drawn (``_BackdropImage``), instead of passing the whole image through
+    ``imshow``'s checks and conversions at every layout. ``image`` is the same picture as float RGBA of alpha 1.
+    """
 
     def __init__(self, surface: Surface | None, faces: int = 20_000, width_px: int = 1600):
-        self.image = None
+        self.channels = None
+        self._rgba = None
         if surface is None or not len(surface.vertices):
             return
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.collections import PolyCollection
         from matplotlib.figure import Figure
+        from PIL import Image
 
         thin = thin_surface(surface, faces).surface
         lo, hi = thin.vertices[:, :2].min(axis=0), thin.vertices[:, :2].max(axis=0)
@@ -257,18 +279,77 @@ class _Backdrop:
             ax.scatter(thin.vertices[:, 0], thin.vertices[:, 1], s=0.5, c="#cccccc", linewidths=0)
         fig.patch.set_alpha(0.0)
         canvas.draw()
-        # on the axes' white, as float RGBA of alpha 1: imshow then neither rescales bytes nor premultiplies alpha
-        # (whole-image masked-array passes at every layout), and what it shows is what the transparent image gave
-        rgba = np.asarray(canvas.buffer_rgba(), dtype=np.float32) / 255.0
-        alpha = rgba[..., 3:]
-        self.image = np.concatenate([rgba[..., :3] * alpha + (1.0 - alpha), np.ones_like(alpha)], axis=2)
+        self._rgba = np.array(canvas.buffer_rgba())
+        alpha = self._rgba[..., 3] / np.float32(255.0)
+        rgb = [self._rgba[..., k] for k in range(3)]
+        same = [k for k in range(3) if np.array_equal(rgb[k], rgb[0])]
+        #: (channels it stands for, float image "F" on white): the premultiplied colour plus the white left over
+        self.channels = [
+            (ks, Image.fromarray(rgb[ks[0]] / np.float32(255.0) * alpha + (1.0 - alpha), "F"))
+            for ks in ([same] + [[k] for k in range(3) if k not in same])
+        ]
         self.extent = (lo[0], hi[0], lo[1], hi[1])
 
+    @property
+    def image(self) -> np.ndarray | None:
+        """The backdrop on the axes' white as float RGBA of alpha 1 (None without a part)."""
+        if self._rgba is None:
+            return None
+        rgba = self._rgba.astype(np.float32) / 255.0
+        alpha = rgba[..., 3:]
+        return np.concatenate([rgba[..., :3] * alpha + (1.0 - alpha), np.ones_like(alpha)], axis=2)
+
     def draw(self, ax) -> None:
-        if self.image is not None:
-            ax.imshow(self.image, extent=self.extent, origin="upper", interpolation="bilinear", zorder=0)
+        if self.channels is not None:
+            ax.add_artist(_BackdropImage(self))
             x0, x1, y0, y1 = self.extent
             ax.update_datalim(np.array([[x0, y0], [x1, y1]]))
+
+
+class _BackdropImage(Artist):
+    """A ``_Backdrop`` behind an axes' other artists (zorder 0; the axes' margins stop at its edges, as at an
+    image's), resampled when drawn to the canvas pixels inside its extent as ``imshow(...,
+    interpolation="bilinear")`` resamples an opaque float image (bilinear, the filter widened where the image
+    shrinks, bytes by truncation); the pixels on its border stay the axes' white, as the image's margin is."""
+
+    zorder = 0
+
+    def __init__(self, backdrop: _Backdrop):
+        super().__init__()
+        self.backdrop = backdrop
+        x0, x1, y0, y1 = backdrop.extent
+        self.sticky_edges.x[:] = [x0, x1]
+        self.sticky_edges.y[:] = [y0, y1]
+
+    @allow_rasterization
+    def draw(self, renderer) -> None:
+        from PIL import Image
+
+        if not self.get_visible():
+            return
+        x0, x1, y0, y1 = self.backdrop.extent
+        (px0, py0), (px1, py1) = self.axes.transData.transform([(x0, y0), (x1, y1)])
+        box = self.axes.bbox
+        left, right = int(np.ceil(max(px0, box.x0))), int(np.floor(min(px1, box.x1)))
+        bottom, top = int(np.ceil(max(py0, box.y0))), int(np.floor(min(py1, box.y1)))
+        if right <= left or top <= bottom:
+            return
+        w, h = self.backdrop.channels[0][1].size
+        source = (  # those pixels' edges in the image's pixels (its row 0 at the top)
+            (left - px0) / (px1 - px0) * w,
+            (py1 - top) / (py1 - py0) * h,
+            (right - px0) / (px1 - px0) * w,
+            (py1 - bottom) / (py1 - py0) * h,
+        )
+        shown = np.full((top - bottom, right - left, 4), 255, np.uint8)
+        for ks, channel in self.backdrop.channels:
+            resampled = channel.resize((right - left, top - bottom), Image.Resampling.BILINEAR, box=source)
+            shown[..., ks] = (np.asarray(resampled)[::-1, :, None] * np.float32(255.0)).astype(np.uint8)
+        gc = renderer.new_gc()
+        gc.set_clip_rectangle(box)
+        renderer.draw_image(gc, left, bottom, shown)  # its rows bottom up
+        gc.restore()
+        self.stale = False
 
 
 def _finish(fig, ax=None, right: float = 0.97) -> None:
@@ -336,7 +417,8 @@ def _wrapped_title(fig, text: str, fontsize: float) -> str:
 
     if is_math_text(text):
         return text
-    renderer = FigureCanvasAgg(fig).get_renderer()
+    canvas = fig.canvas if isinstance(fig.canvas, FigureCanvasAgg) else FigureCanvasAgg(fig)
+    renderer = canvas.get_renderer()  # the canvas ``_save`` then draws on: one renderer's buffer a picture
     prop = FontProperties(size=fontsize)
     box = fig.subplotpars
     centre = 0.5 * (box.left + box.right) * fig.bbox.width
