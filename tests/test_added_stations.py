@@ -329,3 +329,34 @@ def test_tune_plan_keeps_to_its_budget_of_new_stations(testdata):
             spray = np.concatenate([np.full(len(s), s.kind == "touch-up" and s.spray_on) for s in st.strokes])
             assert st.reachable[spray].all()
         assert touch
+
+
+def test_the_best_tilt_needs_few_reaches_and_is_the_one_of_all_shares():
+    """``_best_tilt`` computes shares lazily; its choice is the full rule's (every share computed, allowed at
+    min(0.5, best share), the first of the largest allowed gains, none unless it gains), ties and zeros
+    included."""
+    from sprayplan.refine.touchup import _best_tilt
+
+    rng = np.random.default_rng(7)
+    lazy_calls = all_calls = 0
+    for _ in range(3000):
+        n = int(rng.integers(1, 6))
+        all_calls += n
+        gain = rng.choice([-1.0, 0.0, 0.5, 1.0, 2.0], n) * rng.choice([1.0, rng.uniform(0.5, 2)], n)
+        shares = rng.choice([0.0, 0.2, 0.49, 0.5, 0.8, 1.0], n)
+        candidates = list(range(n))
+        full = shares >= min(0.5, shares.max())
+        score = np.where(full, gain, -np.inf)
+        best = int(np.argmax(score))
+        want = best if score[best] > 0 else None
+        calls = []
+
+        def reach(c, calls=calls):
+            calls.append(c)
+            return shares[c]
+
+        assert _best_tilt(gain, candidates, reach) == want
+        assert _best_tilt(gain, candidates, None) == (int(np.argmax(gain)) if gain.max() > 0 else None)
+        assert len(calls) <= n
+        lazy_calls += len(calls)
+    assert lazy_calls < 0.75 * all_calls  # many choices need one share or none, not all of them

@@ -252,11 +252,29 @@ def aim_touch_ups(
     out = []
     for k, stroke in enumerate(strokes):
         mine = candidates[k * len(tilts_deg) : (k + 1) * len(tilts_deg)]
-        allowed = np.ones(len(tilts_deg), dtype=bool)
-        if reach is not None:
-            share = np.array([reach(c) for c in mine])
-            allowed = share >= min(0.5, share.max())
-        score = np.where(allowed, gain[k], -np.inf)
-        best = int(np.argmax(score))
-        out.append(mine[best] if score[best] > 0 else stroke)
+        best = _best_tilt(gain[k], mine, reach)
+        out.append(stroke if best is None else mine[best])
     return out
+
+
+def _best_tilt(gain: np.ndarray, candidates: list, reach) -> int | None:
+    """The index of the candidate with the largest gain among those allowed (with ``reach``: reached at
+    ``min(0.5, the best reached share)`` or more; the first of equal gains), or None when it gains nothing.
+
+    The shares are computed lazily, with the same answer as computing them all: no reach when nothing gains;
+    then the candidates in the order of their gains (the first of equal gains first), the first one reached
+    at half its waypoints or more being allowed whatever the others reach; only when one is reached less than
+    that are all the shares needed."""
+    if gain.max(initial=-np.inf) <= 0:
+        return None
+    if reach is None:
+        return int(np.argmax(gain))
+    order = sorted(range(len(gain)), key=lambda j: (-gain[j], j))
+    j = order[0]
+    first = reach(candidates[j])
+    if first >= 0.5:
+        return j
+    share = np.array([first if i == j else reach(c) for i, c in enumerate(candidates)])
+    score = np.where(share >= min(0.5, share.max()), gain, -np.inf)
+    best = int(np.argmax(score))
+    return best if score[best] > 0 else None
