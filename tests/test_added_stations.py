@@ -351,7 +351,7 @@ def test_the_best_tilt_needs_few_reaches_and_is_the_one_of_all_shares():
         want = best if score[best] > 0 else None
         calls = []
 
-        def reach(c, calls=calls):
+        def reach(c, calls=calls, shares=shares):
             calls.append(c)
             return shares[c]
 
