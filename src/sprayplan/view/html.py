@@ -67,19 +67,22 @@ def _joined(chunks: list[np.ndarray], width: int) -> np.ndarray:
     return _f4(np.vstack(parts[:-1]))
 
 
+def _stroke_slices(plan):
+    """Per stroke of the plan, in order: (station_plan, stroke_index, stroke, slice into the station's arrays)."""
+    for st in plan.stations:
+        start = 0
+        for i, s in enumerate(st.strokes):
+            yield st, i, s, slice(start, start + len(s))
+            start += len(s)
+
+
 def waypoint_table(scene: Scene):
     """Per waypoint of the plan, in order: station position (visit order), station number, stroke index,
     waypoint index within the stroke, tip speed (mm/s), dwell, and the stroke object; as a list of
     (station_plan, stroke_index, stroke, slice into the station's arrays, speeds)."""
     from sprayplan.export.plan_json import tip_speeds
 
-    rows = []
-    for st in scene.plan.stations:
-        start = 0
-        for i, s in enumerate(st.strokes):
-            rows.append((st, i, s, slice(start, start + len(s)), tip_speeds(s, scene.job)))
-            start += len(s)
-    return rows
+    return [(st, i, s, sl, tip_speeds(s, scene.job)) for st, i, s, sl in _stroke_slices(scene.plan)]
 
 
 def flagged_waypoints(scene: Scene) -> dict[str, tuple[np.ndarray, list[str]]]:
@@ -88,37 +91,52 @@ def flagged_waypoints(scene: Scene) -> dict[str, tuple[np.ndarray, list[str]]]:
     (points no station reaches): (positions (k, 3), hover texts)."""
     kin = scene.job.kinematics
     kinds = ("unreachable", "approximate", "branch change", "collision")
-    out: dict[str, tuple[list, list]] = {k: ([], []) for k in kinds}
-    for st, i, s, sl, _ in waypoint_table(scene):
+    out: dict[str, tuple[list, list]] = {k: ([], []) for k in kinds}  # (blocks of positions, texts)
+    for st, i, s, sl in _stroke_slices(scene.plan):
         reach = st.reachable[sl]
         method = st.method[sl]
         err = st.position_error_mm[sl]
         axis = st.axis_error_deg[sl]
         flip = st.branch_change[sl]
         where = f"station {st.index}, stroke {i} ({s.kind}), waypoint "
-        for j in np.flatnonzero(~reach):
-            out["unreachable"][0].append(s.tcp[j])
-            out["unreachable"][1].append(where + f"{j}: unreachable (no IK solution within the limits)")
-        approx = reach & (method == "sqp") & ((np.nan_to_num(err) > 0.01) | (np.nan_to_num(axis) > 0.01))
-        for j in np.flatnonzero(approx):
-            out["approximate"][0].append(s.tcp[j])
-            out["approximate"][1].append(
-                where + f"{j}: reached by SQP only within the tolerance: position error {err[j]:.2f} mm "
-                f"(<= {kin.position_tol_mm:g}), axis error {axis[j]:.2f} deg (<= {kin.axis_tol_deg:g})"
+        index = np.flatnonzero(~reach)
+        if len(index):
+            out["unreachable"][0].append(s.tcp[index])
+            out["unreachable"][1].extend(
+                [where + f"{j}: unreachable (no IK solution within the limits)" for j in index.tolist()]
             )
-        for j in np.flatnonzero(reach & flip):
-            out["branch change"][0].append(s.tcp[j])
-            out["branch change"][1].append(where + f"{j}: the arm changes its IK branch here (a flip)")
+        approx = reach & (method == "sqp") & ((np.nan_to_num(err) > 0.01) | (np.nan_to_num(axis) > 0.01))
+        index = np.flatnonzero(approx)
+        if len(index):
+            out["approximate"][0].append(s.tcp[index])
+            out["approximate"][1].extend(
+                [
+                    where + f"{j}: reached by SQP only within the tolerance: position error {e:.2f} mm "
+                    f"(<= {kin.position_tol_mm:g}), axis error {a:.2f} deg (<= {kin.axis_tol_deg:g})"
+                    for j, e, a in zip(index.tolist(), err[index].tolist(), axis[index].tolist())
+                ]
+            )
+        index = np.flatnonzero(reach & flip)
+        if len(index):
+            out["branch change"][0].append(s.tcp[index])
+            out["branch change"][1].extend(
+                [where + f"{j}: the arm changes its IK branch here (a flip)" for j in index.tolist()]
+            )
         hit, moving = st.collision[sl], st.motion_collision[sl]
-        for j in np.flatnonzero(reach & (hit | moving)):
-            what = []
-            if hit[j]:
-                what.append(f"{st.collision_with[sl][j]} at {st.collision_distance_mm[sl][j]:.1f} mm")
-            if moving[j]:
-                what.append("the motion into it")
-            out["collision"][0].append(s.tcp[j])
-            out["collision"][1].append(where + f"{j}: in collision, no repair freed it: " + "; ".join(what))
-    result = {k: (np.array(v[0]).reshape(-1, 3), v[1]) for k, v in out.items()}
+        index = np.flatnonzero(reach & (hit | moving))
+        if len(index):
+            out["collision"][0].append(s.tcp[index])
+            texts = out["collision"][1]
+            for j in index:
+                what = []
+                if hit[j]:
+                    what.append(f"{st.collision_with[sl][j]} at {st.collision_distance_mm[sl][j]:.1f} mm")
+                if moving[j]:
+                    what.append("the motion into it")
+                texts.append(where + f"{j}: in collision, no repair freed it: " + "; ".join(what))
+    result = {
+        k: (np.concatenate(v[0]).reshape(-1, 3) if v[0] else np.array([]).reshape(-1, 3), v[1]) for k, v in out.items()
+    }
     un = scene.plan.unassigned
     result["unassigned"] = (
         np.asarray(un).reshape(-1, 3),
