@@ -112,3 +112,18 @@ def spray_stretches(plan, job, min_waypoints=2, count=None):
         if len(run) >= min_waypoints
     ]
     return out if count is None else out[:count]
+
+
+def reach_part_timing(testdata):
+    """The reach part (x > -250) planned to the kinematics stage: its gantry, timing limits and every stretch
+    the timing times (:func:`spray_stretches`)."""
+    from sprayplan.config import JobConfig
+    from sprayplan.job import run_job
+    from sprayplan.timing.stage import plan_limits
+
+    job = JobConfig().replace(load={"units": "m", "region": "x > -250"}, output={"viewer": False, "report": False})
+    state = run_job(testdata / "meshes" / "reach_curved_part.ply", job, until="kinematics")
+    gantry = state.gantry()
+    stretches = spray_stretches(state.plan, job)
+    assert len(stretches) >= 10
+    return gantry, plan_limits(gantry, job), stretches

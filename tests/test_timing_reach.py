@@ -8,14 +8,11 @@ import pytest
 import toppra
 from toppra.constraint import JointAccelerationConstraint
 
-from sprayplan.config import JobConfig
-from sprayplan.job import run_job
 from sprayplan.robots.gantry import Gantry
 from sprayplan.timing import path as timing_path
 from sprayplan.timing.limits import AxisLimits
 from sprayplan.timing.reach import reach_paths
-from sprayplan.timing.stage import plan_limits
-from tests.helpers import spray_stretches
+from tests.helpers import reach_part_timing
 
 #: The relative agreement of time stamps asked of the batched analysis against toppra (issue 17's "the same
 #: plans"): both solve the same LPs, toppra's seidel solver to a row tolerance of 1e-10, this one exactly; on
@@ -29,12 +26,7 @@ SAME_SPEED = 1e-6
 @pytest.fixture(scope="module")
 def reach(testdata):
     """The reach part planned to the kinematics stage, its timing limits and every stretch the timing times."""
-    job = JobConfig().replace(load={"units": "m", "region": "x > -250"}, output={"viewer": False, "report": False})
-    state = run_job(testdata / "meshes" / "reach_curved_part.ply", job, until="kinematics")
-    gantry = state.gantry()
-    stretches = spray_stretches(state.plan, job)
-    assert len(stretches) >= 10
-    return gantry, plan_limits(gantry, job), stretches
+    return reach_part_timing(testdata)
 
 
 def _tip(gantry):

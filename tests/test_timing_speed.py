@@ -17,13 +17,10 @@ import numpy as np
 import pytest
 import toppra
 
-from sprayplan.config import JobConfig
-from sprayplan.job import run_job
 from sprayplan.timing import path as timing_path
 from sprayplan.timing.kernels import dense_samples, spline_values
 from sprayplan.timing.reach import MAX_TRIES, ROW_TOL, SMALL, TINY, VAR_MAX, reach_paths
-from sprayplan.timing.stage import plan_limits
-from tests.helpers import spray_stretches
+from tests.helpers import reach_part_timing
 
 
 def _same(a, b) -> bool:
@@ -35,12 +32,7 @@ def _same(a, b) -> bool:
 @pytest.fixture(scope="module")
 def reach(testdata):
     """The reach part planned to the kinematics stage: its gantry, timing limits and stretches."""
-    job = JobConfig().replace(load={"units": "m", "region": "x > -250"}, output={"viewer": False, "report": False})
-    state = run_job(testdata / "meshes" / "reach_curved_part.ply", job, until="kinematics")
-    gantry = state.gantry()
-    stretches = spray_stretches(state.plan, job)
-    assert len(stretches) >= 10
-    return gantry, plan_limits(gantry, job), stretches
+    return reach_part_timing(testdata)
 
 
 def _problems(gantry, limits, stretches):
