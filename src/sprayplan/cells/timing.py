@@ -37,7 +37,7 @@ from sprayplan.paths.speed import segment_speeds
 from sprayplan.timing.limits import AxisLimits
 from sprayplan.timing.moves import point_to_point
 from sprayplan.timing.path import time_paths
-from sprayplan.timing.stage import joint_runs
+from sprayplan.timing.stage import joint_runs, stroke_runs
 
 #: An industrial arm without published accelerations is assumed to reach each axis's top speed in this time, s.
 ACCELERATION_TIME_S = 0.5
@@ -139,18 +139,8 @@ class _Axes:
 def _stretches(work, axes: _Axes, q: np.ndarray, motion, jump_rad: float):
     """Every stretch the timing follows along its joint path, in the order :func:`_timed` takes them:
     (waypoint indices, planned tip speeds of its segments)."""
-    start = 0
-    for s in work.strokes:
-        idx = np.arange(start, start + len(s))
-        start += len(s)
-        if not s.spray_on:
-            continue
-        cap = segment_speeds(
-            s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio, s.dwell
-        )
-        for run in joint_runs(work.reachable[idx], q[idx, : axes.dof], jump_rad):
-            if len(run) >= 2:
-                yield idx[run], cap[run[:-1]]
+    for _, idx, cap, run in stroke_runs(work.strokes, work.reachable, q[:, : axes.dof], motion, jump_rad):
+        yield idx[run], cap[run[:-1]]
 
 
 def time_cell(cell, robots, job) -> list[WorkTiming]:

@@ -259,16 +259,25 @@ def _spray_runs(plan: Plan, motion, jump_rad: float):
     """Every stretch :func:`time_plan` times along its joint path, in its order: ``(station, waypoint indices
     of the stroke, the stroke's planned segment speeds, the stretch's run of indices into the stroke)``."""
     for st in plan.stations:
-        start = 0
-        for s in st.strokes:
-            idx = np.arange(start, start + len(s))
-            start += len(s)
-            if not s.spray_on:
-                continue
-            cap = _planned_speeds(s, motion)
-            for run in joint_runs(st.reachable[idx], st.q9[idx, :6], jump_rad):
-                if len(run) >= 2:
-                    yield st, idx, cap, run
+        for _, idx, cap, run in stroke_runs(st.strokes, st.reachable, st.q9[:, :6], motion, jump_rad):
+            yield st, idx, cap, run
+
+
+def stroke_runs(strokes, reachable: np.ndarray, q: np.ndarray, motion, jump_rad: float):
+    """Every stretch of one robot's ``strokes`` (a station's, or a cell robot's) timed along its joint path, in
+    order: the runs of at least two reachable waypoints of a spray stroke with no arm joint (``q``'s columns)
+    jumping by more than ``jump_rad`` (:func:`joint_runs`), each as ``(stroke, its waypoint indices, its planned
+    segment speeds with its time factors, the run's indices into the stroke)``."""
+    start = 0
+    for s in strokes:
+        idx = np.arange(start, start + len(s))
+        start += len(s)
+        if not s.spray_on:
+            continue
+        cap = _planned_speeds(s, motion)
+        for run in joint_runs(reachable[idx], q[idx], jump_rad):
+            if len(run) >= 2:
+                yield s, idx, cap, run
 
 
 def joint_runs(ok: np.ndarray, q: np.ndarray, jump_rad: float) -> list[np.ndarray]:
