@@ -569,7 +569,7 @@ def _stats(um: np.ndarray, area: np.ndarray, target: float, tol: float) -> dict:
 
 
 def film_report(
-    plan: CellPlan, target_um: float, tolerance_um: float, samples: int = 420, seed: int = 0, seams: bool = True
+    plan: CellPlan, target_um: float, tolerance_um: float, samples: int | None = 420, seed: int = 0, seams: bool = True
 ) -> dict:
     """The film over the whole body, per area, per robot and (with ``seams``) along every seam (the samples
     within one spray radius of an edge between two robots' faces), and ``samples`` measuring points over the
@@ -643,16 +643,17 @@ def film_at_timed_speeds(plan: CellPlan, owners, tuning, strokes, process, coati
     return simulate(plan.part, paths, process, config=coating)
 
 
-def timed_film_summary(plan: CellPlan, target_um: float, tolerance_um: float, samples: int = 420) -> dict:
+def timed_film_summary(plan: CellPlan, target_um: float, tolerance_um: float, points) -> dict:
     """The film at the timed speeds in brief (``plan.film``): over the whole body, per robot, and at the
-    measuring points of :func:`film_report`."""
-    full = film_report(plan, target_um, tolerance_um, samples=samples, seed=0, seams=False)
-    points = {k: v for k, v in full["report"]["measuring_points"].items() if k != "indices"}
+    planned film's measuring points (``points``: their sample indices, so that both are measured at the same
+    places)."""
+    full = film_report(plan, target_um, tolerance_um, samples=None, seams=False)
+    at = np.asarray(points, dtype=np.int64)
     return {
         "rule": "each waypoint's time factor from the timed arrival times (the planned one off the timed stretches)",
         "whole": full["whole"],
         "per_robot": full["per_robot"],
-        "measuring_points": points,
+        "measuring_points": _stats(plan.film.thickness_um[at], np.ones(len(at)), target_um, tolerance_um),
     }
 
 
@@ -845,7 +846,10 @@ def plan_cell(
         if film is not None and target is not None:
             timed = film_at_timed_speeds(plan, film_owners, tuning, everything, process, coating)
             report["film"]["at_timed_speeds"] = timed_film_summary(
-                dataclasses.replace(plan, film=timed), target, job.coating.tolerance, job.output.samples or 420
+                dataclasses.replace(plan, film=timed),
+                target,
+                job.coating.tolerance,
+                report["film"]["report"]["measuring_points"]["indices"],
             )
     if job.collision.check:
         begin("schedule")
