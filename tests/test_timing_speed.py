@@ -180,7 +180,7 @@ def test_dense_ratios_kernel_is_the_numpy_form(m):
     slope[7 * m] = np.nan  # a NaN in interval 7
     d2[11 * m + m // 2, 3] = np.nan  # and in interval 11
     new = timing_path._dense_ratios(d1, d2, v, sdd, slope, m, limits, cap)
-    old = timing_path._dense_ratios_numpy(d1, d2, v, sdd, slope, m, limits, cap)
+    old = _dense_ratios_numpy(d1, d2, v, sdd, slope, m, limits, cap)
     for a, b in zip(new, old):
         assert _same(a, b)
     assert np.isnan(new[2][7]) and np.isnan(new[1][11]) and not np.isnan(new[0]).any()
@@ -371,3 +371,29 @@ def _largest_u(alpha, beta_up, beta_lo, gamma_up, gamma_lo, x):
     )
     ok = ~bad & (low <= up + ROW_TOL * np.maximum(1.0, np.abs(up)))
     return up, ok
+
+
+def _dense_ratios_numpy(d1, d2, v, sdd, slope, m: int, limits, cap_interval):
+    """``timing.path._dense_ratios`` in numpy: the straightforward form the compiled one must equal."""
+    speed = v[:, None]
+    vel = d1 * speed
+    acc = d1 * np.repeat(sdd, m)[:, None] + d2 * speed**2
+    shape = (len(sdd), m, -1)
+    rv = _peaks((np.abs(vel) / limits.velocity).reshape(shape))
+    ra = _peaks((np.abs(acc) / limits.acceleration).reshape(shape))
+    tip_speed = slope * np.abs(v)
+    rc = _peaks((tip_speed.reshape(len(sdd), -1) / cap_interval[:, None])[:, :, None])
+    return rv, ra, rc
+
+
+def _peaks(r: np.ndarray) -> np.ndarray:
+    """(k,) the largest value of each interval's samples ``r`` (k, m, a) (m samples evenly in time, a axes),
+    each interior local maximum raised to the top of the parabola through it and its neighbours."""
+    out = r.max(axis=(1, 2))
+    if r.shape[1] >= 3:
+        left, mid, right = r[:, :-2], r[:, 1:-1], r[:, 2:]
+        bend = 2.0 * mid - left - right
+        peak = (mid >= left) & (mid >= right) & (bend > 0)
+        top = mid + np.where(peak, (right - left) ** 2 / (8.0 * np.where(peak, bend, 1.0)), 0.0)
+        out = np.maximum(out, top.max(axis=(1, 2)))
+    return out

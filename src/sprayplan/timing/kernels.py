@@ -319,7 +319,7 @@ def _interval(breaks, x, hint):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def dense_ratios(d1, d2, v, sdd, slope, v_max, a_max, cap, m, rv, ra, rc):
-    """``timing.path._dense_ratios_numpy``: per grid interval i (samples i m to i m + m - 1), the largest ratio
+    """the numpy form in tests/test_timing_speed.py (``_dense_ratios_numpy``): per grid interval i (samples i m to i m + m - 1), the largest ratio
     of joint speed |q' sd|, joint acceleration |q' sdd + q'' sd^2| and tip speed |p'| |sd| to its limit
     (``rv``, ``ra``, ``rc``; NaN if any ratio is, as numpy's ``max``), each interior local peak raised to its
     parabola's top (``_peaks``; a sample that is no peak is no larger than the largest one)."""
@@ -368,7 +368,7 @@ def _largest(r):
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _raised(r, out):
     """``out`` (the largest of the samples ``r`` (m, a)) raised to the top of the parabola through each interior
-    local peak along m and its two neighbours (``timing.path._peaks`` of one interval)."""
+    local peak along m and its two neighbours (the tests' ``_peaks`` of one interval)."""
     m, axes = r.shape
     for t in range(1, m - 1):
         for a in range(axes):

@@ -25,9 +25,9 @@ Work done once: q'(s), q''(s) and |p'(s)| at a grid point are kept through the r
 the points it added), and a dense-check sample that is a grid point, or that the last round's check took
 already (the final check's fractions include the rounds'), takes its |p'(s)| from there rather than from the
 forward kinematics again. The spline's values, the samples and their ratios to the limits are compiled loops
-(``timing.kernels``) with the arithmetic of scipy's spline evaluation and of the numpy forms kept here
-(:func:`_dense_samples_numpy`, :func:`_dense_ratios_numpy`): the same numbers bit for bit
-(tests/test_timing_speed.py).
+(``timing.kernels``) with the arithmetic of scipy's spline evaluation and of the numpy forms
+(:func:`_dense_samples_numpy`, kept here for paths that are not toppra's cubic splines; the ratios' numpy form
+in tests/test_timing_speed.py): the same numbers bit for bit.
 """
 
 from __future__ import annotations
@@ -572,7 +572,7 @@ def _dense_ratios(d1, d2, v, sdd, slope, m: int, limits: AxisLimits, cap_interva
     """Per grid interval (``m`` samples each), the largest ratio of joint speed, joint acceleration and tip
     speed to its limit (``d1``, ``d2``: q'(s), q''(s) at the samples, ``v``: sd there, ``slope``: the tip's
     |p'(s)|), each local peak refined by the parabola through it and its two neighbours
-    (:func:`kernels.dense_ratios`: the numbers of :func:`_dense_ratios_numpy`)."""
+    (:func:`kernels.dense_ratios`; ``tests/test_timing_speed.py`` keeps the numpy form it must equal)."""
     out = tuple(np.empty(len(sdd)) for _ in range(3))
     dense_ratios(
         np.ascontiguousarray(d1, dtype=float),
@@ -586,30 +586,4 @@ def _dense_ratios(d1, d2, v, sdd, slope, m: int, limits: AxisLimits, cap_interva
         m,
         *out,
     )
-    return out
-
-
-def _dense_ratios_numpy(d1, d2, v, sdd, slope, m: int, limits: AxisLimits, cap_interval):
-    """:func:`_dense_ratios` in numpy (the straightforward form the compiled one must equal; for the tests)."""
-    speed = v[:, None]
-    vel = d1 * speed
-    acc = d1 * np.repeat(sdd, m)[:, None] + d2 * speed**2
-    shape = (len(sdd), m, -1)
-    rv = _peaks((np.abs(vel) / limits.velocity).reshape(shape))
-    ra = _peaks((np.abs(acc) / limits.acceleration).reshape(shape))
-    tip_speed = slope * np.abs(v)
-    rc = _peaks((tip_speed.reshape(len(sdd), -1) / cap_interval[:, None])[:, :, None])
-    return rv, ra, rc
-
-
-def _peaks(r: np.ndarray) -> np.ndarray:
-    """(k,) the largest value of each interval's samples ``r`` (k, m, a) (m samples evenly in time, a axes),
-    each interior local maximum raised to the top of the parabola through it and its neighbours."""
-    out = r.max(axis=(1, 2))
-    if r.shape[1] >= 3:
-        left, mid, right = r[:, :-2], r[:, 1:-1], r[:, 2:]
-        bend = 2.0 * mid - left - right
-        peak = (mid >= left) & (mid >= right) & (bend > 0)
-        top = mid + np.where(peak, (right - left) ** 2 / (8.0 * np.where(peak, bend, 1.0)), 0.0)
-        out = np.maximum(out, top.max(axis=(1, 2)))
     return out
