@@ -70,6 +70,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sprayplan.cells.film import film_at_timed_speeds, film_report, timed_film_summary
 from sprayplan.cells.reach import reach_matrix
 from sprayplan.cells.repair import repaired_work
 from sprayplan.cells.spec import Cell, place_part
@@ -77,7 +78,7 @@ from sprayplan.cells.tries import rot_z, start_joints, stroke_tries
 from sprayplan.config import JobConfig
 from sprayplan.errors import ConfigError, InputError
 from sprayplan.progress import Progress, no_progress, per_stage
-from sprayplan.surface.areas import AreaAssignment, Areas, assign_areas, face_adjacency, segment_areas
+from sprayplan.surface.areas import AreaAssignment, Areas, assign_areas, segment_areas
 from sprayplan.surface.poses import stroke_poses
 from sprayplan.types import Part, Paths, Stroke
 
@@ -560,109 +561,6 @@ def with_touch_ups(cell: Cell, robots: tuple, extra: list):
             )
         )
     return tuple(out), added
-
-
-def _stats(um: np.ndarray, area: np.ndarray, target: float, tol: float) -> dict:
-    from sprayplan.coating.report import weighted_stats
-
-    return weighted_stats(um, area, target - tol, target + tol)
-
-
-def film_report(
-    plan: CellPlan, target_um: float, tolerance_um: float, samples: int | None = 420, seed: int = 0, seams: bool = True
-) -> dict:
-    """The film over the whole body, per area, per robot and (with ``seams``) along every seam (the samples
-    within one spray radius of an edge between two robots' faces), and ``samples`` measuring points over the
-    whole body (``coating.report.coating_report``; seed 003 measured 420)."""
-    from sprayplan.coating.report import coating_report
-
-    film = plan.film
-    um = film.thickness_um
-    area = film.area_mm2
-    # each film sample belongs to the part's face whose centroid is nearest (samples are the vertices of a
-    # subdivided mesh, shared by neighbouring faces: at an area's edge either face is as right)
-    face = cKDTree(plan.part.triangles.mean(axis=1)).query(film.points)[1]
-    area_of = plan.areas.face_area[face]
-    robot_of = plan.assignment.face_robot[face]
-    whole = coating_report(film, target_um, tolerance_um, samples=samples, seed=seed)
-    out = {"whole": _stats(um, area, target_um, tolerance_um), "report": whole}
-    out["per_area"] = {
-        name: {
-            **_stats(um[area_of == k], area[area_of == k], target_um, tolerance_um),
-            "robot": _robot_name(plan, int(plan.assignment.area_robot[k])),
-        }
-        for k, name in enumerate(plan.areas.names)
-    }
-    out["per_robot"] = {
-        r.name: _stats(um[robot_of == i], area[robot_of == i], target_um, tolerance_um)
-        for i, r in enumerate(plan.cell.robots)
-    }
-    out["unreached"] = _stats(um[robot_of < 0], area[robot_of < 0], target_um, tolerance_um)
-    if not seams:
-        return out
-    pairs, _ = face_adjacency(plan.part.faces, plan.part.vertices)
-    fr = plan.assignment.face_robot
-    a, b = fr[pairs[:, 0]], fr[pairs[:, 1]]
-    seam = (a != b) & (a >= 0) & (b >= 0)
-    seams = {}
-    if seam.any():
-        centres = plan.part.triangles.mean(axis=1)
-        mids = (centres[pairs[seam, 0]] + centres[pairs[seam, 1]]) / 2.0
-        key = np.sort(np.stack([a[seam], b[seam]], axis=1), axis=1)
-        radius = plan_radius(plan)
-        for u, v in np.unique(key, axis=0):
-            these = mids[(key[:, 0] == u) & (key[:, 1] == v)]
-            near = cKDTree(these).query(film.points, distance_upper_bound=radius)[0] <= radius
-            name = f"{_robot_name(plan, int(u))}/{_robot_name(plan, int(v))}"
-            seams[name] = {**_stats(um[near], area[near], target_um, tolerance_um), "band_mm": radius}
-    out["per_seam"] = seams
-    return out
-
-
-def film_at_timed_speeds(plan: CellPlan, owners, tuning, strokes, process, coating):
-    """The film the robots leave at their timed speeds (``plan.robots``' ``t_s``, :func:`~sprayplan.cells.
-    timing.timed_factors`): the reached runs the film was predicted from (``owners``, as :func:`reached_strokes`
-    gave them; ``strokes`` their strokes when there was no tuning) with the time factors of the timed speeds,
-    from the last tuning's deposit matrix (``tuning``), or simulated anew without one."""
-    from sprayplan.cells.timing import timed_factors
-
-    factors = timed_factors(plan.robots, plan.job)
-    starts = [np.r_[0, np.cumsum([len(s) for s in r.strokes])] for r in plan.robots]
-    runs = tuning.paths.strokes if tuning is not None else strokes
-    timed = tuple(
-        s.with_dwell(factors[r_i][starts[r_i][s_i] + a : starts[r_i][s_i] + b])
-        for s, (r_i, s_i, a, b) in zip(runs, owners)
-    )
-    paths = Paths(timed, plan.job.paths.standoff_mm, plan.job.paths.spacing or 0.0, plan.part.name)
-    if tuning is not None:
-        from sprayplan.refine.tuning import tuned_film
-
-        return tuned_film(dataclasses.replace(tuning, paths=paths), process, coating)
-    from sprayplan.coating.thickness import simulate
-
-    return simulate(plan.part, paths, process, config=coating)
-
-
-def timed_film_summary(plan: CellPlan, target_um: float, tolerance_um: float, points) -> dict:
-    """The film at the timed speeds in brief (``plan.film``): over the whole body, per robot, and at the
-    planned film's measuring points (``points``: their sample indices, so that both are measured at the same
-    places)."""
-    full = film_report(plan, target_um, tolerance_um, samples=None, seams=False)
-    at = np.asarray(points, dtype=np.int64)
-    return {
-        "rule": "each waypoint's time factor from the timed arrival times (the planned one off the timed stretches)",
-        "whole": full["whole"],
-        "per_robot": full["per_robot"],
-        "measuring_points": _stats(plan.film.thickness_um[at], np.ones(len(at)), target_um, tolerance_um),
-    }
-
-
-def plan_radius(plan: CellPlan) -> float:
-    return float(plan.report.get("spray_radius_mm", 50.0))
-
-
-def _robot_name(plan: CellPlan, i: int) -> str:
-    return plan.cell.robots[i].name if i >= 0 else ""
 
 
 #: The seam rules :func:`plan_cell` takes (module docstring).
