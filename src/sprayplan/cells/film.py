@@ -1,20 +1,18 @@
 """The film of a cell plan reported (``cells.plan.plan_cell``'s ``report["film"]``): over the whole body, per
 area, per robot, along every seam and at seed 003's measuring points (:func:`film_report`), and the film the
-robots leave at their timed speeds beside it (:func:`film_at_timed_speeds`, :func:`timed_film_summary`)."""
+robots leave at their timed speeds beside it (:func:`film_at_timed_speeds`, :func:`timed_film_summary`).
+
+``plan`` is a ``cells.plan.CellPlan`` throughout (not imported: ``cells.plan`` imports this module)."""
 
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from sprayplan.surface.areas import face_adjacency
 from sprayplan.types import Paths
-
-if TYPE_CHECKING:
-    from sprayplan.cells.plan import CellPlan
 
 
 def _stats(um: np.ndarray, area: np.ndarray, target: float, tol: float) -> dict:
@@ -24,7 +22,7 @@ def _stats(um: np.ndarray, area: np.ndarray, target: float, tol: float) -> dict:
 
 
 def film_report(
-    plan: CellPlan, target_um: float, tolerance_um: float, samples: int | None = 420, seed: int = 0, seams: bool = True
+    plan, target_um: float, tolerance_um: float, samples: int | None = 420, seed: int = 0, seams: bool = True
 ) -> dict:
     """The film over the whole body, per area, per robot and (with ``seams``) along every seam (the samples
     within one spray radius of an edge between two robots' faces), and ``samples`` measuring points over the
@@ -74,7 +72,7 @@ def film_report(
     return out
 
 
-def film_at_timed_speeds(plan: CellPlan, owners, tuning, strokes, process, coating):
+def film_at_timed_speeds(plan, owners, tuning, strokes, process, coating):
     """The film the robots leave at their timed speeds (``plan.robots``' ``t_s``, :func:`~sprayplan.cells.
     timing.timed_factors`): the reached runs the film was predicted from (``owners``, as :func:`reached_strokes`
     gave them; ``strokes`` their strokes when there was no tuning) with the time factors of the timed speeds,
@@ -98,7 +96,7 @@ def film_at_timed_speeds(plan: CellPlan, owners, tuning, strokes, process, coati
     return simulate(plan.part, paths, process, config=coating)
 
 
-def timed_film_summary(plan: CellPlan, target_um: float, tolerance_um: float, points) -> dict:
+def timed_film_summary(plan, target_um: float, tolerance_um: float, points) -> dict:
     """The film at the timed speeds in brief (``plan.film``): over the whole body, per robot, and at the
     planned film's measuring points (``points``: their sample indices, so that both are measured at the same
     places)."""
@@ -112,9 +110,9 @@ def timed_film_summary(plan: CellPlan, target_um: float, tolerance_um: float, po
     }
 
 
-def plan_radius(plan: CellPlan) -> float:
+def plan_radius(plan) -> float:
     return float(plan.report.get("spray_radius_mm", 50.0))
 
 
-def _robot_name(plan: CellPlan, i: int) -> str:
+def _robot_name(plan, i: int) -> str:
     return plan.cell.robots[i].name if i >= 0 else ""
