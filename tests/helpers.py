@@ -114,6 +114,14 @@ def spray_stretches(plan, job, min_waypoints=2, count=None):
     return out if count is None else out[:count]
 
 
+#: The gun on every surface normal (``[paths] gun_smooth_mm = 0``): the reach part's and the tray's plans with
+#: unreachable spray waypoints, a station added for touch-ups and a program that leaves nothing out were built
+#: with it; with the gun's axis smoothed (the default) the arm reaches all of the reach part, and the tests of
+#: what is done with unreachable waypoints would have none to look at.
+BARE_NORMALS = {"gun_smooth_mm": 0.0}
+BARE_NORMALS_TOML = "[paths]\ngun_smooth_mm = 0.0\n"
+
+
 def reach_part_timing(testdata):
     """The reach part (x > -250) planned to the kinematics stage: its gantry, timing limits and every stretch
     the timing times (:func:`spray_stretches`)."""

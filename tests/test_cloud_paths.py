@@ -458,9 +458,12 @@ def test_scanned_normals_are_smoothed_along_the_sections(testdata):
     # raw neighbour-triangle normals turn about 10 degrees per step on this scan: the gun tip would run 7 to 13
     # times as far as the contact point; averaged over 25 mm it runs at most about twice as far (a carton's
     # corners add a quarter circle of the standoff each)
-    raw = tip_over_contact(PathConfig(spacing_mm=37.19, cloud_normal_smooth_mm=0.0))
-    smooth = tip_over_contact(PathConfig(spacing_mm=37.19))
+    # (the gun's own smoothing along the strokes, gun_smooth_mm, off: this is the sections' normals alone)
+    raw = tip_over_contact(PathConfig(spacing_mm=37.19, cloud_normal_smooth_mm=0.0, gun_smooth_mm=0.0))
+    smooth = tip_over_contact(PathConfig(spacing_mm=37.19, gun_smooth_mm=0.0))
     assert raw.min() > 5.0 and smooth.max() < 2.0
+    # both (the defaults): the gun turns over a spray diameter, the tip runs about as far as the contact point
+    assert tip_over_contact(PathConfig(spacing_mm=37.19)).max() < smooth.max()
 
 
 def test_smooth_normals_keep_the_surface_and_drop_the_noise():

@@ -87,7 +87,7 @@ def test_a_motion_the_proof_calls_free_is_free_when_checked_densely(reach, gantr
     q9 = st.q9[st.reachable]
     rng = np.random.default_rng(1)
     tried = 0
-    for i in rng.integers(0, len(q9) - 1, 40):
+    for i in rng.integers(0, len(q9) - 1, 100):
         a, b = q9[i], q9[i + 1] + np.r_[rng.normal(0, 0.002, 6), 0, 0, 0]
         checks = cell.check(np.vstack([a, b]), margin_mm=100.0)
         bound = motion_bound_mm(a, b, cell.reach_radii_mm)[0]
@@ -209,7 +209,10 @@ def test_plan_files_carry_the_flags_and_read_back(testdata, tmp_path):
     with open(out / "waypoints.csv", newline="") as handle:
         rows = list(csv.DictReader(handle))
     assert sum(int(r["collision"]) for r in rows) == flagged
-    assert sum(r["repair"] not in ("", *TRANSFER_REPAIRS) for r in rows) == summary["repaired"]
+    # a repaired waypoint, and the waypoint a repaired motion in a stroke arrives at, carry their repair
+    assert sum(r["repair"] not in ("", *TRANSFER_REPAIRS) for r in rows) == (
+        summary["repaired"] + summary["motions_repaired"]
+    )
     routed = sum(r["repair"] in TRANSFER_REPAIRS for r in rows)
     assert (routed > 0) == (summary["transfers_rerouted"] > 0)
     assert sum(r["collision_distance_mm"] != "" for r in rows) == checked

@@ -207,7 +207,7 @@ def test_a_rolled_edge_is_not_followed(reach):
         assert (ends @ mid > np.cos(np.radians(100))).all()
         trimmed += np.linalg.norm(stroke.points[0] - stroke.points[inside[0]]) > 50.0 + 1e-6
     assert trimmed >= 10
-    raw = plan_paths(reach, PathConfig(rim_mm=0.0, edge_passes=0))
+    raw = plan_paths(reach, PathConfig(rim_mm=0.0, edge_passes=0, gun_smooth_mm=0.0))
     turned = [s for s in raw.spray_strokes if s.on_part.sum() >= 10]
     # followed to the end, the same strokes swing the gun round the rim
     assert sum(s.normals[0] @ s.normals[len(s) // 2] < np.cos(np.radians(60)) for s in turned) >= 10
@@ -318,6 +318,9 @@ def test_bad_path_options(testdata, tmp_path, capsys):
     assert not (tmp_path / "p.json").exists()
     with pytest.raises(ConfigError):
         PathConfig(direction=(0, 0, 0))
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ConfigError, match="gun_smooth_mm"):
+            PathConfig(gun_smooth_mm=bad)
 
 
 def test_spacing_larger_than_a_tiny_part_still_gives_one_layer():
@@ -485,3 +488,43 @@ def test_boundaries_of_meshes_and_clouds():
 def _sphere():
     sphere = trimesh.creation.icosphere(subdivisions=2, radius=100.0)
     return np.asarray(sphere.vertices), np.asarray(sphere.faces)
+
+
+def _tent(half_angle_deg: float = 20.0) -> Part:
+    """Two flat faces meeting in a ridge along y at x = 0, each falling away at ``half_angle_deg``: the
+    normals turn by twice that across the ridge."""
+    part = plate(-300, 300, -150, 150, 5.0)
+    vertices = part.vertices.copy()
+    vertices[:, 2] = -np.tan(np.radians(half_angle_deg)) * np.abs(vertices[:, 0])
+    return Part(vertices, part.faces, None, "tent")
+
+
+def test_the_gun_turns_through_a_ridge_over_the_smoothing_width():
+    """Across a 40 degree ridge the gun's axis turns at most 40 degrees x step / width per step (the slope of a
+    step smoothed by a triangle of that half-width), not all at once; a width away from the ridge it is the
+    face's normal; the contact points stay on the faces and the tcp on the smoothed axis."""
+    tent = _tent(20.0)
+    slope = np.radians(20.0)
+    face = {1: np.array([np.sin(slope), 0.0, np.cos(slope)]), -1: np.array([-np.sin(slope), 0.0, np.cos(slope)])}
+    for width in (0.0, 50.0, 100.0):
+        config = PathConfig(direction="y", spacing_mm=60.0, gun_smooth_mm=width, edge_passes=0, edge_margin_mm=0.0)
+        paths = plan_paths(tent, config)
+        crossing = [s for s in paths.spray_strokes if s.points[:, 0].min() < -200 and s.points[:, 0].max() > 200]
+        assert len(crossing) >= 4
+        for s in crossing:
+            assert np.allclose(s.points[:, 2], -np.tan(slope) * np.abs(s.points[:, 0]), atol=1e-6)
+            assert np.allclose(s.tcp, s.points + config.standoff_mm * s.normals, atol=1e-9)
+            assert np.allclose(np.linalg.norm(s.normals, axis=1), 1.0)
+            turn = np.degrees(np.arccos(np.clip(np.sum(s.normals[1:] * s.normals[:-1], axis=1), -1, 1)))
+            step = np.linalg.norm(np.diff(s.points, axis=0), axis=1)
+            far = np.abs(s.points[:, 0]) > width + 2 * config.step_mm
+            side = np.sign(s.points[far, 0]).astype(int)
+            expected = np.array([face[k] for k in side])
+            assert np.allclose(s.normals[far], expected, atol=1e-9)
+            if width == 0.0:
+                assert turn.max() > 19.9  # the bare normals jump at the ridge (half at its vertex, half after)
+            else:
+                # the triangle's slope is 1 / width: 40 degrees spread over the width, a little more where
+                # the averaged unit vectors are made unit again
+                assert (turn / step).max() <= 40.0 / width * 1.05
+                assert turn.sum() == pytest.approx(40.0, abs=0.5)

@@ -18,6 +18,7 @@ from sprayplan.export.plan_json import plan_to_dict, write_plan
 from sprayplan.export.plan_read import plan_file_from_dict, plan_from_dict, read_plan_file
 from sprayplan.job import run_job
 from sprayplan.types import Plan, StationPlan, Stroke
+from tests.helpers import BARE_NORMALS
 
 
 def assert_same(a, b, where: str = "plan") -> None:
@@ -103,8 +104,9 @@ def test_the_comparison_sees_every_field():
 
 @pytest.fixture(scope="module")
 def reach(testdata, tmp_path_factory):
-    """A plan of part of the reach test part, written with write_job: (result, folder)."""
-    job = JobConfig().replace(load={"units": "m", "region": "x > -250"})
+    """A plan of part of the reach test part (with unreachable waypoints: the gun on every normal), written
+    with write_job: (result, folder)."""
+    job = JobConfig().replace(load={"units": "m", "region": "x > -250"}, paths=BARE_NORMALS)
     result = run_job(testdata / "meshes" / "reach_curved_part.ply", job, until="totals")
     out = tmp_path_factory.mktemp("reach")
     write_job(out, result)
@@ -114,7 +116,9 @@ def reach(testdata, tmp_path_factory):
 @pytest.fixture(scope="module")
 def coated(testdata, tmp_path_factory):
     """The same with a film target: tuned speeds, touch-ups and an added station."""
-    job = JobConfig().replace(load={"units": "m", "region": "x > -250"}, coating={"thickness_um": 50.0})
+    job = JobConfig().replace(
+        load={"units": "m", "region": "x > -250"}, coating={"thickness_um": 50.0}, paths=BARE_NORMALS
+    )
     result = run_job(testdata / "meshes" / "reach_curved_part.ply", job, until="totals")
     out = tmp_path_factory.mktemp("coated")
     write_job(out, result)

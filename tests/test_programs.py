@@ -17,6 +17,7 @@ from sprayplan.config import JobConfig
 from sprayplan.programs.check import check_program
 from sprayplan.programs.model import ProgramError
 from sprayplan.programs.stage import export_plan, read_programs
+from tests.helpers import BARE_NORMALS, BARE_NORMALS_TOML
 
 FORMATS = ("urscript", "rapid", "krl")
 ROOF_REGION = "box(-450, -350, 1000, 450, 350, 2000)"
@@ -32,7 +33,8 @@ def plan_of(part, job):
 def plans(testdata):
     """Three plans of the gantry-UR5 cell: a corner of the demo roof (2 stations), the reach part (2 stations,
     SQP moving the gantry up to 45 mm within a station, unreachable spray waypoints) and the tray (a flat panel
-    with holes, 1 station)."""
+    with holes, 1 station); the reach part and the tray with the gun on every normal (``BARE_NORMALS``: the
+    tray's plan then has the few SQP waypoints that RAPID and KRL follow as the plan's film does)."""
     from sprayplan.demo import car_roof
     from sprayplan.io.load import load_part
     from sprayplan.surface.region import select_region
@@ -42,9 +44,11 @@ def plans(testdata):
         load={"region": ROOF_REGION}, paths={"spacing_mm": 150.0, "step_mm": 50.0, "direction": "y"}
     )
     reach = load_part(testdata / "meshes" / "reach_curved_part.ply", units="m")
-    reach_job = JobConfig().replace(load={"units": "m", "region": "x > -250"})
+    reach_job = JobConfig().replace(load={"units": "m", "region": "x > -250"}, paths=BARE_NORMALS)
     tray = load_part(testdata / "meshes" / "tray_bottom_mm_ascii.stl", up="y")
-    tray_job = JobConfig().replace(load={"up": "y", "region": "z > 3.1"}, paths={"spacing_mm": 40.0, "step_mm": 20.0})
+    tray_job = JobConfig().replace(
+        load={"up": "y", "region": "z > 3.1"}, paths={"spacing_mm": 40.0, "step_mm": 20.0, **BARE_NORMALS}
+    )
     out = {}
     for name, part, job in (("roof", roof, roof_job), ("reach", reach, reach_job), ("tray", tray, tray_job)):
         state = plan_of(part, job)
@@ -626,10 +630,25 @@ def run(capsys, *argv):
 
 @pytest.fixture(scope="module")
 def reach_folder(testdata, tmp_path_factory):
-    """``sprayplan plan`` of the reach part (its unreachable spray waypoints) with every program format."""
-    out = tmp_path_factory.mktemp("cli") / "plan"
+    """``sprayplan plan`` of the reach part (its unreachable spray waypoints: the gun on every normal) with every
+    program format."""
+    root = tmp_path_factory.mktemp("cli")
+    out = root / "plan"
     part = testdata / "meshes" / "reach_curved_part.ply"
-    argv = ["-q", "plan", str(part), "--units", "m", "--region", "x > -250", "-o", str(out)]
+    (root / "bare.toml").write_text(BARE_NORMALS_TOML)
+    argv = [
+        "-q",
+        "plan",
+        str(part),
+        "--units",
+        "m",
+        "--region",
+        "x > -250",
+        "-o",
+        str(out),
+        "-c",
+        str(root / "bare.toml"),
+    ]
     assert main([*argv, *(a for f in FORMATS for a in ("--program", f))]) == 0
     return out
 

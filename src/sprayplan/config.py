@@ -295,6 +295,14 @@ class PathConfig(Section):
     cloud_normal_smooth_mm : float or None
         Point clouds: average the section normals over this arc length either side (a scan's normals are
         noisy, and the gun would swing with them); None: half the spray radius; 0: off.
+    gun_smooth_mm : float or None
+        The gun's axis along a stroke: the normals averaged with a triangle weight over this arc length either
+        side (two box averages of half this width), so that the gun turns through a crease or a feature line
+        over about a spray diameter instead of within one step (a snap the wrist cannot make at the process
+        speed); the points stay on the surface, the gun aims at them from the standoff along the smoothed
+        axis. None: the spray's diameter (twice ``spray_radius_mm``: on the BMW body in ``line3`` the timed
+        cycle 2,232 -> 1,801 s against 1,954 s with the radius, docs/benchmarks.md); 0: the gun follows every
+        normal.
     rim_mm : float or None
         An end of a stroke, at most this long, whose normals turn more than 45 degrees away from the face's (a
         hemmed or rolled edge, the side of a thin panel) is not followed: the stroke leaves the face along its
@@ -329,6 +337,7 @@ class PathConfig(Section):
     cloud_normals: str = "triangles"
     cloud_smooth_mm: float | None = None
     cloud_normal_smooth_mm: float | None = None
+    gun_smooth_mm: float | None = None
     rim_mm: float | None = None
     edge_passes: str | int = "auto"
 
@@ -387,6 +396,8 @@ class PathConfig(Section):
             raise ConfigError(f"cloud_normal_smooth_mm must be a number >= 0, got {self.cloud_normal_smooth_mm}")
         if self.split_angle_deg is not None and not 0.0 <= self.split_angle_deg <= 180.0:
             raise _fail(PathConfig, "split_angle_deg", "an angle from 0 to 180 degrees or none", self.split_angle_deg)
+        if self.gun_smooth_mm is not None and not (math.isfinite(self.gun_smooth_mm) and self.gun_smooth_mm >= 0):
+            raise ConfigError(f"gun_smooth_mm must be a number >= 0, got {self.gun_smooth_mm}")
         if self.rim_mm is not None and not (math.isfinite(self.rim_mm) and self.rim_mm >= 0):
             raise ConfigError(f"rim_mm must be a number >= 0, got {self.rim_mm}")
         if self.edge_margin_mm is not None and not (math.isfinite(self.edge_margin_mm) and self.edge_margin_mm >= 0):

@@ -19,7 +19,7 @@ from sprayplan.paths.cloud_sections import cloud_sections
 from sprayplan.paths.edges import rim_lengths
 from sprayplan.paths.layers import build_layers
 from sprayplan.paths.mesh_sections import MeshSections
-from sprayplan.paths.pieces import Piece, without_repeats
+from sprayplan.paths.pieces import Piece, smooth_normals, without_repeats
 from sprayplan.surface import normals as nm
 from sprayplan.types import Part, Paths, Stroke
 
@@ -136,6 +136,7 @@ def _with_margins(piece: Piece, config: PathConfig) -> Stroke:
     piece = without_repeats(piece)
     points, normals, on_part = piece.points, piece.normals, piece.on_part
     if piece.closed:
+        normals = gun_axes(points, normals, config, closed=True)
         points = np.vstack([points, points[:1]])
         normals = np.vstack([normals, normals[:1]])
         on_part = np.concatenate([on_part, on_part[:1]])
@@ -149,6 +150,7 @@ def _with_margins(piece: Piece, config: PathConfig) -> Stroke:
         past0 = max(0.0, float(((points[:head] - inner[0]) @ t0).max())) if head else 0.0
         past1 = max(0.0, float(((points[len(points) - tail :] - inner[-1]) @ t1).max())) if tail else 0.0
         normals, on_part, points = normals[keep], on_part[keep], inner
+        normals = gun_axes(points, normals, config)
         lead_in = _lead(points[0], t0, config.margin + past0 if config.margin > 0 else past0, config.step_mm)[::-1]
         lead_out = _lead(points[-1], t1, config.margin + past1 if config.margin > 0 else past1, config.step_mm)
         points = np.vstack([lead_in, points, lead_out])
@@ -158,6 +160,17 @@ def _with_margins(piece: Piece, config: PathConfig) -> Stroke:
         on_part = np.concatenate([np.zeros(len(lead_in), bool), on_part, np.zeros(len(lead_out), bool)])
     tcp = points + config.standoff_mm * normals
     return Stroke(points, normals, tcp, True, on_part)
+
+
+def gun_axes(points: np.ndarray, normals: np.ndarray, config: PathConfig, closed: bool = False) -> np.ndarray:
+    """The gun's axis at each point of a stroke: the normals averaged over ``config.gun_smooth_mm`` of arc
+    length either side with a triangle weight (two box averages of half that width), made unit; by default
+    the spray's diameter."""
+    width = 2.0 * config.spray_radius_mm if config.gun_smooth_mm is None else config.gun_smooth_mm
+    if width <= 0:
+        return normals
+    once = smooth_normals(points, normals, width / 2.0, closed=closed)
+    return smooth_normals(points, once, width / 2.0, closed=closed)
 
 
 def _lead(start: np.ndarray, direction: np.ndarray, length: float, step: float) -> np.ndarray:
