@@ -291,8 +291,12 @@ def test_areas_command_writes_one_row_a_painted_face(testdata, tmp_path, capsys)
     assert code == 0, err
     rows = list(csv.DictReader(out.open()))
     part = load_part(suv, units="m")
+    from sprayplan.config import CollisionConfig
+    from sprayplan.surface.normals import oriented_part
+    from sprayplan.surface.region import painted_surface
+
     placed = place_part(part, load_cell("sides2")).part
-    painted, _ = drop_floor_facing(placed, 45.0)
+    painted, _ = painted_surface(oriented_part(placed), CollisionConfig())  # as plan_cell paints it
     assert len(rows) == len(painted.faces)
     assert sum(float(r["face_area_mm2"]) for r in rows) == pytest.approx(painted.area, rel=1e-4)
     faces = np.array([int(r["face"]) for r in rows])

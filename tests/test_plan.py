@@ -167,7 +167,7 @@ def test_joint_values_put_the_gun_where_the_plan_says(reach_plan):
 def test_every_car_body_point_is_assigned_or_reported(testdata):
     # a large, whole-body part: half of the BMW body (x > 0: 2.45 x 2.09 x 1.24 m of bonnet or boot, roof,
     # doors, sills, bumper), too big for one station, with surfaces facing every way
-    from sprayplan.surface.region import drop_floor_facing, select_region
+    from sprayplan.surface.region import painted_surface, select_region
 
     car = select_region(load_part(testdata / "meshes" / "bmw_m6_body_m_yup.ply", units="m", up="y"), "x > 0")
     job = JobConfig(paths=PathConfig(spacing_mm=150.0, step_mm=60.0))
@@ -182,8 +182,9 @@ def test_every_car_body_point_is_assigned_or_reported(testdata):
 
     planned = rows([s.points for st in result.stations for s in st.strokes if s.spray_on])
     unassigned = rows([result.unassigned]) if len(result.unassigned) else set()
-    # the job leaves out the surface facing the floor ([collision] skip_floor_facing) before slicing
-    painted, _ = drop_floor_facing(car, job.collision.floor_facing_deg)
+    # the job leaves out the surface facing the floor and the covered surface ([collision] skip_floor_facing,
+    # skip_covered) before slicing
+    painted, _ = painted_surface(car, job.collision)
     sliced = rows([s.points for s in plan_paths(painted, job.paths).spray_strokes])
     assert planned | unassigned == sliced and not planned & unassigned
     assert totals["stations"] >= 4

@@ -106,3 +106,89 @@ def test_empty_region_names_the_part_and_its_extent():
     # touching the part along a line only is empty too
     with pytest.raises(RegionError):
         select_region(grid_square(), "x >= 10")
+
+
+def _sheet(x0, x1, y0, y1, z, step=10.0, tilt_deg=0.0) -> tuple[np.ndarray, np.ndarray]:
+    """A flat grid sheet at height z facing +z (tilted about the x axis by ``tilt_deg``): (vertices, faces)."""
+    from tests.helpers import plate
+
+    sheet = plate(x0, x1, y0, y1, step)
+    v = sheet.vertices.copy()
+    a = np.radians(tilt_deg)
+    yc = (y0 + y1) / 2.0
+    v[:, 1], v[:, 2] = yc + (v[:, 1] - yc) * np.cos(a), z + (v[:, 1] - yc) * np.sin(a)
+    return v, sheet.faces
+
+
+def _stack(*sheets) -> Part:
+    """The sheets as one part, wound as built (``oriented``: two parallel sheets alone have no outside of
+    their own, and the vote about their centroid would turn them apart)."""
+    vertices, faces, start = [], [], 0
+    for v, f in sheets:
+        vertices.append(v)
+        faces.append(f + start)
+        start += len(v)
+    return Part(np.vstack(vertices), np.vstack(faces), None, "sheets", oriented=True)
+
+
+def test_covered_faces_are_those_under_a_near_parallel_face_within_the_distance():
+    """A bumper (a 400 x 200 mm sheet) with a licence plate (100 x 50 mm) 8 mm in front of it: the bumper's
+    faces whose centres lie under the plate are covered, no other; the plate's own faces are not. The same
+    plate 25 mm out (beyond 20 mm), or turned by 60 degrees (|cos| 0.5 < 0.8), covers nothing."""
+    from sprayplan.surface.region import covered_faces
+
+    bumper = _sheet(-200, 200, -100, 100, 0.0)
+    centres = bumper[0][bumper[1]].mean(axis=1)
+    under = (np.abs(centres[:, 0]) < 50) & (np.abs(centres[:, 1]) < 25)
+    plate_at = _sheet(-50, 50, -25, 25, 8.0, step=5.0)
+    covered = covered_faces(_stack(bumper, plate_at), 20.0)
+    n = len(bumper[1])
+    np.testing.assert_array_equal(covered[:n], under)
+    assert under.sum() == 100 and not covered[n:].any()
+    assert not covered_faces(_stack(bumper, _sheet(-50, 50, -25, 25, 25.0, step=5.0)), 20.0).any()
+    assert not covered_faces(_stack(bumper, _sheet(-50, 50, -25, 25, 8.0, step=5.0, tilt_deg=60.0)), 20.0).any()
+    assert covered_faces(_stack(bumper, _sheet(-50, 50, -25, 25, 25.0, step=5.0)), 30.0)[:n].sum() == 100
+
+
+def test_the_bodys_covered_faces_agree_with_trimeshs_rays(testdata):
+    """On the BMW body: 300 covered faces and 300 others, each tested with trimesh's own rays (every hit along
+    the normal): a covered face has a near-parallel face within 20 mm in front of it, the others none. The
+    licence plate and the door handles cover more than 0.1 m^2 of it."""
+    import trimesh
+
+    from sprayplan.surface import normals as nm
+    from sprayplan.surface.region import COVERED_MIN_COS, covered_faces
+
+    body = nm.oriented_part(load_part(testdata / "meshes" / "bmw_m6_body_m_yup.ply", units="m", up="y"))
+    covered = covered_faces(body, 20.0)
+    assert body.face_areas[covered].sum() > 0.1e6
+    normals = nm.face_normals(body.vertices, body.faces)
+    mesh = trimesh.Trimesh(body.vertices, body.faces, process=False)
+    centres = body.triangles.mean(axis=1)
+    rng = np.random.default_rng(3)
+    for expected in (True, False):
+        pick = rng.choice(np.flatnonzero(covered == expected), 300, replace=False)
+        origins = centres[pick] + 0.5 * normals[pick]
+        where, ray, hit = mesh.ray.intersects_location(origins, normals[pick], multiple_hits=True)
+        distance = np.einsum("ij,ij->i", where - origins[ray], normals[pick][ray])
+        near = (distance >= 0) & (distance <= 19.5) & (hit != pick[ray])
+        near &= np.abs(np.einsum("ij,ij->i", normals[hit], normals[pick][ray])) >= COVERED_MIN_COS
+        found = np.zeros(len(pick), bool)
+        found[ray[near]] = True
+        assert found.all() if expected else not found.any()
+
+
+def test_the_painted_surface_leaves_out_what_faces_the_floor_and_what_is_covered():
+    from sprayplan.config import CollisionConfig
+    from sprayplan.surface.region import painted_surface
+
+    bumper = _sheet(-200, 200, -100, 100, 0.0)
+    part = _stack(bumper, _sheet(-50, 50, -25, 25, 8.0, step=5.0))
+    painted, left = painted_surface(part, CollisionConfig())
+    assert left == {"covered_left_out_mm2": pytest.approx(100 * 50.0)}  # 100 faces of 50 mm^2 under the plate
+    assert len(painted.faces) == len(part.faces) - 100
+    same, nothing = painted_surface(part, CollisionConfig(skip_covered=False))
+    assert same is part and nothing == {}
+    with pytest.raises(RegionError, match="covered"):
+        top, faces = _sheet(0, 10, 0, 10, 5.0)
+        painted_surface(_stack(_sheet(0, 10, 0, 10, 0.0), (top, faces[:, ::-1])), CollisionConfig())  # face to face

@@ -782,6 +782,12 @@ class CollisionConfig(Section):
         conveyor, painted from below too.
     floor_facing_deg : float
         0 to 90 degrees below the horizontal.
+    skip_covered : bool
+        Leave out of the painted surface what another face of the part covers: a face with a near-parallel
+        face within ``covered_mm`` in front of it (a licence plate on a bumper, a handle on a door, the walls
+        of a panel gap), which no gun reaches (``surface.region.covered_faces``).
+    covered_mm : float
+        How near the covering face must be, mm (more than 0.5).
     tilt_deg : float or None
         How far the tilt repair turns the gun axis; default 80 % of ``[kinematics] axis_tol_deg``.
     platform_search_mm : float
@@ -823,6 +829,8 @@ class CollisionConfig(Section):
     motion_step_mm: float = 10.0
     skip_floor_facing: bool = True
     floor_facing_deg: float = 45.0
+    skip_covered: bool = True
+    covered_mm: float = 20.0
     tilt_deg: float | None = None
     platform_search_mm: float = 600.0
     platform_search_step_mm: float = 50.0
@@ -852,6 +860,7 @@ class CollisionConfig(Section):
         _at_least(CollisionConfig, "gun_radius_mm", self.gun_radius_mm, 0, strict=True)
         _at_least(CollisionConfig, "motion_step_mm", self.motion_step_mm, 0, strict=True)
         _within(CollisionConfig, "floor_facing_deg", self.floor_facing_deg, 0, 90)
+        _within(CollisionConfig, "covered_mm", self.covered_mm, 0.5, MAX_COORDINATE_MM)
         _at_least(CollisionConfig, "tilt_deg", self.tilt_deg, 0)
         _within(CollisionConfig, "platform_search_mm", self.platform_search_mm, 0, MAX_COORDINATE_MM)
         _at_least(CollisionConfig, "platform_search_step_mm", self.platform_search_step_mm, 1)

@@ -146,14 +146,11 @@ def _load(state: JobState, progress: Progress) -> JobState:
 
 
 def _region(state: JobState, progress: Progress) -> JobState:
-    from sprayplan.surface.region import drop_floor_facing, select_region
+    from sprayplan.surface.region import painted_surface, select_region
 
     part = select_region(state.part, state.job.load.region)
-    left_out = 0.0
-    collision = state.job.collision
-    if collision.skip_floor_facing:
-        part, left_out = drop_floor_facing(part, collision.floor_facing_deg)
-    totals = {**state.totals, "floor_facing_left_out_mm2": round(left_out, 3)} if left_out else state.totals
+    part, left_out = painted_surface(part, state.job.collision)
+    totals = {**state.totals, **{k: round(v, 3) for k, v in left_out.items()}}
     return dataclasses.replace(state, part=part, whole=state.part, totals=totals)
 
 

@@ -72,12 +72,17 @@ class Part:
         Unit normals given by the file (point clouds with normals); None when the file has none.
     name : str
         Where the part came from (a file name, or ``"demo:roof"``).
+    oriented : bool
+        The faces are wound outward already (``surface.normals.oriented_part``): the stages take the winding
+        as it is (``surface.normals.part_outward``) instead of orienting the pieces again, so that a piece cut
+        from the whole (a robot's share of a body) keeps the whole's orientation.
     """
 
     vertices: np.ndarray
     faces: np.ndarray
     vertex_normals: np.ndarray | None = None
     name: str = ""
+    oriented: bool = False
 
     def __post_init__(self):
         object.__setattr__(self, "vertices", _frozen(self.vertices, np.float64, (3,), "vertices"))

@@ -88,9 +88,9 @@ log = logging.getLogger(__name__)
 def whole_area(part: Part) -> tuple[Areas, AreaAssignment]:
     """One area, the whole painted surface, for the one robot of a single-robot cell (no split: the job's
     ``[paths]`` slice it as a whole, in the direction they say)."""
-    from sprayplan.surface.normals import outward_face_normals
+    from sprayplan.surface.normals import part_outward
 
-    _, normals = outward_face_normals(part.vertices, part.faces)
+    _, normals = part_outward(part)
     area = part.face_areas
     mean = (normals * area[:, None]).sum(axis=0)
     norm = np.linalg.norm(mean)
@@ -208,7 +208,7 @@ def _sub_part(part: Part, keep: np.ndarray, name: str) -> Part:
     used = np.zeros(len(part.vertices), bool)
     used[faces.reshape(-1)] = True
     remap = np.cumsum(used) - 1
-    return Part(part.vertices[used], remap[faces], None, name)
+    return Part(part.vertices[used], remap[faces], None, name, oriented=part.oriented)
 
 
 def _transfer(a: Stroke, b: Stroke) -> Stroke:
@@ -579,7 +579,8 @@ def plan_cell(
         (:func:`~sprayplan.cells.spec.place_part`).
     """
     from sprayplan.coating.stage import meet_thickness, process_for
-    from sprayplan.surface.region import drop_floor_facing
+    from sprayplan.surface.normals import oriented_part
+    from sprayplan.surface.region import painted_surface
 
     progress = progress or no_progress
     if seams not in SEAM_RULES:
@@ -609,10 +610,9 @@ def plan_cell(
     begin("place")
 
     placed = place_part(part, cell)
-    painted = placed.part
-    left_out = 0.0
-    if job.collision.skip_floor_facing:
-        painted, left_out = drop_floor_facing(painted, job.collision.floor_facing_deg)
+    # oriented once, as a whole: each robot's share then keeps the body's outward side (a share voted on
+    # alone can turn a piece of the nose inward)
+    painted, left_out = painted_surface(oriented_part(placed.part), job.collision)
     begin("areas")
     job, chosen = meet_thickness(job)
     if job.collision.check:
@@ -634,7 +634,11 @@ def plan_cell(
         )
     robots = tuple(_robot_work(r, i, painted, areas, assignment, job, guard) for i, r in enumerate(cell.robots))
     begin("film")
-    report = {"spray_radius_mm": job.paths.spray_radius_mm, "floor_facing_left_out_mm2": round(left_out, 1)}
+    report = {
+        "spray_radius_mm": job.paths.spray_radius_mm,
+        "floor_facing_left_out_mm2": round(left_out.get("floor_facing_left_out_mm2", 0.0), 1),
+        "covered_left_out_mm2": round(left_out.get("covered_left_out_mm2", 0.0), 1),
+    }
     plan = CellPlan(cell, painted, placed.part2cell, areas, assignment, robots, None, report, timings, job=job)
     target = job.coating.thickness_um
     everything, film_owners = reached_strokes(robots)

@@ -395,7 +395,7 @@ def place_part(part: Part, cell: Cell) -> PlacedPart:
     )
     part2cell[:3, 3] = shift
     normals = None if part.vertex_normals is None else part.vertex_normals @ rot.T
-    return _checked(Part(turned + shift, part.faces, normals, part.name), part2cell, cell)
+    return _checked(Part(turned + shift, part.faces, normals, part.name, oriented=part.oriented), part2cell, cell)
 
 
 def _checked(placed: Part, part2cell: np.ndarray, cell: Cell) -> PlacedPart:

@@ -46,12 +46,14 @@ def cmd_areas(args) -> int:
 
     from sprayplan.cells import load_cell, place_part
     from sprayplan.cells.reach import reach_matrix
+    from sprayplan.config import CollisionConfig
     from sprayplan.errors import ConfigError
     from sprayplan.export.files import staged_files
     from sprayplan.export.tables import write_table
     from sprayplan.io.load import load_part
     from sprayplan.surface.areas import assign_areas, segment_areas
-    from sprayplan.surface.region import drop_floor_facing, not_floor_facing
+    from sprayplan.surface.normals import oriented_part
+    from sprayplan.surface.region import covered_faces, not_floor_facing, painted_surface
 
     check_outputs([(args.output, "-o")], [(args.part, "part"), (file_input(args.cell), "--cell")])
     if not (math.isfinite(args.standoff_mm) and args.standoff_mm >= 0):
@@ -66,16 +68,18 @@ def cmd_areas(args) -> int:
     if not part.is_mesh:
         raise ConfigError(f"{args.part}: areas are found on meshes only (this is a point cloud)")
     with _stage("place"):
-        placed = place_part(part, cell).part
-        painted, _ = drop_floor_facing(placed, args.floor_facing_deg)
-        kept = not_floor_facing(placed, args.floor_facing_deg)  # which faces of the part as loaded remain
+        placed = oriented_part(place_part(part, cell).part)  # as plan_cell orients it
+        # the surface plan_cell paints (default [collision] settings but the floor's angle), and which faces
+        # of the part as loaded it keeps
+        surface = CollisionConfig(floor_facing_deg=args.floor_facing_deg)
+        painted, _ = painted_surface(placed, surface)
+        kept = not_floor_facing(placed, args.floor_facing_deg) & ~covered_faces(placed, surface.covered_mm)
     with _stage("areas"):
         areas = segment_areas(painted, min_share=args.min_share)
     arms = None
     if args.collisions:
         from sprayplan.cells.collide import cell_arms
         from sprayplan.collision.arms import arm_radii
-        from sprayplan.config import CollisionConfig
 
         for r in cell.robots:
             arm_radii(r.model)
@@ -115,7 +119,7 @@ def cmd_areas(args) -> int:
     left_out = len(placed.faces) - len(index)
     print(
         f"{len(areas)} areas of {painted.area / 1e6:.2f} m^2 on {cell.name}: {per_robot}; unreached "
-        f"{assigned.unreached_mm2 / 1e6:.3f} m^2; {left_out} floor-facing faces left out -> {args.output}"
+        f"{assigned.unreached_mm2 / 1e6:.3f} m^2; {left_out} floor-facing or covered faces left out -> {args.output}"
     )
     return 0
 

@@ -128,6 +128,8 @@ def summary_line(result, outdir) -> str:
             )
     if totals.get("floor_facing_left_out_mm2"):
         line += f"; surface facing the floor left out: {totals['floor_facing_left_out_mm2'] / 1e6:.4g} m2"
+    if totals.get("covered_left_out_mm2"):
+        line += f"; surface covered by other faces left out: {totals['covered_left_out_mm2'] / 1e6:.4g} m2"
     if result.film is not None:
         from sprayplan.export.film import film_report
 
@@ -169,7 +171,7 @@ def cmd_simulate(args) -> int:
     from sprayplan.export.job_files import FILM_FILES, VIEW_FILES
     from sprayplan.export.plan_read import read_plan_file
     from sprayplan.io.load import load_part
-    from sprayplan.surface.region import drop_floor_facing, select_region
+    from sprayplan.surface.region import painted_surface, select_region
 
     output_option(args.outdir, "OUTDIR")
     _check_samples(args.samples)
@@ -190,8 +192,7 @@ def cmd_simulate(args) -> int:
     inputs = [(part_file, "--part" if args.part else "part"), (outdir / "plan.json", "plan.json")]
     check_folder_outputs(outdir, own, "OUTDIR", inputs)
     part = select_region(load_part(part_file, units=job.load.units, up=job.load.up), job.load.region)
-    if job.collision.skip_floor_facing:  # the surface the plan paints, as its region stage cut it
-        part, _ = drop_floor_facing(part, job.collision.floor_facing_deg)
+    part, _ = painted_surface(part, job.collision)  # the surface the plan paints, as its region stage cut it
     filmed = result
     if read.timing is not None and job.timing.film_at_timed_speeds:  # the film at the speeds the robot makes
         from sprayplan.timing.stage import real_plan

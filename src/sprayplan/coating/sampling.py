@@ -111,7 +111,7 @@ def surface_samples(
     """
     faces = np.zeros((0, 3), np.int64)
     if part.is_mesh:
-        faces, face_n = nm.outward_face_normals(part.vertices, part.faces)
+        faces, face_n = nm.part_outward(part)
     if targets is not None:
         pts = np.asarray(targets.points, float)
         total = part.area if part.is_mesh else _cloud_area(part.vertices).sum()

@@ -33,7 +33,7 @@ class MeshSections:
     def __init__(self, part: Part, spacing: float):
         self.name = part.name
         self.vertices = part.vertices
-        self.faces, self.face_normals = nm.outward_face_normals(part.vertices, part.faces)
+        self.faces, self.face_normals = nm.part_outward(part)
         self.vertex_normals = nm.vertex_normals(part.vertices, self.faces, self.face_normals)
         self.step = spacing / 10
         self.slicer: MeshSlicer | None = None

@@ -37,7 +37,7 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
 from sprayplan.errors import ConfigError
-from sprayplan.surface.normals import outward_face_normals
+from sprayplan.surface.normals import part_outward
 from sprayplan.surface.pairs import unique_pairs
 from sprayplan.types import Part, read_only
 
@@ -237,7 +237,7 @@ def segment_areas(part: Part, min_share: float = MIN_SHARE, directions: dict | N
     names = list(directions)
     basis = np.array([directions[k] for k in names], dtype=float)
     basis /= np.linalg.norm(basis, axis=1, keepdims=True)
-    faces, normals = outward_face_normals(part.vertices, part.faces)
+    faces, normals = part_outward(part)
     face_area = part.face_areas
     total = float(face_area.sum())
     if not total > 0:

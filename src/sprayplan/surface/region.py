@@ -165,7 +165,7 @@ def select_region(part: Part, region: Region | str | None) -> Part:
     used = np.zeros(len(vertices), dtype=bool)
     used[faces.reshape(-1)] = True
     remap = np.cumsum(used) - 1
-    return Part(vertices[used], remap[faces], None, part.name)
+    return Part(vertices[used], remap[faces], None, part.name, oriented=part.oriented)
 
 
 def not_floor_facing(part: Part, below_deg: float) -> np.ndarray:
@@ -211,7 +211,7 @@ def drop_floor_facing(part: Part, below_deg: float) -> tuple[Part, float]:
     used[faces.reshape(-1)] = True
     remap = np.cumsum(used) - 1
     normals = None if part.vertex_normals is None else part.vertex_normals[used]
-    return Part(part.vertices[used], remap[faces], normals, part.name), left_out
+    return Part(part.vertices[used], remap[faces], normals, part.name, oriented=part.oriented), left_out
 
 
 def _raise_empty(part: Part, region: Region):
@@ -279,3 +279,116 @@ def _roll_first(faces: np.ndarray, odd: np.ndarray) -> np.ndarray:
     first = np.argmax(odd, axis=1)
     idx = (first[:, None] + np.arange(3)[None, :]) % 3
     return np.take_along_axis(faces, idx, axis=1)
+
+
+#: A face is covered when a face within ``covered_mm`` in front of it is this near parallel (|cos| of the
+#: angle between their normals): a licence plate on a bumper, a handle on a door, the walls of a panel gap.
+COVERED_MIN_COS = 0.8
+#: The ray from a face's centre starts this far in front of it (past its own plane's rounding).
+_RAY_START_MM = 0.5
+#: Ray-triangle pairs tested at a time.
+_PAIR_CHUNK = 2_000_000
+
+
+def covered_faces(part: Part, within_mm: float) -> np.ndarray:
+    """(m,) bool: the mesh's faces with another face of the part in front of them within ``within_mm``, near
+    parallel (:data:`COVERED_MIN_COS`), on the ray from the face's centre along its outward normal
+    (``surface.normals.part_outward``): surface no gun reaches, hidden by a part lying on it.
+
+    The ray is tested against the triangles whose bounding ball can meet it: the triangles are grouped by
+    their circumradius (doubling bins), and each group's centres are searched within half the ray's length
+    plus the group's largest radius of the ray's midpoint (``cKDTree.sparse_distance_matrix``); the
+    candidates are intersected exactly (Moller-Trumbore)."""
+    from scipy.spatial import cKDTree
+
+    from sprayplan.surface.normals import part_outward
+
+    if not part.is_mesh or not within_mm > 0:
+        return np.zeros(len(part.faces), bool)
+    faces, normals = part_outward(part)
+    tri = part.vertices[faces]
+    centre = tri.mean(axis=1)
+    radius = np.linalg.norm(tri - centre[:, None, :], axis=2).max(axis=1)
+    length = float(within_mm) - _RAY_START_MM
+    origin = centre + _RAY_START_MM * normals
+    mid_tree = cKDTree(origin + 0.5 * length * normals)
+    covered = np.zeros(len(faces), bool)
+    top = max(float(radius.max()), 1e-9)
+    edges = [0.0]
+    while edges[-1] < top:
+        edges.append(max(1.0, 2.0 * edges[-1]))
+    group = np.searchsorted(edges, radius, side="left")
+    for g in np.unique(group):
+        members = np.flatnonzero(group == g)
+        found = mid_tree.sparse_distance_matrix(
+            cKDTree(centre[members]), 0.5 * length + edges[g], output_type="ndarray"
+        )
+        rays, hit = found["i"].astype(np.int64), members[found["j"]]
+        keep = (rays != hit) & ~covered[rays]
+        rays, hit = rays[keep], hit[keep]
+        near_parallel = np.abs(np.einsum("ij,ij->i", normals[rays], normals[hit])) >= COVERED_MIN_COS
+        rays, hit = rays[near_parallel], hit[near_parallel]
+        for start in range(0, len(rays), _PAIR_CHUNK):
+            r, h = rays[start : start + _PAIR_CHUNK], hit[start : start + _PAIR_CHUNK]
+            covered[r[_ray_hits(origin[r], normals[r], tri[h], length)]] = True
+    return covered
+
+
+def _ray_hits(origin: np.ndarray, direction: np.ndarray, tri: np.ndarray, length: float) -> np.ndarray:
+    """(k,) bool: the ray ``origin + t direction``, 0 <= t <= length, meets the triangle (Moller-Trumbore;
+    a ray in the triangle's plane meets nothing)."""
+    e1 = tri[:, 1] - tri[:, 0]
+    e2 = tri[:, 2] - tri[:, 0]
+    p = np.cross(direction, e2)
+    det = np.einsum("ij,ij->i", e1, p)
+    ok = np.abs(det) > 1e-12
+    inv = np.divide(1.0, det, out=np.zeros_like(det), where=ok)
+    s = origin - tri[:, 0]
+    u = np.einsum("ij,ij->i", s, p) * inv
+    q = np.cross(s, e1)
+    v = np.einsum("ij,ij->i", direction, q) * inv
+    t = np.einsum("ij,ij->i", e2, q) * inv
+    return ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t >= 0) & (t <= length)
+
+
+def painted_surface(part: Part, collision) -> tuple[Part, dict]:
+    """The surface a plan paints of a part its region stage cut: without what faces the floor (``[collision]
+    skip_floor_facing``, :func:`drop_floor_facing`) and what other faces cover (``skip_covered``,
+    :func:`covered_faces` within ``covered_mm``), both judged on the whole part; and the areas left out, mm^2
+    (``floor_facing_left_out_mm2``, ``covered_left_out_mm2``, each only when there is some).
+
+    Raises
+    ------
+    RegionError
+        When nothing is left.
+    """
+    if not part.is_mesh:
+        if collision.skip_floor_facing:
+            part, _ = drop_floor_facing(part, collision.floor_facing_deg)
+        return part, {}
+    drop = np.zeros(len(part.faces), bool)
+    left: dict = {}
+    area = part.face_areas
+    if collision.skip_floor_facing:
+        drop |= ~not_floor_facing(part, collision.floor_facing_deg)
+        if drop.all():
+            raise RegionError(f"part {part.name!r}: all of it faces the floor ([collision] skip_floor_facing)")
+        if drop.any():
+            left["floor_facing_left_out_mm2"] = float(area[drop].sum())
+    if collision.skip_covered:
+        covered = covered_faces(part, collision.covered_mm) & ~drop
+        if covered.any():
+            left["covered_left_out_mm2"] = float(area[covered].sum())
+            drop |= covered
+        if drop.all():
+            raise RegionError(
+                f"part {part.name!r}: nothing left to paint once the surface facing the floor and the surface "
+                f"covered within {collision.covered_mm:g} mm are left out ([collision] skip_covered)"
+            )
+    if not drop.any():
+        return part, left
+    faces = part.faces[~drop]
+    used = np.zeros(len(part.vertices), dtype=bool)
+    used[faces.reshape(-1)] = True
+    remap = np.cumsum(used) - 1
+    return Part(part.vertices[used], remap[faces], None, part.name, oriented=part.oriented), left

@@ -105,7 +105,7 @@ def check_target_work(part: Part, config: TargetsConfig) -> None:
 
 def _mesh_targets(part: Part, config: TargetsConfig, spacing: float):
     orient = config.orient or "mesh"
-    faces, face_n = nm.outward_face_normals(part.vertices, part.faces)
+    faces, face_n = nm.part_outward(part)
     triangles = part.vertices[faces]
     if config.fill == "even":
         points, face_index = filling.sample_even(triangles, spacing, seed=config.seed)

@@ -282,7 +282,7 @@ def _check_indices(report: dict, n: int, path: str) -> None:
 
 def _part_from_file(part_file: str | None, job, notes: list) -> Surface | None:
     from sprayplan.io.load import load_part
-    from sprayplan.surface.region import drop_floor_facing, select_region
+    from sprayplan.surface.region import painted_surface, select_region
 
     if not part_file:
         notes.append("the plan was made from a part in memory: the part is not drawn")
@@ -292,8 +292,7 @@ def _part_from_file(part_file: str | None, job, notes: list) -> Surface | None:
         return None
     try:
         part = select_region(load_part(part_file, units=job.load.units, up=job.load.up), job.load.region)
-        if job.collision.skip_floor_facing:  # the surface the plan paints, as its region stage cut it
-            part, _ = drop_floor_facing(part, job.collision.floor_facing_deg)
+        part, _ = painted_surface(part, job.collision)  # the surface the plan paints, as its region stage cut it
     except InputError as exc:
         notes.append(f"the part file could not be read again ({exc}): the part is not drawn")
         return None
