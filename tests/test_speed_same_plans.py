@@ -114,36 +114,6 @@ def test_the_tunings_system_and_jacobian_are_scipys_bit_for_bit():
         np.testing.assert_array_equal(residual(x), r)
 
 
-def test_a_tuning_with_uncopied_jacobians_is_the_tuning_with_copies(monkeypatch):
-    """scipy's least_squares copies every Jacobian before the solver scales it in place for the robust loss;
-    the tuning's Jacobians (``FreshJacobian``, made anew at each point) skip the copy: the time factors are
-    the same bit for bit as with plain CSR Jacobians, which scipy copies."""
-    import sprayplan.refine.tuning as tuning_module
-    from sprayplan.refine.tuning import FreshJacobian, TuningConfig, tune_speeds
-
-    panel = plate(-260, 260, -200, 200, 5.0)
-    paths = _strokes([-105.0, -45.0, 15.0, 75.0])  # too far apart and too fast for 50 um: beyond the band
-    process = Process(PATTERN, speed_mm_s=420.0)
-    calls = []
-    original = tuning_module.System.kept
-
-    def counted(self, outside):
-        calls.append(1)
-        return original(self, outside)
-
-    monkeypatch.setattr(tuning_module.System, "kept", counted)
-    fresh = tune_speeds(panel, paths, process, 50.0, 5.0, config=TuningConfig())
-    assert len(calls) >= 3  # the solver took several steps, each with a new Jacobian
-    monkeypatch.setattr(tuning_module, "FreshJacobian", sparse.csr_matrix)
-    copied = tune_speeds(panel, paths, process, 50.0, 5.0, config=TuningConfig())
-    for a, b in zip(fresh.paths.strokes, copied.paths.strokes):
-        np.testing.assert_array_equal(a.dwell, b.dwell)
-    np.testing.assert_array_equal(fresh.after_um, copied.after_um)
-    jacobian = FreshJacobian(sparse.random(4, 3, density=0.5, random_state=1, format="csr"))
-    assert jacobian.astype(np.float64) is jacobian  # not copied
-    assert jacobian.astype(np.float32).dtype == np.float32  # another dtype still converts
-
-
 @settings(max_examples=40, deadline=None)
 @given(st.integers(0, 2**31 - 1), st.integers(1, 40), st.integers(0, 30), st.integers(0, 30))
 def test_merged_columns_equal_the_stacked_and_permuted_matrix(seed, rows, old, new):

@@ -482,21 +482,6 @@ def _residuals(system: System, target_vec: np.ndarray, band: float):
     def jacobian(x):
         f = system.fit_matvec(x) - target_vec[:n_fit]
         np.greater(np.abs(f), band, out=outside[:n_fit])
-        kept = system.kept(outside)
-        return FreshJacobian((kept.data, kept.indices, kept.indptr), shape=kept.shape)
+        return system.kept(outside)
 
     return residual, jacobian
-
-
-class FreshJacobian(sparse.csr_matrix):
-    """A Jacobian made anew at every call, which scipy need not copy: ``least_squares`` (scipy >= 1.15)
-    returns a copy of every Jacobian (``astype`` to its own dtype) so that the solver, which scales it in place
-    for the robust loss, cannot change the one it keeps for the same point. The solver asks for a Jacobian
-    only at a new point (after an accepted step), where the kept one is made again, so no caller sees the
-    scaled matrix; the copy (15.6 M entries on the car body, about 30 times a tuning) is left out. The same
-    solution bit for bit (``tests/test_speed_same_plans.py``)."""
-
-    def astype(self, dtype, casting="unsafe", copy=True):
-        if np.dtype(dtype) == self.dtype:
-            return self
-        return super().astype(dtype, casting=casting, copy=copy)
