@@ -116,8 +116,9 @@ def test_film_samples_normals_are_the_every_corner_ones_bit_for_bit(suv):
 
     v, f = suv
     normals = nm.vertex_normals(v, f, nm.outward_face_normals(v, f)[1])
-    got_v, got_f, got_n = _subdivided(v, f, normals, 40.0)
+    got_v, got_f, got_n, got_index = _subdivided(v, f, normals, 40.0)
     new_v, new_f, index = subdivide_to_size(v, f, 40.0)
+    assert np.array_equal(got_index, index)  # each new face's given face
     scale = max(float(np.abs(v).max()), 1.0) * 1e-9
     _, first, inverse = unique_rows(np.round(new_v / scale).astype(np.int64))
     new_f, new_v = inverse.reshape(-1)[new_f], new_v[first]
@@ -125,3 +126,25 @@ def test_film_samples_normals_are_the_every_corner_ones_bit_for_bit(suv):
     want = _normals_every_corner(v, f, normals, new_v, new_f, index)
     assert np.array_equal(got_n, want)
     assert np.allclose(np.linalg.norm(got_n, axis=1), 1.0)
+
+
+def test_every_film_sample_lies_on_its_part_face(suv):
+    """The film's samples of a coarse mesh (the SUV's triangles are up to 1.2 m long) each name a face of the
+    part they lie on (``SurfaceSamples.part_face``), where the face whose centroid is nearest is another face
+    for many of them (the per-area figures were counted that way)."""
+    from scipy.spatial import cKDTree
+
+    from sprayplan.coating.sampling import surface_samples
+    from sprayplan.types import Part
+    from tests.helpers import barycentric_inside
+
+    suv = Part(*suv, None, "suv")
+    samples = surface_samples(suv, max_edge_mm=50.0)
+    face = samples.part_face
+    assert face.shape == (len(samples.points),) and (face >= 0).all()
+    assert barycentric_inside(samples.points, suv.triangles[face], tol=1e-6).all()
+    nearest = cKDTree(suv.triangles.mean(axis=1)).query(samples.points)[1]
+    wrong = ~barycentric_inside(samples.points, suv.triangles[nearest], tol=1e-6)
+    assert samples.area_mm2[wrong].sum() > 0.2 * samples.area_mm2.sum()
+    whole = surface_samples(suv, max_edge_mm=0.0)  # not split: each vertex names one of its own faces
+    assert (np.sort(suv.faces[whole.part_face], axis=1) == np.arange(len(suv.vertices))[:, None]).any(axis=1).all()

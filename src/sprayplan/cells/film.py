@@ -32,9 +32,13 @@ def film_report(
     film = plan.film
     um = film.thickness_um
     area = film.area_mm2
-    # each film sample belongs to the part's face whose centroid is nearest (samples are the vertices of a
-    # subdivided mesh, shared by neighbouring faces: at an area's edge either face is as right)
-    face = cKDTree(plan.part.triangles.mean(axis=1)).query(film.points)[1]
+    # each film sample belongs to a face of the part it lies on (samples are the vertices of the subdivided
+    # mesh, shared by neighbouring faces: at an area's edge either face is as right); a film without them
+    # (read back, or of given targets) to the face whose centroid is nearest, which on a coarse mesh (the
+    # SUV's triangles are up to 1.2 m long) puts many samples on a neighbouring face
+    face = film.part_face
+    if face is None or len(face) != len(film.points) or (face < 0).any() or (face >= len(plan.part.faces)).any():
+        face = cKDTree(plan.part.triangles.mean(axis=1)).query(film.points)[1]
     area_of = plan.areas.face_area[face]
     robot_of = plan.assignment.face_robot[face]
     whole = coating_report(film, target_um, tolerance_um, samples=samples, seed=seed)

@@ -35,12 +35,16 @@ class SurfaceSamples:
         Surface area each point stands for (a third of its adjacent triangles' area for mesh vertices).
     faces : (m, 3) int
         Triangles over the points (mesh vertices), or (0, 3).
+    part_face : (n,) int or None
+        Meshes: for each sample, a face of the part it lies on (a sample on an edge lies on each of its
+        faces: one of them), -1 for a vertex of no face; None for clouds and given targets.
     """
 
     points: np.ndarray
     normals: np.ndarray
     area_mm2: np.ndarray
     faces: np.ndarray
+    part_face: np.ndarray | None = None
 
     def __post_init__(self):
         read_only(self)
@@ -123,13 +127,15 @@ def surface_samples(
         )
     if part.is_mesh:
         normals = nm.vertex_normals(part.vertices, faces, face_n)
-        vertices = part.vertices
+        vertices, parent = part.vertices, np.arange(len(faces))
         if max_edge_mm > 0:
-            vertices, faces, normals = _subdivided(vertices, faces, normals, float(max_edge_mm))
+            vertices, faces, normals, parent = _subdivided(vertices, faces, normals, float(max_edge_mm))
         tri = vertices[faces]
         face_area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
         area = np.bincount(faces.ravel(), np.repeat(face_area / 3.0, 3), len(vertices))
-        return SurfaceSamples(vertices, normals, area, faces)
+        last = _last_face(faces, len(vertices))
+        part_face = np.where(last >= 0, parent[np.maximum(last, 0)], -1)
+        return SurfaceSamples(vertices, normals, area, faces, part_face)
     normals = part.vertex_normals
     if normals is None:
         points = [s.points for s in facing.strokes if s.spray_on and len(s)] if facing is not None else []
@@ -151,12 +157,20 @@ def _cloud_normals(points: np.ndarray, aim: np.ndarray, aim_normals: np.ndarray)
     return np.where(flip[:, None], -normals, normals)
 
 
+def _last_face(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """(n_vertices,) int: for each vertex, the face of its last write when every face's corner 0 is written,
+    then every corner 1, then 2 (-1: a vertex of no face)."""
+    at = np.full(n_vertices, -1, np.int64)
+    at[faces.T.ravel()] = np.arange(faces.size)
+    return np.where(at >= 0, at % max(len(faces), 1), -1)
+
+
 def _subdivided(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray, max_edge: float):
     """A mesh split until no edge is longer than ``max_edge``, with vertex normals interpolated linearly over
-    each original triangle (shared vertices merged)."""
+    each original triangle (shared vertices merged); and for each new face, the given face it lies in."""
     edges = vertices[faces] - vertices[np.roll(faces, 1, axis=1)]
     if len(faces) == 0 or np.linalg.norm(edges, axis=2).max() <= max_edge:
-        return vertices, faces, normals
+        return vertices, faces, normals, np.arange(len(faces))
     new_v, new_f, index = subdivide_to_size(vertices, faces, max_edge, max_rounds=30)
     scale = max(float(np.abs(vertices).max()), 1.0) * 1e-9
     _, first, inverse = unique_rows(np.round(new_v / scale).astype(np.int64))
@@ -184,7 +198,7 @@ def _subdivided(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray, ma
     out[written] = (
         w0[:, None] * normals[tri[:, 0]] + w1[:, None] * normals[tri[:, 1]] + w2[:, None] * normals[tri[:, 2]]
     )
-    return new_v, new_f, nm.unit(out)
+    return new_v, new_f, nm.unit(out), index
 
 
 def _cloud_area(points: np.ndarray, k: int = 8) -> np.ndarray:

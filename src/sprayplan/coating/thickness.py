@@ -167,6 +167,8 @@ class CoatingResult:
         Dry film volume each stroke left on the samples (sum of thickness x area), mm^3.
     process : Process
     name : str
+    part_face : (n,) int or None
+        For each sample, a face of the part it lies on (:class:`SurfaceSamples`), or None.
     """
 
     points: np.ndarray
@@ -180,6 +182,7 @@ class CoatingResult:
     stroke_deposit_mm3: np.ndarray
     process: Process
     name: str = ""
+    part_face: np.ndarray | None = None
 
     def __post_init__(self):
         read_only(self)
@@ -294,6 +297,7 @@ def simulate(
         deposit,
         process,
         paths.name or part.name,
+        samples.part_face,
     )
 
 

@@ -273,6 +273,7 @@ def tuned_film(tuning: Tuning, process: Process, coating: CoatingConfig | None =
         np.bincount(stroke_of, per_waypoint, len(paths.strokes)),
         process,
         paths.name,
+        samples.part_face,
     )
 
 
