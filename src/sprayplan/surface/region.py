@@ -206,12 +206,18 @@ def drop_floor_facing(part: Part, below_deg: float) -> tuple[Part, float]:
     if not keep.any():
         raise RegionError(f"part {part.name!r}: all of it faces the floor ([collision] skip_floor_facing)")
     left_out = float(0.5 * double_area[~keep].sum())
+    return keep_faces(part, keep), left_out
+
+
+def keep_faces(part: Part, keep: np.ndarray) -> Part:
+    """The mesh part with only the faces where ``keep`` is True, and the vertices they use (their file
+    normals with them); its orientation kept."""
     faces = part.faces[keep]
     used = np.zeros(len(part.vertices), dtype=bool)
     used[faces.reshape(-1)] = True
     remap = np.cumsum(used) - 1
     normals = None if part.vertex_normals is None else part.vertex_normals[used]
-    return Part(part.vertices[used], remap[faces], normals, part.name, oriented=part.oriented), left_out
+    return Part(part.vertices[used], remap[faces], normals, part.name, oriented=part.oriented)
 
 
 def _raise_empty(part: Part, region: Region):
@@ -385,10 +391,4 @@ def painted_surface(part: Part, collision) -> tuple[Part, dict]:
                 f"part {part.name!r}: nothing left to paint once the surface facing the floor and the surface "
                 f"covered within {collision.covered_mm:g} mm are left out ([collision] skip_covered)"
             )
-    if not drop.any():
-        return part, left
-    faces = part.faces[~drop]
-    used = np.zeros(len(part.vertices), dtype=bool)
-    used[faces.reshape(-1)] = True
-    remap = np.cumsum(used) - 1
-    return Part(part.vertices[used], remap[faces], None, part.name, oriented=part.oriented), left
+    return (keep_faces(part, ~drop) if drop.any() else part), left
