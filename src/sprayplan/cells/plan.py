@@ -204,11 +204,9 @@ class CellPlan:
 
 
 def _sub_part(part: Part, keep: np.ndarray, name: str) -> Part:
-    faces = part.faces[keep]
-    used = np.zeros(len(part.vertices), bool)
-    used[faces.reshape(-1)] = True
-    remap = np.cumsum(used) - 1
-    return Part(part.vertices[used], remap[faces], None, name, oriented=part.oriented)
+    from sprayplan.surface.region import keep_faces
+
+    return dataclasses.replace(keep_faces(part, keep), vertex_normals=None, name=name)
 
 
 def _transfer(a: Stroke, b: Stroke) -> Stroke:
