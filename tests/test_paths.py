@@ -463,6 +463,42 @@ def test_closed_surfaces_have_no_edge_to_pass():
     assert edge and all(s.points[:, 2].max() < 1.0 for s in edge)
 
 
+def test_the_march_goes_on_past_a_gap_in_the_part():
+    from sprayplan.paths.frame import GAP_PROBE, layer_offsets
+
+    def samples(offset):  # a flat strip across the planes with no surface for 100 < y < 180
+        if 100.0 < offset < 180.0:
+            return np.zeros((0, 3))
+        return np.column_stack([np.linspace(0, 100, 11), np.full(11, offset), np.zeros(11)])
+
+    def distance(query, offset):
+        if not len(samples(offset)):
+            return np.inf
+        return float(np.median(np.abs(query[:, 1] - offset)))
+
+    offsets = np.array(layer_offsets(0.0, 400.0, PathConfig(spacing_mm=30.0), samples, distance))
+    assert all(len(samples(o)) for o in offsets)
+    np.testing.assert_allclose(offsets[:3], [15.0, 45.0, 75.0], atol=1e-6)
+    after = offsets[offsets > 180.0]
+    # half a spacing past the far edge (found to a twentieth of the spacing), then the spacing again
+    assert 180.0 + 15.0 - GAP_PROBE * 30.0 - 1e-9 <= after[0] <= 180.0 + 15.0 + 1e-9
+    np.testing.assert_allclose(np.diff(after), 30.0, atol=1e-3)
+    assert after[-1] > 400.0 - 30.0
+    # two plates in one plane with a gap between them: both are sliced the spacing apart, not edge-passed
+    strips = [plate(0.0, 400.0, y0, y0 + 300.0, 20.0) for y0 in (0.0, 500.0)]
+    part = Part(
+        np.vstack([p.vertices for p in strips]),
+        np.vstack([strips[0].faces, strips[1].faces + len(strips[0].vertices)]),
+        None,
+        "two strips",
+    )
+    paths = plan_paths(part, PathConfig(spacing_mm=30.0, direction="y"))
+    ys = sorted({round(float(np.median(s.points[s.on_part, 1])), 3) for s in paths.spray_strokes if s.on_part.any()})
+    far = np.array([y for y in ys if y > 400.0])
+    assert len(far) >= 9 and far.min() < 500.0 + 30.0 and far.max() > 800.0 - 30.0
+    np.testing.assert_allclose(np.diff(far), 30.0, rtol=0.02)
+
+
 def test_boundaries_of_meshes_and_clouds():
     from sprayplan.paths.cloud_sections import cloud_boundary
     from sprayplan.paths.edges import mesh_boundary

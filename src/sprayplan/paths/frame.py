@@ -119,6 +119,23 @@ def layer_offsets(
     return march_offsets(lo, hi, d, samples, distance, close=config.edge_passes == 0 or closed_part)
 
 
+#: The planes look for the far side of a gap in the part (:func:`march_offsets`) this many spacings apart.
+GAP_PROBE = 0.05
+
+
+def _past_gap(offset: float, hi: float, d: float, samples) -> float | None:
+    """The plane offset at which the march goes on past a gap in the part that ``offset`` lies in: half a
+    spacing past the gap's far edge (found to ``GAP_PROBE * d``), or the first offset with a section when the
+    piece beyond is thinner than that; None when no section lies beyond ``offset`` (up to ``hi``)."""
+    step = GAP_PROBE * d
+    eps = 1e-6 * max(abs(hi), 1.0)
+    for probe in np.arange(offset + step, hi, step):
+        if len(samples(float(probe))):
+            inside = float(min(probe - step + d / 2, hi - eps))
+            return inside if len(samples(inside)) else float(probe)
+    return None
+
+
 def march_offsets(lo: float, hi: float, d: float, samples, distance, close: bool = True) -> list[float]:
     """Plane offsets such that each section lies ``d`` from the previous one, measured on the part.
 
@@ -129,7 +146,9 @@ def march_offsets(lo: float, hi: float, d: float, samples, distance, close: bool
     too large). The gap is at least the planes' distance, so the root lies within one spacing. The planes move by
     at least ``MIN_PLANE_STEP * d``. With ``close``, a last layer at the far edge (closer than ``d``) is added
     when more than half a spacing of the part would otherwise be left; without, the march stops at the last
-    layer a whole spacing from the previous one (edge passes then carry on past the edge).
+    layer a whole spacing from the previous one (edge passes then carry on past the edge). A plane that lands
+    in a gap of the part (two pieces apart along the planes' normal, such as an area whose faces are not all
+    joined) does not end the march: it goes on half a spacing past the gap's far edge (:func:`_past_gap`).
 
     Parameters
     ----------
@@ -152,6 +171,15 @@ def march_offsets(lo: float, hi: float, d: float, samples, distance, close: bool
                 " or another paths.direction"
             )
         current = samples(offsets[-1])
+        if len(current) == 0:
+            # the plane stepped into a gap between two pieces of the part (apart along the planes' normal): the
+            # march starts again past the gap, as it started at the part's lowest offset
+            resumed = _past_gap(offsets[-1], hi, d, samples)
+            if resumed is None:
+                offsets.pop()
+                break
+            offsets[-1] = resumed
+            continue
 
         def gap(o, q=current, here=offsets[-1]):
             ahead = distance(q, o)
