@@ -291,16 +291,24 @@ def test_areas_command_writes_one_row_a_painted_face(testdata, tmp_path, capsys)
     assert code == 0, err
     rows = list(csv.DictReader(out.open()))
     part = load_part(suv, units="m")
+    from sprayplan.cells.plan import AREA_EDGE_MM, area_surface
     from sprayplan.config import CollisionConfig
     from sprayplan.surface.normals import oriented_part
     from sprayplan.surface.region import painted_surface
 
     placed = place_part(part, load_cell("sides2")).part
     painted, _ = painted_surface(oriented_part(placed), CollisionConfig())  # as plan_cell paints it
-    assert len(rows) == len(painted.faces)
+    split, parent = area_surface(painted)
+    assert len(split.faces) > len(painted.faces)  # the SUV's long faces are split for the areas
+    tri = split.triangles
+    assert np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max() <= AREA_EDGE_MM
+    np.testing.assert_allclose(np.bincount(parent, split.face_areas, len(painted.faces)), painted.face_areas, rtol=1e-9)
+    assert len(rows) == len(split.faces)
     assert sum(float(r["face_area_mm2"]) for r in rows) == pytest.approx(painted.area, rel=1e-4)
     faces = np.array([int(r["face"]) for r in rows])
-    assert len(np.unique(faces)) == len(faces) and faces.max() < len(placed.faces)
+    # one row a piece: every painted face of the loaded part, as many times as it was split
+    assert np.array_equal(np.unique(faces, return_counts=True)[1], np.bincount(parent))
+    assert faces.max() < len(placed.faces)
     assert {r["robot"] for r in rows} <= {"left", "right", ""}
     assert all((r["robot"] == "") == (r["robot_index"] == "-1") for r in rows)
     assert "areas of" in text and str(out) in text

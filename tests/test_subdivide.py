@@ -148,3 +148,30 @@ def test_every_film_sample_lies_on_its_part_face(suv):
     assert samples.area_mm2[wrong].sum() > 0.2 * samples.area_mm2.sum()
     whole = surface_samples(suv, max_edge_mm=0.0)  # not split: each vertex names one of its own faces
     assert (np.sort(suv.faces[whole.part_face], axis=1) == np.arange(len(suv.vertices))[:, None]).any(axis=1).all()
+
+
+def test_split_part_keeps_the_surface_the_winding_and_unit_normals(suv):
+    import dataclasses
+
+    from sprayplan.surface.subdivide import split_part
+    from sprayplan.types import Part
+
+    oriented = Part(*suv, name="suv", oriented=True)
+    # vertex normals as a file would give them: the mesh's own, so the split ones can be checked against the faces
+    given = nm.vertex_normals(oriented.vertices, oriented.faces, nm.face_normals(oriented.vertices, oriented.faces))
+    part = dataclasses.replace(oriented, vertex_normals=given)
+    split, parent = split_part(part, 200.0)
+    assert split.oriented and split.name == part.name and len(split.faces) > len(part.faces)
+    tri = split.triangles
+    assert np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max() <= 200.0
+    # every piece lies in its parent face's plane, wound the same way, and the parents' areas add up
+    own = nm.face_normals(split.vertices, split.faces)
+    np.testing.assert_allclose(own, nm.face_normals(part.vertices, part.faces)[parent], atol=1e-6)
+    np.testing.assert_allclose(np.bincount(parent, split.face_areas, len(part.faces)), part.face_areas, rtol=1e-9)
+    # the given vertices keep their normals; a new one has the unit mean of its edge's two ends' normals
+    n = len(part.vertices)
+    np.testing.assert_array_equal(split.vertex_normals[:n], part.vertex_normals)
+    np.testing.assert_allclose(np.linalg.norm(split.vertex_normals, axis=1), 1.0, atol=1e-12)
+    # a mesh already fine enough comes back as it is
+    same, index = split_part(split, 200.0)
+    assert same is split and np.array_equal(index, np.arange(len(split.faces)))

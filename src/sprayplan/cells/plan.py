@@ -561,6 +561,26 @@ def with_touch_ups(cell: Cell, robots: tuple, extra: list):
     return tuple(out), added
 
 
+#: Before a cell of several robots splits the painted surface into areas, its faces are split until no edge is
+#: longer than this, mm (:func:`area_surface`).
+AREA_EDGE_MM = 200.0
+
+
+def area_surface(painted: Part) -> tuple[Part, np.ndarray]:
+    """The painted surface as a cell of several robots splits it among them: every face with an edge longer
+    than :data:`AREA_EDGE_MM` split (:func:`~sprayplan.surface.subdivide.split_part`); and for each face the
+    face of ``painted`` it lies in.
+
+    A robot's reach is scored at a face's centre (:func:`~sprayplan.cells.reach.reach_matrix`) and a face
+    goes to one robot whole, so a face larger than a robot's margin of reach (the SUV's are up to 1.4 m long)
+    went whole to a robot that reaches its centre but not its far end (the bottom band of the SUV's rear hatch,
+    19 % of it in spec). Split, such a face is shared along the line where the reach changes, as a finely
+    meshed body's is; a car body meshed finer than this (the BMW's) is not changed."""
+    from sprayplan.surface.subdivide import split_part
+
+    return split_part(painted, AREA_EDGE_MM)
+
+
 #: The seam rules :func:`plan_cell` takes (module docstring).
 SEAM_RULES = ("feather", "overlap")
 
@@ -611,6 +631,8 @@ def plan_cell(
     # oriented once, as a whole: each robot's share then keeps the body's outward side (a share voted on
     # alone can turn a piece of the nose inward)
     painted, left_out = painted_surface(oriented_part(placed.part), job.collision)
+    if len(cell.robots) > 1:
+        painted, _ = area_surface(painted)
     begin("areas")
     job, chosen = meet_thickness(job)
     if job.collision.check:

@@ -8,7 +8,8 @@ import sys
 from sprayplan.cli.common import check_outputs, file_input
 from sprayplan.cli.common import stage as _stage
 
-#: The columns of ``sprayplan areas -o FILE.csv``: one row a face of the part as loaded.
+#: The columns of ``sprayplan areas -o FILE.csv``: one row a face of the part as loaded (a face split for the
+#: areas, ``cells.plan.area_surface``: one row a piece).
 AREA_COLUMNS = ["face", "area", "direction", "robot", "robot_index", "reach", "face_area_mm2"]
 
 
@@ -45,6 +46,7 @@ def cmd_areas(args) -> int:
     import numpy as np
 
     from sprayplan.cells import load_cell, place_part
+    from sprayplan.cells.plan import area_surface
     from sprayplan.cells.reach import reach_matrix
     from sprayplan.config import CollisionConfig
     from sprayplan.errors import ConfigError
@@ -74,6 +76,9 @@ def cmd_areas(args) -> int:
         surface = CollisionConfig(floor_facing_deg=args.floor_facing_deg)
         painted, _ = painted_surface(placed, surface)
         kept = not_floor_facing(placed, args.floor_facing_deg) & ~covered_faces(placed, surface.covered_mm)
+        parent = np.arange(len(painted.faces))
+        if len(cell.robots) > 1:  # its long faces split, as plan_cell splits them
+            painted, parent = area_surface(painted)
     with _stage("areas"):
         areas = segment_areas(painted, min_share=args.min_share)
     arms = None
@@ -89,7 +94,7 @@ def cmd_areas(args) -> int:
         reach = reach_matrix(cell, painted, areas.face_normals, args.standoff_mm, arms=arms)
         assigned = assign_areas(areas, painted.face_areas, reach)
     names = [r.name for r in cell.robots]
-    index = np.flatnonzero(kept)
+    index = np.flatnonzero(kept)[parent]
     fa = painted.face_areas
     rows = []
     for j, f in enumerate(index):
@@ -116,7 +121,7 @@ def cmd_areas(args) -> int:
             f"  {name:12s} {areas.area_mm2[k] / 1e6:7.3f} m^2 -> {who}, reaches {100 * assigned.area_share[k]:.1f} %{split}"
         )
     per_robot = ", ".join(f"{n} {a / 1e6:.2f} m^2" for n, a in zip(names, assigned.robot_area_mm2))
-    left_out = len(placed.faces) - len(index)
+    left_out = len(placed.faces) - int(kept.sum())
     print(
         f"{len(areas)} areas of {painted.area / 1e6:.2f} m^2 on {cell.name}: {per_robot}; unreached "
         f"{assigned.unreached_mm2 / 1e6:.3f} m^2; {left_out} floor-facing or covered faces left out -> {args.output}"
@@ -135,7 +140,8 @@ def add_parsers(sub, common, add_load_options) -> None:
         help="split a part into areas of one surface direction and give each to a robot of a cell -> CSV",
         description="Automatic areas (seed 003, section 5): the part placed in the cell, its surface split into "
         "patches of one direction (islands merged), each patch given to the robot that reaches it best, split "
-        "where none reaches it whole. Writes one row a face: its area, direction and robot.",
+        "where none reaches it whole. Writes one row a face (a face longer than 200 mm split as the plan splits "
+        "it, one row a piece): its area, direction and robot.",
     )
     areas.add_argument("part", help="a mesh file")
     areas.add_argument("-o", "--output", required=True, help="the CSV to write")

@@ -113,3 +113,27 @@ def subdivide_to_size(
     out_f = np.concatenate(done_faces) if done_faces else faces[:0]
     out_i = np.concatenate(done_index) if done_index else np.zeros(0, np.int64)
     return out_v, out_f.astype(np.int64), out_i.astype(np.int64)
+
+
+def split_part(part, max_edge: float):
+    """``part`` (a mesh, :class:`~sprayplan.types.Part`) with its faces split until no edge is longer than
+    ``max_edge`` (:func:`subdivide_to_size`), its name and ``oriented`` flag kept (a split face keeps its
+    winding) and its vertex normals, if it has any, taken to each new vertex as the mean of its edge's two
+    (made unit again); and for each face the face of ``part`` it lies in. A mesh whose edges are all short
+    enough comes back as it is."""
+    import dataclasses
+
+    faces = np.asarray(part.faces)
+    if not len(faces):
+        return part, np.arange(0)
+    tri = part.vertices[faces]
+    if np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max() <= max_edge:
+        return part, np.arange(len(faces))
+    carried = part.vertices if part.vertex_normals is None else np.hstack([part.vertices, part.vertex_normals])
+    vertices, new_faces, parent = subdivide_to_size(carried, faces, max_edge)
+    normals = None
+    if part.vertex_normals is not None:
+        normals = vertices[:, 3:].copy()
+        new = normals[len(part.vertices) :]  # the given vertices keep theirs as they are
+        new /= np.maximum(np.linalg.norm(new, axis=1, keepdims=True), 1e-12)
+    return dataclasses.replace(part, vertices=vertices[:, :3], faces=new_faces, vertex_normals=normals), parent
