@@ -296,6 +296,11 @@ _RAY_START_MM = 0.5
 _PAIR_CHUNK = 2_000_000
 
 
+#: How far outside a ray's span a face's plane may be crossed and the pair still go to the exact test, mm
+#: (far above the rounding of the plane's crossing, so the prefilter never drops a pair the test would keep).
+_PLANE_SLACK_MM = 1e-6
+
+
 def covered_faces(part: Part, within_mm: float) -> np.ndarray:
     """(m,) bool: the mesh's faces with another face of the part in front of them within ``within_mm``, near
     parallel (:data:`COVERED_MIN_COS`), on the ray from the face's centre along its outward normal
@@ -318,6 +323,7 @@ def covered_faces(part: Part, within_mm: float) -> np.ndarray:
     length = float(within_mm) - _RAY_START_MM
     origin = centre + _RAY_START_MM * normals
     mid_tree = cKDTree(origin + 0.5 * length * normals)
+    plane = np.einsum("ij,ij->i", normals, tri[:, 0])  # each face's plane: {x : normal . x = plane}
     covered = np.zeros(len(faces), bool)
     top = max(float(radius.max()), 1e-9)
     edges = [0.0]
@@ -329,11 +335,22 @@ def covered_faces(part: Part, within_mm: float) -> np.ndarray:
         found = mid_tree.sparse_distance_matrix(
             cKDTree(centre[members]), 0.5 * length + edges[g], output_type="ndarray"
         )
-        rays, hit = found["i"].astype(np.int64), members[found["j"]]
+        rays, hit = found["i"], members[found["j"]]
         keep = (rays != hit) & ~covered[rays]
         rays, hit = rays[keep], hit[keep]
-        near_parallel = np.abs(np.einsum("ij,ij->i", normals[rays], normals[hit])) >= COVERED_MIN_COS
-        rays, hit = rays[near_parallel], hit[near_parallel]
+        facing = np.einsum("ij,ij->i", normals[rays], normals[hit])
+        # near parallel, and the ray crosses the other face's plane within its length (most candidates are
+        # the face's neighbours on the same sheet, whose plane lies behind the ray's start): two dot products
+        # a pair spare the exact test on them; a pair kept here is decided by the exact test alone
+        cross_at = (plane[hit] - np.einsum("ij,ij->i", normals[hit], origin[rays])) / np.where(
+            facing == 0.0, 1.0, facing
+        )
+        keep = (
+            (np.abs(facing) >= COVERED_MIN_COS)
+            & (cross_at >= -_PLANE_SLACK_MM)
+            & (cross_at <= length + _PLANE_SLACK_MM)
+        )
+        rays, hit = rays[keep], hit[keep]
         for start in range(0, len(rays), _PAIR_CHUNK):
             r, h = rays[start : start + _PAIR_CHUNK], hit[start : start + _PAIR_CHUNK]
             covered[r[_ray_hits(origin[r], normals[r], tri[h], length)]] = True
