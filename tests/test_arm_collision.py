@@ -223,6 +223,41 @@ def test_the_slack_proof_flags_the_same_motions_as_the_whole_grid():
     assert np.isnan(result.waypoint.slack_mm[40]) and not result.waypoint.collides[40]
 
 
+def test_the_yes_no_plan_check_gives_check_robots_answer():
+    """``plan_collides`` (the repairs' test of a try) answers as ``check_robot`` does (any waypoint or motion
+    in collision), on plans free, hit at a waypoint, and hit only between waypoints; its slacks are lower bounds
+    on the full check's."""
+    from sprayplan.collision.arms import plan_collides
+
+    part = grid_box(n=6, size=(300.0, 300.0, 300.0))
+    part = type(part)(part.vertices + [0.0, 150.0, 1300.0], part.faces, name="box in reach")
+    _cell_robot, arm = _arm(part)
+    rng = np.random.default_rng(7)
+    q = np.cumsum(rng.normal(0, 0.04, (400, 6)), axis=0) + [0.0, 0.0, 0.0, 0.0, 0.3, 0.0]
+    track = np.cumsum(rng.normal(0, 10.0, 400))
+    reachable = rng.random(400) > 0.05
+    full = arm.check(q, track)
+    bound = arm.slack_bound(q, track)
+    assert np.all(bound <= full.slack_mm + 1e-9)
+    # plans along the walk (free, or hit at a waypoint), and plans of three free configurations near the box
+    # far apart in joints (their motions cross it)
+    plans = [(q[i : i + 9], track[i : i + 9], reachable[i : i + 9]) for i in range(0, 392, 8)]
+    pool = _random_q(arm.params, 600, 21)
+    pool_found = arm.check(pool, np.zeros(len(pool)))
+    near = np.flatnonzero(~pool_found.collides & (pool_found.slack_mm < 150.0))
+    for _ in range(12):
+        rows = rng.choice(near, 3, replace=False)
+        plans.append((pool[rows], np.zeros(3), np.ones(3, bool)))
+    kinds = {"free": 0, "waypoint": 0, "motion only": 0}
+    for plan_q, plan_track, plan_reached in plans:
+        found = check_robot(arm, plan_q, plan_track, plan_reached)
+        expected = bool(found.waypoint.collides.any() or found.motion_collides.any())
+        assert plan_collides(arm, plan_q, plan_track, plan_reached) == expected
+        kind = "waypoint" if found.waypoint.collides.any() else ("motion only" if expected else "free")
+        kinds[kind] += 1
+    assert all(count >= 2 for count in kinds.values()), kinds
+
+
 def test_separation_is_a_lower_bound_close_to_the_true_gap():
     """Two robots' swept spaces: the bound is below the least gap between any two of their capsules (brute
     force over every pair of configurations), and within the bound's own error of it."""

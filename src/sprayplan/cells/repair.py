@@ -52,7 +52,7 @@ def repaired_work(cell_robot, work, arm) -> tuple:
     ``work`` is the robot's ``cells.plan.RobotWork``, ``arm`` its :class:`~sprayplan.collision.arms.ArmCollision`.
     Returns the work and ``{"strokes_in_collision", "strokes_repaired"}``.
     """
-    from sprayplan.collision.arms import check_robot
+    from sprayplan.collision.arms import check_robot, plan_collides
     from sprayplan.robots.interface import nearest_turns
 
     robot = cell_robot.robot(0.0)
@@ -100,8 +100,7 @@ def repaired_work(cell_robot, work, arm) -> tuple:
             test_q = np.concatenate([q[lead], qb])
             test_t = np.concatenate([track[lead], t])
             test_ok = np.concatenate([reach[lead], ok])
-            again = check_robot(arm, test_q, test_t, test_ok)
-            if again.waypoint.collides.any() or again.motion_collides.any():
+            if plan_collides(arm, test_q, test_t, test_ok):  # check_robot's answer, found for less
                 continue
             q[a:b], track[a:b], reach[a:b], roll[i] = qb, t, ok, r
             repaired += 1

@@ -265,6 +265,30 @@ class ArmCollision:
         body = np.where(column < 2 * b, column % b, b - 1)
         return slack[rows, column] < 0, body, kinds[column], distance[rows, column], slack[rows, column]
 
+    def slack_bound(self, q, track_mm) -> np.ndarray:
+        """(n,) mm: a lower bound on each configuration's slack (``check(q, track_mm).slack_mm``) from the
+        surface samples' bounds alone, no exact query: enough to prove the motions next to a waypoint free for
+        as far as its bodies can move within it (:func:`plan_collides`), if less far than the exact slack."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        track = np.broadcast_to(np.asarray(track_mm, dtype=float), (len(q),)).copy()
+        out = np.empty(len(q))
+        b = len(ARM_BODIES)
+        for start in range(0, len(q), CHUNK):
+            qc, tc = q[start : start + CHUNK], track[start : start + CHUNK]
+            segments = self.segments(qc, tc)
+            part = np.full((len(qc), b), np.inf)
+            for k in range(1, b):
+                part[:, k] = capsules_to_surface(
+                    self.samples, segments[:, k], float(self.radii[k]), self.clearance_mm + PROOF_MM, SPACING_MM
+                )
+            floor = segments[..., 2].min(axis=2) - self.radii - self.floor_z_mm
+            floor[:, 0] = np.inf
+            tcp_floor = self.tcp(qc, tc)[:, 2] - self.floor_z_mm
+            out[start : start + CHUNK] = np.minimum(
+                (part - self.clearance_mm).min(axis=1), np.minimum(floor.min(axis=1), tcp_floor)
+            )
+        return out
+
     def collides(self, q, track_mm) -> np.ndarray:
         """(n,) bool: the same answer as ``check(q, track_mm).collides`` with fewer exact queries, for callers
         that want only yes or no (the repairs' screen). The floor first (exact by construction); then per row
@@ -459,6 +483,36 @@ def check_robot(arm: ArmCollision, q, track_mm, reachable) -> RobotCollisions:
     if n > 1:
         motion |= collides[:-1] | collides[1:]
     return RobotCollisions(ConfigCollisions(collides, body, other, distance, slack), motion, len(joints))
+
+
+#: The motions' configurations are checked by :func:`plan_collides` this many at a time, stopping at the first
+#: batch with one in collision.
+MOTION_BATCH = 512
+
+
+def plan_collides(arm: ArmCollision, q, track_mm, reachable) -> bool:
+    """Whether :func:`check_robot` would find any waypoint or motion of the plan in collision, answered for
+    less: the waypoints by the yes/no check (:meth:`ArmCollision.collides`, its answer with fewer exact
+    queries), and only when they are all free, the motions' configurations in batches of
+    :data:`MOTION_BATCH`, stopping at the first in collision. The motions are cut at the same configurations
+    as :func:`check_robot` cuts them; those next to a waypoint are left out only as far as a lower bound on its
+    slack proves them free (:meth:`ArmCollision.slack_bound`, where ``check_robot`` takes the exact slack), so
+    every configuration left out is free and the answer is the same."""
+    q = np.asarray(q, dtype=float)
+    track = np.asarray(track_mm, dtype=float)
+    reachable = np.asarray(reachable, dtype=bool)
+    idx = np.flatnonzero(reachable)
+    if not len(idx):
+        return False
+    if arm.collides(q[idx], track[idx]).any():
+        return True
+    slack = np.full(len(q), np.nan)
+    slack[idx] = np.maximum(arm.slack_bound(q[idx], track[idx]), 0.0)
+    joints, tracks, _ = arm.motion_configs(q, track, reachable, slack=slack)
+    for start in range(0, len(joints), MOTION_BATCH):
+        if arm.collides(joints[start : start + MOTION_BATCH], tracks[start : start + MOTION_BATCH]).any():
+            return True
+    return False
 
 
 #: Voxel size of the swept volumes compared by :func:`separation`, mm.
