@@ -322,8 +322,7 @@ class ArmCollision:
             todo = np.flatnonzero(~done & near[np.arange(len(rows)), columns])
             if not len(todo):
                 break
-            exact = self._exact(segments[rows[todo], columns[todo]], radii[columns[todo]])
-            inside = exact < self.clearance_mm
+            inside = self._within(segments[rows[todo], columns[todo]], radii[columns[todo]], self.clearance_mm)
             hit[rows[todo[inside]]] = True
             done[todo[inside]] = True
         return hit
@@ -342,6 +341,29 @@ class ArmCollision:
             result = coal.DistanceResult()
             out[i] = coal.distance(
                 geometry, coal.Transform3s(rotations[i], centres[i]), self._mesh, identity, request, result
+            )
+        return out
+
+    def _within(self, segments: np.ndarray, radii: np.ndarray, limit_mm: float) -> np.ndarray:
+        """(k,) bool: the capsules (segments (k, 2, 3), radii (k,)) come nearer the part's mesh than
+        ``limit_mm``, i.e. :meth:`_exact` ``< limit_mm``: coal's collision test of each capsule grown by
+        ``limit_mm`` (it stops at the first triangle it meets, where the distance looks for the nearest: about
+        a quarter of the time on the BMW's arms near the body, the same answers)."""
+        out = np.empty(len(segments), bool)
+        axis = segments[:, 1] - segments[:, 0]
+        length = np.linalg.norm(axis, axis=1)
+        z = np.where(length[:, None] > 0, axis / np.maximum(length, 1e-12)[:, None], [0.0, 0.0, 1.0])
+        rotations = _axis_poses(z)
+        centres = segments.mean(axis=1)
+        request, identity = coal.CollisionRequest(), coal.Transform3s()
+        for i in range(len(segments)):
+            geometry = coal.Capsule(float(radii[i]) + float(limit_mm), float(length[i]))
+            result = coal.CollisionResult()
+            out[i] = (
+                coal.collide(
+                    geometry, coal.Transform3s(rotations[i], centres[i]), self._mesh, identity, request, result
+                )
+                > 0
             )
         return out
 
