@@ -200,12 +200,16 @@ def test_motions_are_checked_at_most_one_step_apart():
         assert moved <= arm.motion_step_mm + 1e-9
 
 
+def _arm_over_box():
+    """The first robot of :data:`CELL` with a 300 mm box within its reach."""
+    part = grid_box(n=6, size=(300.0, 300.0, 300.0))
+    return _arm(type(part)(part.vertices + [0.0, 150.0, 1300.0], part.faces, name="box in reach"))[1]
+
+
 def test_the_slack_proof_flags_the_same_motions_as_the_whole_grid():
     """Leaving out the configurations a waypoint's slack proves free flags the same motions as checking every
     configuration of every motion's grid, and checks far fewer; an unreached waypoint is not checked."""
-    part = grid_box(n=6, size=(300.0, 300.0, 300.0))
-    part = type(part)(part.vertices + [0.0, 150.0, 1300.0], part.faces, name="box in reach")
-    _cell_robot, arm = _arm(part)
+    arm = _arm_over_box()
     rng = np.random.default_rng(7)
     q = np.cumsum(rng.normal(0, 0.04, (120, 6)), axis=0) + [0.0, 0.0, 0.0, 0.0, 0.3, 0.0]
     track = np.cumsum(rng.normal(0, 10.0, 120))
@@ -229,9 +233,7 @@ def test_the_yes_no_plan_check_gives_check_robots_answer():
     on the full check's."""
     from sprayplan.collision.arms import plan_collides
 
-    part = grid_box(n=6, size=(300.0, 300.0, 300.0))
-    part = type(part)(part.vertices + [0.0, 150.0, 1300.0], part.faces, name="box in reach")
-    _cell_robot, arm = _arm(part)
+    arm = _arm_over_box()
     rng = np.random.default_rng(7)
     q = np.cumsum(rng.normal(0, 0.04, (400, 6)), axis=0) + [0.0, 0.0, 0.0, 0.0, 0.3, 0.0]
     track = np.cumsum(rng.normal(0, 10.0, 400))

@@ -327,45 +327,43 @@ class ArmCollision:
             done[todo[inside]] = True
         return hit
 
-    def _exact(self, segments: np.ndarray, radii: np.ndarray) -> np.ndarray:
-        """(k,) coal's signed distances of capsules (segments (k, 2, 3), radii (k,)) to the part's mesh."""
-        out = np.empty(len(segments))
+    def _capsules(self, segments: np.ndarray, radii: np.ndarray, grow_mm: float = 0.0):
+        """coal's capsules (segments (k, 2, 3), radii (k,) plus ``grow_mm``) with their poses in the cell frame."""
         axis = segments[:, 1] - segments[:, 0]
         length = np.linalg.norm(axis, axis=1)
         z = np.where(length[:, None] > 0, axis / np.maximum(length, 1e-12)[:, None], [0.0, 0.0, 1.0])
         rotations = _axis_poses(z)
         centres = segments.mean(axis=1)
-        request, identity = coal.DistanceRequest(), coal.Transform3s()
         for i in range(len(segments)):
-            geometry = coal.Capsule(float(radii[i]), float(length[i]))
-            result = coal.DistanceResult()
-            out[i] = coal.distance(
-                geometry, coal.Transform3s(rotations[i], centres[i]), self._mesh, identity, request, result
+            yield (
+                coal.Capsule(float(radii[i]) + grow_mm, float(length[i])),
+                coal.Transform3s(rotations[i], centres[i]),
             )
-        return out
+
+    def _exact(self, segments: np.ndarray, radii: np.ndarray) -> np.ndarray:
+        """(k,) coal's signed distances of capsules (segments (k, 2, 3), radii (k,)) to the part's mesh."""
+        request, identity = coal.DistanceRequest(), coal.Transform3s()
+        return np.array(
+            [
+                coal.distance(capsule, pose, self._mesh, identity, request, coal.DistanceResult())
+                for capsule, pose in self._capsules(segments, radii)
+            ],
+            dtype=float,
+        )
 
     def _within(self, segments: np.ndarray, radii: np.ndarray, limit_mm: float) -> np.ndarray:
         """(k,) bool: the capsules (segments (k, 2, 3), radii (k,)) come nearer the part's mesh than
         ``limit_mm``, i.e. :meth:`_exact` ``< limit_mm``: coal's collision test of each capsule grown by
         ``limit_mm`` (it stops at the first triangle it meets, where the distance looks for the nearest: about
         a quarter of the time on the BMW's arms near the body, the same answers)."""
-        out = np.empty(len(segments), bool)
-        axis = segments[:, 1] - segments[:, 0]
-        length = np.linalg.norm(axis, axis=1)
-        z = np.where(length[:, None] > 0, axis / np.maximum(length, 1e-12)[:, None], [0.0, 0.0, 1.0])
-        rotations = _axis_poses(z)
-        centres = segments.mean(axis=1)
         request, identity = coal.CollisionRequest(), coal.Transform3s()
-        for i in range(len(segments)):
-            geometry = coal.Capsule(float(radii[i]) + float(limit_mm), float(length[i]))
-            result = coal.CollisionResult()
-            out[i] = (
-                coal.collide(
-                    geometry, coal.Transform3s(rotations[i], centres[i]), self._mesh, identity, request, result
-                )
-                > 0
-            )
-        return out
+        return np.array(
+            [
+                coal.collide(capsule, pose, self._mesh, identity, request, coal.CollisionResult()) > 0
+                for capsule, pose in self._capsules(segments, radii, float(limit_mm))
+            ],
+            dtype=bool,
+        )
 
     def motion_bounds(self, q, track_mm, first: np.ndarray) -> np.ndarray:
         """(k,) mm: the bound on any body point's displacement over the motions from waypoint ``first`` to the
