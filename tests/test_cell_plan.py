@@ -233,7 +233,7 @@ def test_the_film_is_made_only_by_reached_runs_and_their_tuning_goes_back():
 def test_spray_stops_where_the_surface_goes_on_as_another_piece_and_not_at_an_edge():
     """feathered / SeamGuard: a lead-out over the neighbouring piece (the surface goes on) is cut; one past the
     part's edge, or over a face turned 90 degrees (a corner), is kept."""
-    from sprayplan.cells.plan import SeamGuard, feathered
+    from sprayplan.cells.seams import SeamGuard, feathered
     from sprayplan.types import Stroke
 
     box = grid_box(n=8, size=(400.0, 200.0, 100.0))

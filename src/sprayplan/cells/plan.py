@@ -37,7 +37,7 @@ default). The planner runs every stroke past the edge of its piece (its lead-in 
 ``[paths] edge_margin_mm``) and adds edge passes beyond edges that run with the strokes, so that the film does
 not thin out at a part's edge. At a seam the surface does not end: the neighbouring piece goes on, painted by
 its own strokes, and those extensions would paint it a second time. So a stroke's extension stops at its first
-waypoint that lies over another piece's surface facing the same way (:class:`SeamGuard`, :func:`feathered`),
+waypoint that lies over another piece's surface facing the same way (:class:`~sprayplan.cells.seams.SeamGuard`, :func:`~sprayplan.cells.seams.feathered`),
 and an edge pass keeps only what is not over another piece; at a true edge of the body, or at a corner
 where the next face turns away (a roof's edge over a side), the extensions stay. Both sides then end at the
 seam, each leaving the tapered half of its spray there, and the whole-body tuning evens out the rest.
@@ -68,11 +68,11 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from sprayplan.cells.film import film_at_timed_speeds, film_report, timed_film_summary
 from sprayplan.cells.reach import reach_matrix
 from sprayplan.cells.repair import repaired_work
+from sprayplan.cells.seams import SEAM_STEP_MM, SeamGuard, cut_stroke, feathered
 from sprayplan.cells.spec import Cell, place_part
 from sprayplan.cells.tries import rot_z, start_joints, stroke_tries
 from sprayplan.config import JobConfig
@@ -284,89 +284,6 @@ def solve_strokes(cell_robot, strokes) -> list[tuple[np.ndarray, float, np.ndarr
     return out
 
 
-class SeamGuard:
-    """Where a stroke's extension lies over the surface of another piece (module docstring, the seam rule).
-
-    The painted surface is sampled at most ``step_mm`` apart (a barycentric grid on every face), each sample
-    labelled with its face's piece (area and robot) and normal. A waypoint off its own piece (``on_part``
-    False: a lead-in or lead-out, an edge pass) is over another piece when a sample of another piece lies
-    within ``step_mm`` of its aim point and faces the same way (normals within :data:`SEAM_ANGLE_DEG`): the
-    surface goes on there, painted by its own strokes.
-    """
-
-    def __init__(self, part: Part, label: np.ndarray, normals: np.ndarray, step_mm: float):
-        tri = part.triangles
-        longest = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
-        k = np.maximum(1, np.ceil(longest / step_mm)).astype(int)
-        points, owner = [], []
-        for level in np.unique(k):
-            faces = np.flatnonzero(k == level)
-            i, j = np.meshgrid(np.arange(level + 1), np.arange(level + 1), indexing="ij")
-            keep = i + j <= level
-            w = np.stack([i[keep], j[keep]], axis=1) / level
-            bary = np.column_stack([1.0 - w.sum(axis=1), w])  # (p, 3)
-            points.append(np.einsum("pk,fkd->fpd", bary, tri[faces]).reshape(-1, 3))
-            owner.append(np.repeat(faces, len(bary)))
-        owner = np.concatenate(owner)
-        self.tree = cKDTree(np.concatenate(points))
-        self.label = label[owner]
-        self.normals = normals[owner]
-        self.step_mm = step_mm
-
-    def over_other(self, points: np.ndarray, normals: np.ndarray, label: int) -> np.ndarray:
-        """(n,) bool: the points lie over a piece other than ``label`` (class docstring)."""
-        if not len(points):
-            return np.zeros(0, bool)
-        near = self.tree.query_ball_point(points, self.step_mm)
-        cos = math.cos(math.radians(SEAM_ANGLE_DEG))
-        out = np.zeros(len(points), bool)
-        for i, hits in enumerate(near):
-            if hits:
-                hits = np.asarray(hits)
-                other = (self.label[hits] != label) & (self.normals[hits] @ normals[i] >= cos)
-                out[i] = bool(other.any())
-        return out
-
-
-#: The sampling of the painted surface for :class:`SeamGuard`, mm.
-SEAM_STEP_MM = 20.0
-#: A stroke's extension is over another piece only where that piece faces within this angle of the stroke.
-SEAM_ANGLE_DEG = 30.0
-
-
-def feathered(strokes, guard: SeamGuard | None, label: int) -> list:
-    """A piece's spray strokes with the spray taken off where they run on over another piece's surface
-    (:class:`SeamGuard`; the planner's transfers are left out, they are made again between the strokes that
-    remain).
-
-    A stroke on the piece keeps its on-piece waypoints; at each end its lead-in or lead-out stops at the first
-    waypoint over another piece, and nothing past it sprays. A stroke wholly off the piece (an edge pass)
-    keeps its runs that are not over another piece. A run shorter than two waypoints is dropped.
-    """
-    out = []
-    for s in strokes:
-        if not s.spray_on:
-            continue
-        if guard is None or s.on_part.all():
-            out.append(s)
-            continue
-        off = ~s.on_part
-        over = np.zeros(len(s), bool)
-        over[off] = guard.over_other(s.points[off], s.normals[off], label)
-        on = np.flatnonzero(s.on_part)
-        if len(on):
-            head = np.flatnonzero(over[: on[0]])
-            tail = np.flatnonzero(over[on[-1] + 1 :])
-            a = int(head[-1]) + 1 if len(head) else 0
-            b = int(on[-1]) + 1 + int(tail[0]) if len(tail) else len(s)
-            runs = [(a, b)]
-        else:
-            edges = np.flatnonzero(np.diff(np.r_[0, (~over).astype(np.int8), 0]))
-            runs = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
-        out.extend(_cut(s, a, b) if (a, b) != (0, len(s)) else s for a, b in runs if b - a >= 2)
-    return out
-
-
 def _robot_work(
     cell_robot, index: int, part: Part, areas: Areas, assignment: AreaAssignment, job: JobConfig, guard=None
 ):
@@ -437,20 +354,6 @@ def plan_strokes(strokes, cell: Cell, name: str = "") -> CellPlan:
                     {"kinematics": round(time.perf_counter() - start, 3)}, name)  # fmt: skip
 
 
-def _cut(stroke: Stroke, a: int, b: int) -> Stroke:
-    """Waypoints ``a .. b - 1`` of a stroke."""
-    return Stroke(
-        stroke.points[a:b],
-        stroke.normals[a:b],
-        stroke.tcp[a:b],
-        stroke.spray_on,
-        stroke.on_part[a:b],
-        stroke.layer,
-        stroke.dwell[a:b],
-        stroke.kind,
-    )
-
-
 def reached_strokes(robots) -> tuple[list, list]:
     """The spray the robots can make: every spray stroke cut to its runs of reached waypoints (a run of one
     waypoint sprays nothing, so it is left out), all robots one after another. Returns the strokes and, for
@@ -466,7 +369,7 @@ def reached_strokes(robots) -> tuple[list, list]:
                 edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
                 for a, b in zip(edges[::2], edges[1::2]):
                     if b - a >= 2:
-                        out.append(_cut(s, int(a), int(b)))
+                        out.append(cut_stroke(s, int(a), int(b)))
                         owners.append((r_i, s_i, int(a), int(b)))
             at += n
     return out, owners
