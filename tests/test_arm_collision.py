@@ -162,11 +162,11 @@ def test_screened_repairs_are_the_repairs_of_the_whole_search(tmp_path, monkeypa
     from sprayplan.cells.collide import check_cell
     from sprayplan.config import JobConfig
     from tests.test_cell_plan import CELL as SMALL_CELL
-    from tests.test_cell_plan import SIZE
 
     cell_file = tmp_path / "small2.toml"
     cell_file.write_text(SMALL_CELL)
-    plan = cells_plan.plan_cell(grid_box(n=8, size=SIZE), load_cell(cell_file), JobConfig())
+    size = (700.0, 200.0, 250.0)  # a box on which a stroke in collision has a free try
+    plan = cells_plan.plan_cell(grid_box(n=8, size=size), load_cell(cell_file), JobConfig())
     config = JobConfig().collision
     screened, report = check_cell(plan, config, cells_plan.repaired_work)
     import sprayplan.cells.repair as cells_repair
@@ -307,12 +307,12 @@ def test_a_cell_plan_with_collisions_flags_each_waypoint_as_its_own_check_does(t
     from sprayplan.export.stl import write_stl_binary
     from sprayplan.io.load import load_part
     from tests.test_cell_plan import CELL as SMALL_CELL
-    from tests.test_cell_plan import SIZE
 
     cell_file = tmp_path / "small2.toml"
     cell_file.write_text(SMALL_CELL)
     part_file = tmp_path / "box.stl"
-    part_file.write_bytes(write_stl_binary(grid_box(n=8, size=SIZE).triangles))
+    size = (700.0, 200.0, 250.0)  # a box on which a stroke in collision has a free try
+    part_file.write_bytes(write_stl_binary(grid_box(n=8, size=size).triangles))
     out = tmp_path / "out"
     assert main(["-q", "plan", str(part_file), "--cell", str(cell_file), "--collisions", "-o", str(out)]) == 0
     plan = read_cell_plan(out / "cell_plan.json")
@@ -346,12 +346,13 @@ def test_a_cell_plan_with_collisions_flags_each_waypoint_as_its_own_check_does(t
         assert t_s[-1] <= mine["cycle_time_s"] + 1e-3 and mine["cycle_time_s"] >= mine["length_over_speed_s"] - 1e-3
         waited = sum(st["wait_s"] for st in work["strokes"])
         assert plan["report"]["schedule"]["waits"][work["name"]]["waited_s"] == pytest.approx(waited, abs=1e-3)
-        # the repairs' joints still put the gun where the stroke wants it, at the stroke's track and roll
+        # the repairs' joints still put the gun where the stroke wants it, at the waypoint's track and roll
         for st in work["strokes"]:
             good = st["reachable"]
             if good.any():
-                c, s_ = np.cos(np.radians(st["roll_deg"])), np.sin(np.radians(st["roll_deg"]))
-                roll = np.array([[c, -s_, 0, 0], [s_, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+                c, s_ = np.cos(np.radians(st["roll_deg"][good])), np.sin(np.radians(st["roll_deg"][good]))
+                roll = np.broadcast_to(np.eye(4), (int(good.sum()), 4, 4)).copy()
+                roll[:, 0, 0], roll[:, 0, 1], roll[:, 1, 0], roll[:, 1, 1] = c, -s_, s_, c
                 want = poses_at(st["tcp_mm"][good], st["normals"][good]) @ roll
                 got = np.stack([robot.robot(t).fk(j[None])[0] for t, j in zip(st["track_mm"][good], st["q_rad"][good])])
                 np.testing.assert_allclose(got[:, :3, 3], want[:, :3, 3], atol=1e-6)

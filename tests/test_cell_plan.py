@@ -36,9 +36,10 @@ SIZE = (600.0, 300.0, 200.0)
 
 
 def _rot_z(deg):
+    """(..., 4, 4) turns about z by ``deg`` (a number or an array: one a waypoint)."""
     c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
-    out = np.eye(4)
-    out[:2, :2] = [[c, -s], [s, c]]
+    out = np.broadcast_to(np.eye(4), (*np.shape(deg), 4, 4)).copy()
+    out[..., 0, 0], out[..., 0, 1], out[..., 1, 0], out[..., 1, 1] = c, -s, s, c
     return out
 
 
@@ -57,7 +58,7 @@ def planned(tmp_path_factory):
 
 
 def test_every_reached_waypoint_is_where_the_robot_puts_the_gun(planned):
-    """FK(q) at the stroke's track position, with its roll, is the waypoint's gun pose."""
+    """FK(q) at the waypoint's track position, with its roll, is the waypoint's gun pose."""
     cell = load_cell(planned["cell"])
     checked = 0
     for robot, work in zip(cell.robots, planned["plan"]["robots"]):
@@ -66,7 +67,7 @@ def test_every_reached_waypoint_is_where_the_robot_puts_the_gun(planned):
             ok = s["reachable"]
             if not ok.any():
                 continue
-            want = poses_at(s["tcp_mm"][ok], s["normals"][ok]) @ _rot_z(s["roll_deg"])
+            want = poses_at(s["tcp_mm"][ok], s["normals"][ok]) @ _rot_z(s["roll_deg"][ok])
             got = np.stack([robot.robot(t).fk(q[None])[0] for t, q in zip(s["track_mm"][ok], s["q_rad"][ok])])
             arm = robot.robot(0.0)
             assert np.allclose(got[:, :3, 3], want[:, :3, 3], atol=1e-6)
@@ -79,6 +80,44 @@ def test_every_reached_waypoint_is_where_the_robot_puts_the_gun(planned):
                 assert np.all(s["track_mm"] == 0.0)
             checked += int(ok.sum())
     assert checked > 1000
+
+
+def test_a_transfer_is_one_joint_move_between_its_neighbours(planned):
+    """A transfer starts with the joints, track position and roll where the stroke before it ends and ends
+    with those where the stroke after it starts (the arm never turns over in place at the surface)."""
+    joined = 0
+    for work in planned["plan"]["robots"]:
+        strokes = work["strokes"]
+        for before, transfer, after in zip(strokes, strokes[1:], strokes[2:]):
+            if transfer["kind"] != "transfer":
+                continue
+            for mine, theirs, ok in ((0, before, before["reachable"][-1]), (-1, after, after["reachable"][0])):
+                if not ok:
+                    continue
+                at = -1 if mine == 0 else 0
+                np.testing.assert_array_equal(transfer["q_rad"][mine], theirs["q_rad"][at])
+                assert transfer["track_mm"][mine] == theirs["track_mm"][at]
+                assert transfer["roll_deg"][mine] == theirs["roll_deg"][at]
+                joined += 1
+    assert joined > 20
+
+
+def test_a_version_1_plan_with_one_roll_a_stroke_reads_back(planned, tmp_path):
+    """cell_plan.json version 1 gave one roll a stroke: read back, every waypoint of the stroke has it."""
+    import json
+
+    data = json.loads((planned["out"] / "cell_plan.json").read_text())
+    assert data["version"] == 2
+    data["version"] = 1
+    for work in data["robots"]:
+        for st in work["strokes"]:
+            st["roll_deg"] = st["roll_deg"][-1]
+    old = tmp_path / "cell_plan.json"
+    old.write_text(json.dumps(data))
+    back = read_cell_plan(old)
+    for was, work in zip(data["robots"], back["robots"]):
+        for st_was, st in zip(was["strokes"], work["strokes"]):
+            np.testing.assert_array_equal(st["roll_deg"], np.full(len(st["tcp_mm"]), st_was["roll_deg"]))
 
 
 def test_spray_strokes_lie_on_the_part_over_their_robots_faces(planned):

@@ -2,11 +2,11 @@
 :func:`read_cell_plan`, which reads ``cell_plan.json`` back.
 
 ``cell_plan.json``
-    ``format = "sprayplan-cell-plan"``, ``version = 1``; the cell (its robots, their base poses and tracks);
+    ``format = "sprayplan-cell-plan"``, ``version = 2``; the cell (its robots, their base poses and tracks);
     the part's placement (``part2cell``); the areas (name, direction, surface, robot, the share it reaches,
-    split or not); per robot its strokes in order, each with its kind, area, roll, and per waypoint the gun
-    tip, the normal, the time factor, the track position, the six joints (rad), whether it is reached and (with
-    ``--collisions``) whether it collides, when the robot gets there (``t_s``) and the stroke's wait
+    split or not); per robot its strokes in order, each with its kind and area, and per waypoint the gun
+    tip, the gun's roll about its axis (``roll_deg``, deg), the normal, the time factor, the track position,
+    the six joints (rad), whether it is reached and (with ``--collisions``) whether it collides, when the robot gets there (``t_s``) and the stroke's wait
     (``wait_s``) in the cell's schedule (``cells.schedule``); and the
     report (film over the whole body, per area, per robot, per seam; cycle times). mm, rad, s.
 ``waypoints.csv``
@@ -37,7 +37,10 @@ from sprayplan.config import job_to_dict
 from sprayplan.export.files import atomic_output
 
 FORMAT = "sprayplan-cell-plan"
-VERSION = 1
+VERSION = 2
+#: The versions :func:`read_cell_plan` reads: version 1 gave one roll a stroke (``roll_deg`` a number), version 2
+#: one a waypoint (a transfer's ends take their neighbours' rolls: ``cells.plan.joined_transfers``).
+READ_VERSIONS = (1, 2)
 #: The files a cell plan writes into its folder.
 CELL_FILES = (
     "cell_plan.json", "waypoints.csv", "areas.csv", "areas.png", "thickness.ply", "thickness.csv", "coating.json",
@@ -111,7 +114,7 @@ def cell_plan_dict(plan) -> dict:
                 {
                     "kind": s.kind,
                     "area": int(r.area[i]),
-                    "roll_deg": float(r.roll_deg[i]),
+                    "roll_deg": np.round(r.roll_deg[at : at + n], 9),
                     "track_mm": np.round(r.track_mm[at : at + n], 6),
                     "tcp_mm": np.round(s.tcp, 6),
                     "normals": np.round(s.normals, 9),
@@ -161,7 +164,7 @@ def write_cell_plan(outdir, plan, target_um: float = 50.0, tolerance_um: float =
                 q = [*np.round(r.q[at + j], 9), *([None] * (6 - r.q.shape[1]))]
                 rows.append(
                     [r.name, i, j, s.kind, int(r.area[i]), *np.round(s.tcp[j], 4), *np.round(s.normals[j], 6),
-                     round(float(s.dwell[j]), 6), round(float(r.track_mm[at + j]), 4), float(r.roll_deg[i]),
+                     round(float(s.dwell[j]), 6), round(float(r.track_mm[at + j]), 4), round(float(r.roll_deg[at + j]), 9),
                      *q, int(r.reachable[at + j]), None if flags is None else int(flags[at + j]),
                      None if r.t_s is None else round(float(r.t_s[at + j]), 6)]
                 )  # fmt: skip
@@ -225,7 +228,7 @@ def read_cell_plan(path) -> dict:
     from sprayplan.errors import PartFileError
     from sprayplan.export.files import read_json_file
 
-    data = read_json_file(path, FORMAT, "cell plan", versions=(VERSION,))
+    data = read_json_file(path, FORMAT, "cell plan", versions=READ_VERSIONS)
 
     try:
         for r in data["cell"]["robots"]:
@@ -236,6 +239,7 @@ def read_cell_plan(path) -> dict:
                 for key in ("tcp_mm", "normals", "points_mm"):
                     s[key] = np.array(s[key], dtype=float).reshape(-1, 3)
                 s["dwell"] = np.array(s["dwell"], dtype=float)
+                s["roll_deg"] = np.broadcast_to(np.asarray(s["roll_deg"], float), (len(s["tcp_mm"]),)).copy()
                 s["track_mm"] = np.array(s["track_mm"], dtype=float)
                 s["q_rad"] = np.array([[np.nan if v is None else v for v in row] for row in s["q_rad"]], float)
                 s["q_rad"] = s["q_rad"].reshape(len(s["tcp_mm"]), -1)
@@ -299,7 +303,7 @@ def cell_plan_from_file(path):
             works.append(
                 RobotWork(
                     entry["name"], entry["model"], tuple(strokes), np.asarray(area, int), np.concatenate(track_mm),
-                    np.asarray(roll, float), np.concatenate(q), np.concatenate(reach),
+                    np.concatenate(roll), np.concatenate(q), np.concatenate(reach),
                     np.concatenate(hit) if flags else None, np.concatenate(times) if timed else None,
                     np.asarray(waits, float) if timed else None,
                 )

@@ -119,8 +119,9 @@ class RobotWork:
         The area of each stroke (-1 for transfers).
     track_mm : (n,) float
         The track position at every waypoint of all strokes in order, mm (0 without a track).
-    roll_deg : (s,) float
-        The roll of the gun about its axis for the stroke.
+    roll_deg : (n,) float
+        The roll of the gun about its axis at every waypoint of all strokes in order, deg: a spray stroke's is
+        one try's (:func:`solve_strokes`), a transfer's ends take their neighbours' (:func:`joined_transfers`).
     q : (n, dof) float
         The joints at every waypoint of all strokes in order, rad (0 where unreached); six for the industrial
         and UR arms, five for the R5150.
@@ -278,10 +279,31 @@ def solve_strokes(cell_robot, strokes) -> list[tuple[np.ndarray, float, np.ndarr
         _, k, mine = best[i]
         q, branch = follow_solutions(arm, mine, seed)
         reach = branch >= 0
-        if reach.any():
+        if reach.any() and s.spray_on:  # a transfer's ends become its neighbours' (joined_transfers)
             seed = q[np.flatnonzero(reach)[-1]]
         out.append((*tries[i][k], q, reach))
     return out
+
+
+def joined_transfers(work: RobotWork) -> RobotWork:
+    """``work`` with every transfer's ends taken from its neighbours: its first waypoint gets the joints, track
+    position and roll of the last waypoint of the stroke before it, its last those of the first waypoint of the
+    stroke after it, where that waypoint is reached (the gun is at the same place: :func:`_transfer`).
+
+    A transfer solved as a stroke of its own (its own track position, roll and branch) put the gun where its
+    neighbours do, but often with other joints: the arm turned over in place at the surface at both ends (99
+    such turns on the BMW in ``line3``, all but 8 where the transfer's roll was not its neighbour's). Joined,
+    a transfer is the one joint move from the end of a stroke to the start of the next."""
+    starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
+    q, track, roll, reach = work.q.copy(), work.track_mm.copy(), work.roll_deg.copy(), work.reachable.copy()
+    for i, s in enumerate(work.strokes):
+        if s.spray_on:
+            continue
+        a, b = starts[i], starts[i + 1]
+        for mine, theirs, there in ((a, a - 1, i - 1), (b - 1, b, i + 1)):
+            if 0 <= there < len(work.strokes) and reach[theirs]:
+                q[mine], track[mine], roll[mine], reach[mine] = q[theirs], track[theirs], roll[theirs], True
+    return dataclasses.replace(work, q=q, track_mm=track, roll_deg=roll, reachable=reach)
 
 
 def _robot_work(
@@ -315,27 +337,28 @@ def _robot_work(
 
 def solved_work(cell_robot, strokes, area_of) -> RobotWork:
     """A robot's strokes (with the area of each, -1 for transfers) solved by its inverse kinematics
-    (:func:`solve_strokes`)."""
+    (:func:`solve_strokes`), the transfers joined to their neighbours (:func:`joined_transfers`)."""
     track, roll, qs, ok = [], [], [], []
     for t, r, q, reach in solve_strokes(cell_robot, strokes):
         track.append(t)
-        roll.append(r)
+        roll.append(np.full(len(q), r))
         qs.append(q)
         ok.append(reach)
     if not strokes:
         empty = np.zeros(0)
         return RobotWork(cell_robot.name, cell_robot.model, (), np.zeros(0, np.int64), empty, empty,
                          np.zeros((0, 6)), np.zeros(0, bool))  # fmt: skip
-    return RobotWork(
+    work = RobotWork(
         name=cell_robot.name,
         model=cell_robot.model,
         strokes=tuple(strokes),
         area=np.array(area_of, dtype=np.int64),
         track_mm=np.concatenate(track),
-        roll_deg=np.array(roll, dtype=float),
+        roll_deg=np.concatenate(roll),
         q=np.concatenate(qs),
         reachable=np.concatenate(ok),
     )
+    return joined_transfers(work)
 
 
 def plan_strokes(strokes, cell: Cell, name: str = "") -> CellPlan:
@@ -413,7 +436,7 @@ def _append(arrays: dict, track, roll, q, ok) -> None:
     """One more stroke (not of an area) on a robot's arrays, as :func:`solve_strokes` gives it."""
     arrays["area"].append([-1])
     arrays["track"].append(track)
-    arrays["roll"].append([roll])
+    arrays["roll"].append(np.full(len(q), roll))
     arrays["q"].append(q)
     arrays["ok"].append(ok)
 
@@ -451,14 +474,16 @@ def with_touch_ups(cell: Cell, robots: tuple, extra: list):
     out = []
     for r, a, strokes in zip(robots, arrays, grown):
         out.append(
-            dataclasses.replace(
-                r,
-                strokes=tuple(strokes),
-                area=np.concatenate([np.asarray(x, np.int64) for x in a["area"]]),
-                track_mm=np.concatenate([np.asarray(x, float) for x in a["track"]]),
-                roll_deg=np.concatenate([np.asarray(x, float) for x in a["roll"]]),
-                q=np.concatenate([np.asarray(x, float).reshape(-1, r.q.shape[1]) for x in a["q"]]),
-                reachable=np.concatenate([np.asarray(x, bool) for x in a["ok"]]),
+            joined_transfers(
+                dataclasses.replace(
+                    r,
+                    strokes=tuple(strokes),
+                    area=np.concatenate([np.asarray(x, np.int64) for x in a["area"]]),
+                    track_mm=np.concatenate([np.asarray(x, float) for x in a["track"]]),
+                    roll_deg=np.concatenate([np.asarray(x, float) for x in a["roll"]]),
+                    q=np.concatenate([np.asarray(x, float).reshape(-1, r.q.shape[1]) for x in a["q"]]),
+                    reachable=np.concatenate([np.asarray(x, bool) for x in a["ok"]]),
+                )
             )
         )
     return tuple(out), added

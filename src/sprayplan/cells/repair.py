@@ -44,14 +44,22 @@ def _screened(arm, ordered: list, colliding: np.ndarray) -> list:
 
 def repaired_work(cell_robot, work, arm) -> tuple:
     """A robot's plan with its strokes in collision solved again, as a programmer would: every (track
-    position, roll) try of the stroke (:func:`~sprayplan.cells.tries.stroke_tries`) and every IK branch, the branches of a try in the order of
-    their first joints' distance from the joints before the stroke, keeping the first that reaches at least the
-    waypoints reached before with no waypoint and no motion in collision (the motion from the joints before
-    the stroke included). What no try frees stays as it was, and is flagged by the check after.
+    position, roll) try of the stroke (:func:`~sprayplan.cells.tries.stroke_tries`) and every IK branch, the
+    branches of a try in the order of their first joints' distance from the joints before the stroke, keeping
+    the first that reaches at least the waypoints reached before with no waypoint and no motion in collision.
+
+    The transfers are joined to their neighbours (``cells.plan.joined_transfers``): a transfer is the joint move
+    from the end of one spray stroke to the start of the next, so it belongs to the stroke after it. A stroke is
+    flagged when its waypoints, its motions or the transfer before it collide; a try is checked from the joints
+    before that transfer, and through the transfer after it where that was free before (a repair does not move
+    a collision to the next transfer); the transfers' ends follow the kept try. Transfers are not solved again
+    on their own: that would turn the arm over in place at their ends. What no try frees stays as it was, and
+    is flagged by the check after.
 
     ``work`` is the robot's ``cells.plan.RobotWork``, ``arm`` its :class:`~sprayplan.collision.arms.ArmCollision`.
     Returns the work and ``{"strokes_in_collision", "strokes_repaired"}``.
     """
+    from sprayplan.cells.plan import joined_transfers
     from sprayplan.collision.arms import check_robot, plan_collides
     from sprayplan.robots.interface import nearest_turns
 
@@ -61,15 +69,23 @@ def repaired_work(cell_robot, work, arm) -> tuple:
     starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
     q, track, roll, reach = work.q.copy(), work.track_mm.copy(), work.roll_deg.copy(), work.reachable.copy()
     flagged = repaired = 0
-    for i, stroke in enumerate(work.strokes):
+    strokes = work.strokes
+    for i, stroke in enumerate(strokes):
+        if not stroke.spray_on:
+            continue
         a, b = starts[i], starts[i + 1]
-        motions = found.motion_collides[max(a - 1, 0) : b - 1]
-        if not (found.waypoint.collides[a:b].any() or motions.any()):
+        joined_before = i > 0 and not strokes[i - 1].spray_on
+        first = max(a - 2 if joined_before else a - 1, 0)  # the first motion this stroke answers for
+        if not (found.waypoint.collides[a:b].any() or found.motion_collides[first : b - 1].any()):
             continue
         flagged += 1
-        before = a - 1 if a > 0 and reach[a - 1] else None
+        before = first if a > 0 and reach[first] else None
         seed = q[before] if before is not None else start_joints(robot.dof)
         need = reach[a:b].copy()
+        after = None  # the start of the stroke after the transfer after this one, where that transfer was free
+        if i + 2 < len(strokes) and not strokes[i + 1].spray_on and reach[b + 1]:
+            if not found.motion_collides[b : b + 1].any():
+                after = b + 1
         tries = stroke_tries(cell_robot, stroke)
         poses = stroke_poses(stroke)
         blocks = []
@@ -92,18 +108,25 @@ def repaired_work(cell_robot, work, arm) -> tuple:
                 prev = seed
                 for j in np.flatnonzero(ok):
                     prev = qb[j] = nearest_turns(robot, joints[j, branch], prev)
-                first = qb[np.flatnonzero(ok)[0]]
-                candidates.append((float(((first - seed) ** 2).sum()), branch, qb, ok))
+                start = qb[np.flatnonzero(ok)[0]]
+                candidates.append((float(((start - seed) ** 2).sum()), branch, qb, ok))
             ordered += [(qb, ok, t, r) for _, _, qb, ok in sorted(candidates, key=lambda c: c[0])]
         lead = [] if before is None else [before]
+        trail = [] if after is None else [after]
         for qb, ok, t, r in _screened(arm, ordered, found.waypoint.collides[a:b]):
-            test_q = np.concatenate([q[lead], qb])
-            test_t = np.concatenate([track[lead], t])
-            test_ok = np.concatenate([reach[lead], ok])
+            test_q = np.concatenate([q[lead], qb, q[trail]])
+            test_t = np.concatenate([track[lead], t, track[trail]])
+            test_ok = np.concatenate([reach[lead], ok, reach[trail]])
             if plan_collides(arm, test_q, test_t, test_ok):  # check_robot's answer, found for less
                 continue
-            q[a:b], track[a:b], reach[a:b], roll[i] = qb, t, ok, r
+            q[a:b], track[a:b], reach[a:b], roll[a:b] = qb, t, ok, r
+            ends = [(a - 1, a)] if joined_before else []  # the transfers' ends follow (joined_transfers)
+            if i + 1 < len(strokes) and not strokes[i + 1].spray_on:
+                ends.append((b, b - 1))
+            for mine, theirs in ends:
+                if reach[theirs]:
+                    q[mine], track[mine], roll[mine], reach[mine] = q[theirs], track[theirs], roll[theirs], True
             repaired += 1
             break
-    work = dataclasses.replace(work, q=q, track_mm=track, roll_deg=roll, reachable=reach)
+    work = joined_transfers(dataclasses.replace(work, q=q, track_mm=track, roll_deg=roll, reachable=reach))
     return work, {"strokes_in_collision": flagged, "strokes_repaired": repaired}
