@@ -376,3 +376,94 @@ def test_collisions_asked_for_an_arm_without_link_sizes_is_one_line_and_no_outpu
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "'ur5' has no link sizes" in err[0]
     assert not out.exists()
+
+
+def test_a_plan_cut_to_its_free_runs_paints_only_where_the_arm_is_free(tmp_path):
+    """``free_work``: every spray waypoint it keeps is reached and free and every motion inside a spray stroke
+    is free; each kept stroke is a run of its stroke's waypoints; kept and left out add up to the spray
+    waypoints there were; each transfer is the joint move from the end of one run to the start of the next."""
+    import sprayplan.cells.plan as cells_plan
+    from sprayplan.cells import load_cell
+    from sprayplan.cells.collide import cell_arms
+    from sprayplan.cells.repair import free_work
+    from sprayplan.config import JobConfig
+    from tests.test_cell_plan import CELL as SMALL_CELL
+
+    cell_file = tmp_path / "small2.toml"
+    cell_file.write_text(SMALL_CELL)
+    plan = cells_plan.plan_cell(grid_box(n=8, size=(700.0, 200.0, 250.0)), load_cell(cell_file), JobConfig())
+    arms = cell_arms(plan.cell, plan.part, JobConfig().collision)
+    work, arm = plan.robots[0], arms[0]
+    found = check_robot(arm, work.q, work.track_mm, work.reachable)
+    assert found.waypoint.collides.any() and (~work.reachable).any()
+    freed, counts = free_work(work, found)
+    again = check_robot(arm, freed.q, freed.track_mm, freed.reachable)
+    starts = np.r_[0, np.cumsum([len(s) for s in freed.strokes])]
+    spray = np.concatenate([np.full(len(s), s.spray_on) for s in freed.strokes])
+    assert freed.reachable.all() and not again.waypoint.collides[spray].any()
+    old_tcp = {i: s.tcp for i, s in enumerate(work.strokes) if s.spray_on}
+    for i, s in enumerate(freed.strokes):
+        a, b = starts[i], starts[i + 1]
+        if s.spray_on:
+            assert len(s) >= 2 and not again.motion_collides[a : b - 1].any()
+            # a run of one of the stroke's own waypoints, in order
+            assert any(np.array_equal(tcp[k : k + len(s)], s.tcp) for tcp in old_tcp.values() for k in range(len(tcp)))
+        else:
+            assert len(s) == 2 and freed.strokes[i - 1].spray_on and freed.strokes[i + 1].spray_on
+            np.testing.assert_array_equal(freed.q[a], freed.q[a - 1])
+            np.testing.assert_array_equal(freed.q[b - 1], freed.q[b])
+            np.testing.assert_array_equal(s.tcp, [freed.strokes[i - 1].tcp[-1], freed.strokes[i + 1].tcp[0]])
+    was_spray = np.concatenate([np.full(len(s), s.spray_on) for s in work.strokes])
+    assert counts["left_out_in_collision"] == int((found.waypoint.collides & work.reachable & was_spray).sum())
+    assert counts["left_out_unreached"] == int((~work.reachable & was_spray).sum())
+    assert counts["left_out_in_collision"] > 0
+    assert int(spray.sum()) + sum(counts.values()) == int(was_spray.sum())
+
+
+def test_transfers_in_collision_are_routed_free_and_the_gun_is_where_the_waypoints_say(tmp_path):
+    """``routed_work``: a transfer in collision that gets a route has nodes and motions free (the check's own
+    answer), its ends unchanged, every node's gun pose the one its waypoint (tip, normal, roll) gives, and
+    the same seed gives the same routes."""
+    import sprayplan.cells.plan as cells_plan
+    from sprayplan.cells import load_cell
+    from sprayplan.cells.collide import cell_arms
+    from sprayplan.cells.repair import free_work
+    from sprayplan.cells.routes import routed_work
+    from sprayplan.config import JobConfig
+    from tests.test_cell_plan import CELL as SMALL_CELL
+
+    cell_file = tmp_path / "small2.toml"
+    cell_file.write_text(SMALL_CELL)
+    cell = load_cell(cell_file)
+    plan = cells_plan.plan_cell(grid_box(n=8, size=(700.0, 200.0, 250.0)), cell, JobConfig())
+    config = JobConfig().collision
+    arms = cell_arms(plan.cell, plan.part, config)
+    work, arm = plan.robots[0], arms[0]
+    freed, _ = free_work(work, check_robot(arm, work.q, work.track_mm, work.reachable))
+    before = check_robot(arm, freed.q, freed.track_mm, freed.reachable)
+    routed, counts = routed_work(cell.robots[0], freed, arm, plan.part, config, 200.0)
+    again, _ = routed_work(cell.robots[0], freed, arm, plan.part, config, 200.0)
+    np.testing.assert_array_equal(routed.q, again.q)
+    assert counts["transfers_routed"] >= 1 and counts["transfers_in_collision"] >= counts["transfers_routed"]
+    after = check_robot(arm, routed.q, routed.track_mm, routed.reachable)
+    assert after.motion_collides.sum() < before.motion_collides.sum()
+    old_starts = np.r_[0, np.cumsum([len(s) for s in freed.strokes])]
+    new_starts = np.r_[0, np.cumsum([len(s) for s in routed.strokes])]
+    routes = 0
+    for i, (old, new) in enumerate(zip(freed.strokes, routed.strokes)):
+        a, b = new_starts[i], new_starts[i + 1]
+        np.testing.assert_array_equal(routed.q[a], freed.q[old_starts[i]])
+        np.testing.assert_array_equal(routed.q[b - 1], freed.q[old_starts[i + 1] - 1])
+        if len(new) == len(old):
+            continue
+        routes += 1
+        assert not new.spray_on and not after.motion_collides[a : b - 1].any()
+        robot = cell.robots[0]
+        got = np.stack([robot.robot(t).fk(q[None])[0] for t, q in zip(routed.track_mm[a:b], routed.q[a:b])])
+        c, s_ = np.cos(np.radians(routed.roll_deg[a:b])), np.sin(np.radians(routed.roll_deg[a:b]))
+        roll = np.broadcast_to(np.eye(4), (b - a, 4, 4)).copy()
+        roll[:, 0, 0], roll[:, 0, 1], roll[:, 1, 0], roll[:, 1, 1] = c, -s_, s_, c
+        want = poses_at(new.tcp, new.normals) @ roll
+        np.testing.assert_allclose(got[:, :3, 3], want[:, :3, 3], atol=1e-6)
+        np.testing.assert_allclose(got[:, :3, :3], want[:, :3, :3], atol=1e-9)
+    assert routes == counts["transfers_routed"]

@@ -55,6 +55,34 @@ def cell_arms(cell, part, config) -> list:
     ]
 
 
+def freed_cell(
+    cell, robots, arms, config, repair=None, part=None, standoff_mm: float = 0.0, failed=None
+) -> tuple[tuple, dict]:
+    """Every robot's work repaired (``repair(cell_robot, work, arm)``, ``cells.repair.repaired_work``, when given
+    and ``config.repair`` is on), checked, cut to what it paints free (``cells.repair.free_work``), and with
+    ``config.repair`` its transfers in collision re-routed (``cells.routes.routed_work``, around ``part`` in
+    the cell frame; ``standoff_mm`` the plan's; ``failed``: per robot name, the transfers no route freed
+    before, not tried again); the film is then made from what the robots can paint
+    (``cells.plan.plan_cell``). Returns the robots and per robot the repairs', the cut's and the routes'
+    counts."""
+    from sprayplan.cells.repair import free_work
+    from sprayplan.cells.routes import routed_work
+
+    out, counts = [], {}
+    for cell_robot, work, arm in zip(cell.robots, robots, arms):
+        repairs, routes = {}, {}
+        if repair is not None and config.repair:
+            work, repairs = repair(cell_robot, work, arm)
+        work, left = free_work(work, check_robot(arm, work.q, work.track_mm, work.reachable))
+        if config.repair and part is not None:
+            mine = None if failed is None else failed.setdefault(work.name, set())
+            work, routes = routed_work(cell_robot, work, arm, part, config, standoff_mm, failed=mine)
+            routes.pop("transfers_in_collision")  # the check after the film counts what is left
+        out.append(work)
+        counts[work.name] = {**repairs, **left, **routes}
+    return tuple(out), counts
+
+
 def check_cell(plan, config, repair=None, arms=None) -> tuple[tuple, dict]:
     """Check a :class:`~sprayplan.cells.plan.CellPlan` with the ``[collision]`` settings ``config``.
 

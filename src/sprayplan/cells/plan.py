@@ -52,7 +52,12 @@ share, but the arms' swept spaces are not compared. With it (``--collisions``):
 - the areas' reach counts a face only where a robot reaches it free of the part and the floor
   (:func:`~sprayplan.cells.reach.reach_matrix` with the cell's :func:`~sprayplan.cells.collide.cell_arms`), so
   surface reached only through the body (the inner faces of the sills under a car) is unreached, as data;
-- after the film, every robot's strokes are checked and repaired (:func:`~sprayplan.cells.collide.check_cell`);
+- before the film, every robot's strokes are checked and repaired, then cut to what the robot paints free
+  (:func:`~sprayplan.cells.collide.freed_cell`, :func:`~sprayplan.cells.repair.free_work`): a waypoint still
+  in collision, or unreached, is left out with the spray off and the runs on either side are joined by a
+  transfer, so the film is made only by what the robots can paint, touch-ups cut the same way; after the
+  film, the whole plan is checked again for the report (:func:`~sprayplan.cells.collide.check_cell`: what is
+  left in collision is in the transfers between runs);
 - then the robots are scheduled (:mod:`~sprayplan.cells.schedule`): in the cell's order, a later robot waits,
   spray off, before a stroke that would bring it within the clearance of an earlier one, each robot parks
   when done, and the times of every waypoint, the waits and the cell's cycle time (the longest robot's, with
@@ -581,6 +586,25 @@ def plan_cell(
             painted, areas.face_area * labels + assignment.face_robot + 1, areas.face_normals, SEAM_STEP_MM
         )
     robots = tuple(_robot_work(r, i, painted, areas, assignment, job, guard) for i, r in enumerate(cell.robots))
+    freed: dict = {}  # per robot: the repairs', the cut's and the routes' counts (--collisions)
+    unrouted: dict = {}  # per robot: the transfers no route freed (cells.routes.routed_work)
+
+    def free(robots_, repair=None):
+        """``robots_`` cut to what they paint free of the body (``cells.collide.freed_cell``), the counts kept."""
+        from sprayplan.cells.collide import freed_cell
+
+        robots_, counts = freed_cell(
+            cell, robots_, arms, job.collision, repair, painted, job.paths.standoff_mm, unrouted
+        )
+        for name, entry in counts.items():
+            mine = freed.setdefault(name, {})
+            for key, value in entry.items():
+                mine[key] = value if key.startswith("strokes_") else mine.get(key, 0) + value
+        return robots_
+
+    if job.collision.check:
+        begin("collisions")
+        robots = free(robots, repaired_work)
     begin("film")
     report = {
         "spray_radius_mm": job.paths.spray_radius_mm,
@@ -645,6 +669,8 @@ def plan_cell(
             if grown is None:
                 break
             robots, count = grown
+            if job.collision.check:  # the touch-ups cut to what they paint free, as the strokes were
+                robots = free(robots)
             added += count
             tuning = None  # (its deposit matrix lives on in ``earlier`` until the extended one is made)
             tuning, robots = tuned(robots)
@@ -667,7 +693,8 @@ def plan_cell(
                 r.name: {
                     "strokes": sum(1 for s in r.strokes if s.spray_on),
                     "waypoints": r.waypoints,
-                    "unreached_waypoints": int((~r.reachable).sum()),
+                    "unreached_waypoints": int((~r.reachable).sum())
+                    + freed.get(r.name, {}).get("left_out_unreached", 0),
                     "painted_mm2": round(float(assignment.robot_area_mm2[i]), 1),
                     "cycle_time_s": cycle[r.name],
                 }
@@ -684,8 +711,14 @@ def plan_cell(
     if job.collision.check:
         from sprayplan.cells.collide import check_cell
 
-        begin("collisions")
-        robots, report["collisions"] = check_cell(plan, job.collision, repaired_work, arms=arms)
+        begin("collision check")
+        robots, report["collisions"] = check_cell(plan, job.collision, arms=arms)
+        for name, entry in freed.items():
+            report["collisions"]["robots"][name].update(entry)
+        report["collisions"]["left_out_waypoints"] = {
+            key: int(sum(entry.get(key, 0) for entry in freed.values()))
+            for key in ("left_out_in_collision", "left_out_unreached", "left_out_alone")
+        }
         plan = dataclasses.replace(plan, robots=robots)
     if job.timing.enabled:
         from sprayplan.cells.timing import timed_cell

@@ -130,3 +130,67 @@ def repaired_work(cell_robot, work, arm) -> tuple:
             break
     work = joined_transfers(dataclasses.replace(work, q=q, track_mm=track, roll_deg=roll, reachable=reach))
     return work, {"strokes_in_collision": flagged, "strokes_repaired": repaired}
+
+
+def free_work(work, found) -> tuple:
+    """A robot's plan cut to what it can paint free of the part and the floor (``--collisions``): every spray
+    stroke cut to its runs of waypoints that are reached, free (``found``: the robot's
+    :class:`~sprayplan.collision.arms.RobotCollisions`) and joined by free motions, runs of one waypoint left
+    out (they spray nothing), and the runs joined again by transfers, each the one joint move from the end of a
+    run to the start of the next (``cells.plan.joined_transfers``); a transfer between two strokes kept whole
+    stays as it was (a route ``cells.routes`` gave it included).
+
+    A waypoint in collision or unreached is not painted through, as a programmer leaves out what the arm cannot
+    reach or cannot reach without touching the body: the robot's programs leave such waypoints out with the gun
+    off, so the film is predicted without them, and the move over them (which a program makes as one motion)
+    is a transfer of the plan, checked like any other. Returns the work (``collides`` None: not checked yet)
+    and the counts of the spray waypoints left out: ``{"left_out_in_collision", "left_out_unreached",
+    "left_out_alone"}`` (the last: free and reached, but alone between others left out).
+    """
+    from sprayplan.cells.plan import RobotWork, _transfer
+    from sprayplan.cells.seams import cut_stroke
+
+    starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
+    free = work.reachable & ~found.waypoint.collides
+    counts = {"left_out_in_collision": 0, "left_out_unreached": 0, "left_out_alone": 0}
+    strokes, area, rows = [], [], []  # rows: the waypoints of ``work`` each stroke takes
+    whole = -1  # the stroke the last run kept is, when it kept the whole of it
+    for i, stroke in enumerate(work.strokes):
+        if not stroke.spray_on:
+            continue
+        a, b = starts[i], starts[i + 1]
+        ok = free[a:b]
+        counts["left_out_in_collision"] += int((work.reachable[a:b] & ~ok).sum())
+        counts["left_out_unreached"] += int((~work.reachable[a:b]).sum())
+        joins = ok[:-1] & ok[1:] & ~found.motion_collides[a : b - 1]  # a free motion between two free waypoints
+        edges = np.flatnonzero(np.diff(np.r_[0, joins.astype(np.int8), 0]))
+        runs = [(int(s), int(e) + 1) for s, e in zip(edges[::2], edges[1::2])]  # waypoints s .. e inclusive
+        covered = np.zeros(b - a, bool)
+        for s, e in runs:
+            covered[s:e] = True
+            if strokes:
+                kept = whole == i - 2 and (s, e) == (0, b - a) and not work.strokes[i - 1].spray_on
+                if kept:  # the transfer between two strokes kept whole stays as it was (a route too)
+                    strokes.append(work.strokes[i - 1])
+                    rows.append(np.arange(starts[i - 1], starts[i]))
+                else:
+                    strokes.append(_transfer(strokes[-1], cut_stroke(stroke, s, e)))
+                    rows.append(np.array([rows[-1][-1], a + s]))
+                area.append(-1)
+            whole = i if (s, e) == (0, b - a) else -1
+            strokes.append(cut_stroke(stroke, s, e))
+            area.append(int(work.area[i]))
+            rows.append(np.arange(a + s, a + e))
+        counts["left_out_alone"] += int((ok & ~covered).sum())
+    take = np.concatenate(rows) if rows else np.zeros(0, np.int64)
+    freed = RobotWork(
+        name=work.name,
+        model=work.model,
+        strokes=tuple(strokes),
+        area=np.array(area, dtype=np.int64),
+        track_mm=work.track_mm[take],
+        roll_deg=work.roll_deg[take],
+        q=work.q[take].reshape(len(take), work.q.shape[1]),
+        reachable=np.ones(len(take), bool),
+    )
+    return freed, counts

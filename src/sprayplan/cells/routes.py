@@ -1,0 +1,281 @@
+"""A cell robot's transfers in collision re-routed (``sprayplan plan --cell ... --collisions``): the routes a
+programmer would try, the first free kept (:func:`routed_work`).
+
+A transfer of a cell plan is the joint move from the end of one spray run to the start of the next
+(``cells.plan.joined_transfers``, ``cells.repair.free_work``); where that move meets the body or the floor, the
+routes tried, in order, are the gantry job's (``collision.transfers``) for an arm on a track:
+
+``retract``
+    The gun backed off along its own axis at both ends by each of ``[collision] retract_mm`` in turn (50,
+    100, 200 mm): nodes ``[A backed off, B backed off]``, each solved at its end's track position on the IK
+    branch nearest the end's joints.
+``via``
+    Backed off by the first retract length, then raised, keeping the gun's orientation, to a safe height: the
+    highest point of the part within the arm's reach, plus ``clearance_mm`` and ``via_height_mm``.
+``detour``
+    A seeded RRT-Connect search (``collision.transfers.rrt_connect``) in the arm's joints and its track
+    position, between the two ends, its path shortened (``collision.transfers.shortcut``).
+
+A route is *free* when its nodes and every motion of ``A -> nodes -> B`` are (``collision.arms.plan_collides``,
+the check's own answer). What no route frees stays the straight joint move, and the check after flags it.
+The nodes become waypoints of the transfer (spray off), with the gun's pose at them (its tip, its axis as
+the normal, the roll about it), so the plans' files, the timing and the programs carry them as any other.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from sprayplan.types import Stroke
+
+#: The routes tried, in order (module docstring).
+ROUTES = ("retract", "via", "detour")
+#: The joints a detour samples reach this far beyond the span of its two ends (within the limits), rad.
+DETOUR_MARGIN_RAD = math.pi / 2
+#: The longest leg a detour grows at once, as a bound on any body point's displacement, mm.
+DETOUR_STEP_MM = 150.0
+
+
+class CellRouter:
+    """The routes of one cell robot's transfers (module docstring).
+
+    Parameters
+    ----------
+    cell_robot : sprayplan.cells.spec.CellRobot
+    arm : sprayplan.collision.arms.ArmCollision
+    part : Part
+        The part in the cell frame (its top within the arm's reach sets the via height).
+    config : CollisionConfig
+    """
+
+    def __init__(self, cell_robot, arm, part, config):
+        self.cell_robot, self.arm, self.config = cell_robot, arm, config
+        self.robot = cell_robot.robot(0.0)
+        limits = np.asarray(self.robot.joint_limits, dtype=float)
+        self.lower, self.upper = limits[:, 0], limits[:, 1]
+        base = np.asarray(cell_robot.base2cell, dtype=float)[:3, 3]
+        vertices = np.asarray(part.vertices, dtype=float)
+        reach = float(np.max(arm.reach_radii_mm))
+        if cell_robot.track is None:
+            near = np.linalg.norm(vertices[:, :2] - base[:2], axis=1) <= reach
+        else:  # within reach of some position along the track
+            lo, hi = cell_robot.track.range_mm
+            axis = np.asarray(cell_robot.track.axis, dtype=float)
+            along = np.clip((vertices - base) @ axis, lo, hi)
+            near = np.linalg.norm((vertices - base - along[:, None] * axis)[:, :2], axis=1) <= reach
+        top = float(vertices[near, 2].max()) if near.any() else float(vertices[:, 2].max())
+        self.safe_z_mm = top + config.clearance_mm + float(config.via_height_mm or 0.0)
+
+    # ------------------------------------------------------------------------------------------- poses
+
+    def pose(self, q, track_mm: float) -> np.ndarray:
+        """(4, 4): the TCP's pose in the cell frame at joints ``q`` and track position ``track_mm``."""
+        return self.cell_robot.robot(float(track_mm)).fk(np.asarray(q, dtype=float)[None])[0]
+
+    def solve(self, pose: np.ndarray, track_mm: float, q_near: np.ndarray) -> np.ndarray | None:
+        """(dof,): the joints that put the TCP at ``pose`` at track position ``track_mm`` on the IK branch
+        nearest ``q_near`` (turns within the limits); None when no branch reaches it."""
+        from sprayplan.robots.interface import nearest_turns
+
+        robot = self.cell_robot.robot(float(track_mm))
+        found = robot.ik(pose[None])
+        best, best_step = None, np.inf
+        for b in np.flatnonzero(found.valid[0]):
+            q = nearest_turns(robot, found.q[0, b], q_near)
+            if not robot.within_limits(q[None])[0]:
+                continue
+            step = float(np.abs(q - q_near).max())
+            if step < best_step:
+                best, best_step = q, step
+        return best
+
+    def _chain(self, poses, track_mm: float, q_start: np.ndarray) -> np.ndarray | None:
+        out, previous = [], q_start
+        for pose in poses:
+            q = self.solve(pose, track_mm, previous)
+            if q is None:
+                return None
+            out.append(q)
+            previous = q
+        return np.array(out)
+
+    # ------------------------------------------------------------------------------------------ routes
+
+    def candidates(self, q_a, t_a: float, q_b, t_b: float):
+        """``(kind, nodes (k, dof), tracks (k,))`` of the retract and via routes, in the order tried (those
+        whose poses the arm cannot reach left out)."""
+        pose_a, pose_b = self.pose(q_a, t_a), self.pose(q_b, t_b)
+        z_a, z_b = pose_a[:3, 2], pose_b[:3, 2]  # the gun's axis: from the gun to the surface
+
+        def moved(pose, offset):
+            out = pose.copy()
+            out[:3, 3] += offset
+            return out
+
+        for length in self.config.retract_mm:
+            first = self._chain([moved(pose_a, -length * z_a)], t_a, q_a)
+            last = self._chain([moved(pose_b, -length * z_b)], t_b, q_b)
+            if first is not None and last is not None:
+                yield "retract", np.vstack([first, last]), np.array([t_a, t_b], dtype=float)
+        if self.config.via_height_mm is None:
+            return
+        back = self.config.retract_mm[0] if self.config.retract_mm else 0.0
+        ends = [moved(pose_a, -back * z_a), moved(pose_b, -back * z_b)]
+        above = []
+        for end in ends:
+            pose = end.copy()
+            pose[2, 3] = max(self.safe_z_mm, end[2, 3])
+            above.append(pose)
+        first = self._chain([ends[0], above[0]] if back else [above[0]], t_a, q_a)
+        last = self._chain([ends[1], above[1]] if back else [above[1]], t_b, q_b)
+        if first is not None and last is not None:
+            tracks = np.r_[np.full(len(first), t_a), np.full(len(last), t_b)]
+            yield "via", np.vstack([first, last[::-1]]), tracks
+
+    def free(self, q_a, t_a, nodes, tracks, q_b, t_b) -> bool:
+        """Every node and every motion of ``A -> nodes -> B`` free (``collision.arms.plan_collides``)."""
+        from sprayplan.collision.arms import plan_collides
+
+        q = np.vstack([q_a, nodes, q_b])
+        t = np.r_[t_a, tracks, t_b]
+        return not plan_collides(self.arm, q, t, np.ones(len(q), bool))
+
+    def _edges_free(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """(m,) bool: the motions ``a[i] -> b[i]`` (states: joints and track position) free, in one check
+        (the pairs laid out between unreached rows, so that no motion joins two pairs)."""
+        m, d = len(a), a.shape[1]
+        rows = np.zeros((3 * m, d))
+        rows[0::3], rows[1::3] = a, b
+        reach = np.tile([True, True, False], m)
+        joints, tracks, owner = self.arm.motion_configs(rows[:, :-1], rows[:, -1], reach)
+        ok = np.ones(m, bool)
+        if len(joints):
+            ok[np.unique(owner[self.arm.collides(joints, tracks)]) // 3] = False
+        return ok
+
+    def _states_free(self, states: np.ndarray) -> np.ndarray:
+        states = np.atleast_2d(states)
+        return ~self.arm.collides(states[:, :-1], states[:, -1])
+
+    def detour(self, q_a, t_a: float, q_b, t_b: float, seed: int):
+        """``(nodes, tracks)`` of a detour (module docstring) or None."""
+        from sprayplan.collision.transfers import rrt_connect, shortcut
+
+        a, b = np.r_[q_a, t_a], np.r_[q_b, t_b]
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        lo[:-1] = np.maximum(lo[:-1] - DETOUR_MARGIN_RAD, self.lower)
+        hi[:-1] = np.minimum(hi[:-1] + DETOUR_MARGIN_RAD, self.upper)
+        weights = np.r_[self.arm.reach_radii_mm, np.linalg.norm(self.arm.axis)]
+        path = rrt_connect(
+            a,
+            b,
+            lo,
+            hi,
+            self._states_free,
+            self._edges_free,
+            weights,
+            DETOUR_STEP_MM,
+            self.config.detour_iterations,
+            np.random.default_rng(seed),
+        )
+        if path is None:
+            return None
+        path = shortcut(path, self._edges_free)[1:-1]
+        return path[:, :-1], path[:, -1]
+
+    def route(self, q_a, t_a: float, q_b, t_b: float, seed: int = 0):
+        """``(kind, nodes, tracks)`` of the first free route (module docstring), or None."""
+        for kind, nodes, tracks in self.candidates(q_a, t_a, q_b, t_b):
+            if self.free(q_a, t_a, nodes, tracks, q_b, t_b):
+                return kind, nodes, tracks
+        if not self.config.detour:
+            return None
+        found = self.detour(q_a, t_a, q_b, t_b, seed)
+        if found is None or not self.free(q_a, t_a, *found, q_b, t_b):
+            return None
+        return ("detour", *found)
+
+
+def _rolls_deg(poses: np.ndarray, tcp: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """(n,) deg: the gun's roll about its axis at ``poses`` (n, 4, 4) against the frame the plan gives a
+    waypoint at ``tcp`` with ``normals`` (``surface.poses.poses_at``; a pose is that frame turned by the roll)."""
+    from sprayplan.surface.poses import poses_at
+
+    frame = poses_at(tcp, normals)
+    turn = np.einsum("nji,njk->nik", frame[:, :3, :3], poses[:, :3, :3])
+    return np.degrees(np.arctan2(turn[:, 1, 0], turn[:, 0, 0]))
+
+
+def routed_work(cell_robot, work, arm, part, config, standoff_mm: float, seed: int = 0, failed=None) -> tuple:
+    """A robot's work (``cells.plan.RobotWork``, its transfers joined: ``cells.repair.free_work``) with each
+    transfer whose joint move is in collision re-routed (module docstring). Returns the work and
+    ``{"transfers_in_collision", "transfers_routed", "routed_retract", "routed_via", "routed_detour"}``; the
+    search of the ``k``-th transfer is seeded ``seed + k``. ``failed``: a set of the transfers no route freed
+    (their ends' joints and track positions), added to here, and not tried again (a touch-up round cuts and
+    routes the plan again)."""
+    starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
+    moves = [i for i, s in enumerate(work.strokes) if not s.spray_on and len(s) == 2]
+    counts = {"transfers_in_collision": 0, "transfers_routed": 0, **{f"routed_{kind}": 0 for kind in ROUTES}}
+    if not moves:
+        return work, counts
+    router = CellRouter(cell_robot, arm, part, config)
+    a = starts[moves]
+    ok = work.reachable[a] & work.reachable[a + 1]
+    pairs = np.column_stack([work.q, work.track_mm])
+    free = np.ones(len(moves), bool)
+    free[ok] = router._edges_free(pairs[a[ok]], pairs[a[ok] + 1]) & router._states_free(pairs[a[ok]])
+    free[ok] &= router._states_free(pairs[a[ok] + 1])
+    strokes = list(work.strokes)
+    q, track, roll, reach = list(work.q), list(work.track_mm), list(work.roll_deg), list(work.reachable)
+    inserted = {}  # transfer index -> (nodes, tracks, rolls, stroke)
+    failed = set() if failed is None else failed
+    for k, i in enumerate(moves):
+        if free[k] or not ok[k]:
+            continue
+        counts["transfers_in_collision"] += 1
+        s = starts[i]
+        key = pairs[s : s + 2].tobytes()
+        if key in failed:
+            continue
+        found = router.route(work.q[s], work.track_mm[s], work.q[s + 1], work.track_mm[s + 1], seed + k)
+        if found is None:
+            failed.add(key)
+            continue
+        kind, nodes, tracks = found
+        counts["transfers_routed"] += 1
+        counts[f"routed_{kind}"] += 1
+        poses = np.stack([router.pose(n, t) for n, t in zip(nodes, tracks)])
+        tcp = poses[:, :3, 3]
+        normals = -poses[:, :3, 2]
+        old = strokes[i]
+        stroke = Stroke(
+            np.vstack([old.points[:1], tcp - standoff_mm * normals, old.points[1:]]),
+            np.vstack([old.normals[:1], normals, old.normals[1:]]),
+            np.vstack([old.tcp[:1], tcp, old.tcp[1:]]),
+            spray_on=False,
+            on_part=np.zeros(len(nodes) + 2, bool),
+        )
+        inserted[i] = (nodes, tracks, _rolls_deg(poses, tcp, normals), stroke)
+    if not inserted:
+        return work, counts
+    for i in sorted(inserted, reverse=True):  # from the end, so that the rows before keep their places
+        nodes, tracks, rolls, stroke = inserted[i]
+        at = starts[i] + 1
+        q[at:at] = list(nodes)
+        track[at:at] = list(tracks)
+        roll[at:at] = list(rolls)
+        reach[at:at] = [True] * len(nodes)
+        strokes[i] = stroke
+    routed = dataclasses.replace(
+        work,
+        strokes=tuple(strokes),
+        q=np.array(q, dtype=float).reshape(-1, work.q.shape[1]),
+        track_mm=np.array(track, dtype=float),
+        roll_deg=np.array(roll, dtype=float),
+        reachable=np.array(reach, dtype=bool),
+        collides=None,
+    )
+    return routed, counts
