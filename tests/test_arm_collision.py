@@ -336,6 +336,9 @@ def test_a_cell_plan_with_collisions_flags_each_waypoint_as_its_own_check_does(t
         csv_flags = np.array([int(r["collides"]) for r in rows if r["robot"] == work["name"]], bool)
         np.testing.assert_array_equal(csv_flags, flags)
         total += int(flags.sum())
+        # cut to what the arm paints free before the film: every spray waypoint reached and free
+        spray = np.concatenate([np.full(len(st["tcp_mm"]), st["kind"] != "transfer") for st in work["strokes"]])
+        assert spray.any() and ok[spray].all() and not flags[spray].any()
         # the schedule's times: in both files, each stroke's wait before it, the cycle the longest robot's
         t_s = np.concatenate([st["t_s"] for st in work["strokes"]])
         csv_t = np.array([float(r["t_s"]) for r in rows if r["robot"] == work["name"]])
@@ -359,6 +362,7 @@ def test_a_cell_plan_with_collisions_flags_each_waypoint_as_its_own_check_does(t
                 np.testing.assert_allclose(got[:, :3, :3], want[:, :3, :3], atol=1e-9)
     repaired = report["robots"]["left"]["strokes_repaired"]
     assert 1 <= repaired <= report["robots"]["left"]["strokes_in_collision"]
+    assert report["left_out_waypoints"]["left_out_in_collision"] > 0
     assert report["waypoints_in_collision"] == total
     gap = report["robot_gap_mm"]["left-right"]
     assert (gap > 0) == (report["robots_kept_apart"].startswith("in space"))
