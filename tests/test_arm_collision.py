@@ -471,3 +471,27 @@ def test_transfers_in_collision_are_routed_free_and_the_gun_is_where_the_waypoin
         np.testing.assert_allclose(got[:, :3, 3], want[:, :3, 3], atol=1e-6)
         np.testing.assert_allclose(got[:, :3, :3], want[:, :3, :3], atol=1e-9)
     assert routes == counts["transfers_routed"]
+
+
+def test_a_touch_up_round_checks_only_the_strokes_it_added(tmp_path):
+    """``_tail_checked`` (a touch-up round's check of the strokes appended): the flags from the last waypoint
+    before the new strokes on are the whole check's; the rows before it are returned free."""
+    import sprayplan.cells.plan as cells_plan
+    from sprayplan.cells import load_cell
+    from sprayplan.cells.collide import _tail_checked, cell_arms
+    from sprayplan.config import JobConfig
+    from tests.test_cell_plan import CELL as SMALL_CELL
+
+    cell_file = tmp_path / "small2.toml"
+    cell_file.write_text(SMALL_CELL)
+    plan = cells_plan.plan_cell(grid_box(n=8, size=(700.0, 200.0, 250.0)), load_cell(cell_file), JobConfig())
+    arms = cell_arms(plan.cell, plan.part, JobConfig().collision)
+    work, arm = plan.robots[0], arms[0]
+    whole = check_robot(arm, work.q, work.track_mm, work.reachable)
+    since = len(work.strokes) // 2
+    first = sum(len(s) for s in work.strokes[:since]) - 1
+    tail = _tail_checked(arm, work, since)
+    assert whole.waypoint.collides[first:].any() and whole.waypoint.collides[:first].any()
+    np.testing.assert_array_equal(tail.waypoint.collides[first:], whole.waypoint.collides[first:])
+    np.testing.assert_array_equal(tail.motion_collides[first:], whole.motion_collides[first:])
+    assert not tail.waypoint.collides[:first].any() and not tail.motion_collides[:first].any()

@@ -16,6 +16,8 @@ import dataclasses
 import itertools
 import math
 
+import numpy as np
+
 from sprayplan.collision.arms import (
     COVER_MM,
     ArmCollision,
@@ -55,28 +57,50 @@ def cell_arms(cell, part, config) -> list:
     ]
 
 
+def _tail_checked(arm, work, since: int):
+    """``check_robot``'s flags for a robot's work whose strokes before ``since`` were cut and routed already
+    (their waypoints reached and free, their motions free or known): only the strokes from ``since`` on are
+    checked, with the motion into them; the rows before are returned free."""
+    from types import SimpleNamespace
+
+    first = max(int(sum(len(s) for s in work.strokes[:since])) - 1, 0)
+    found = check_robot(arm, work.q[first:], work.track_mm[first:], work.reachable[first:])
+    n = len(work.q)
+    collides = np.zeros(n, bool)
+    collides[first:] = found.waypoint.collides
+    motion = np.zeros(max(n - 1, 0), bool)
+    motion[first:] = found.motion_collides
+    return SimpleNamespace(waypoint=SimpleNamespace(collides=collides), motion_collides=motion)
+
+
 def freed_cell(
-    cell, robots, arms, config, repair=None, part=None, standoff_mm: float = 0.0, failed=None
+    cell, robots, arms, config, repair=None, part=None, standoff_mm: float = 0.0, failed=None, since=None
 ) -> tuple[tuple, dict]:
     """Every robot's work repaired (``repair(cell_robot, work, arm)``, ``cells.repair.repaired_work``, when given
     and ``config.repair`` is on), checked, cut to what it paints free (``cells.repair.free_work``), and with
     ``config.repair`` its transfers in collision re-routed (``cells.routes.routed_work``, around ``part`` in
     the cell frame; ``standoff_mm`` the plan's; ``failed``: per robot name, the transfers no route freed
     before, not tried again); the film is then made from what the robots can paint
-    (``cells.plan.plan_cell``). Returns the robots and per robot the repairs', the cut's and the routes'
-    counts."""
+    (``cells.plan.plan_cell``). ``since``: per robot name, the strokes before this index were freed already
+    (a touch-up round appends strokes): only the later ones are checked, cut and routed. Returns the robots
+    and per robot the repairs', the cut's and the routes' counts."""
     from sprayplan.cells.repair import free_work
     from sprayplan.cells.routes import routed_work
 
     out, counts = [], {}
     for cell_robot, work, arm in zip(cell.robots, robots, arms):
         repairs, routes = {}, {}
+        first = 0 if since is None else int(since.get(work.name, 0))
         if repair is not None and config.repair:
             work, repairs = repair(cell_robot, work, arm)
-        work, left = free_work(work, check_robot(arm, work.q, work.track_mm, work.reachable))
+        if first:
+            found = _tail_checked(arm, work, first)
+        else:
+            found = check_robot(arm, work.q, work.track_mm, work.reachable)
+        work, left = free_work(work, found)
         if config.repair and part is not None:
             mine = None if failed is None else failed.setdefault(work.name, set())
-            work, routes = routed_work(cell_robot, work, arm, part, config, standoff_mm, failed=mine)
+            work, routes = routed_work(cell_robot, work, arm, part, config, standoff_mm, failed=mine, since=first)
             routes.pop("transfers_in_collision")  # the check after the film counts what is left
         out.append(work)
         counts[work.name] = {**repairs, **left, **routes}

@@ -589,12 +589,12 @@ def plan_cell(
     freed: dict = {}  # per robot: the repairs', the cut's and the routes' counts (--collisions)
     unrouted: dict = {}  # per robot: the transfers no route freed (cells.routes.routed_work)
 
-    def free(robots_, repair=None):
+    def free(robots_, repair=None, since=None):
         """``robots_`` cut to what they paint free of the body (``cells.collide.freed_cell``), the counts kept."""
         from sprayplan.cells.collide import freed_cell
 
         robots_, counts = freed_cell(
-            cell, robots_, arms, job.collision, repair, painted, job.paths.standoff_mm, unrouted
+            cell, robots_, arms, job.collision, repair, painted, job.paths.standoff_mm, unrouted, since
         )
         for name, entry in counts.items():
             mine = freed.setdefault(name, {})
@@ -668,9 +668,10 @@ def plan_cell(
             grown = with_touch_ups(cell, robots, extra)
             if grown is None:
                 break
+            before = {r.name: len(r.strokes) for r in robots}
             robots, count = grown
             if job.collision.check:  # the touch-ups cut to what they paint free, as the strokes were
-                robots = free(robots)
+                robots = free(robots, since=before)
             added += count
             tuning = None  # (its deposit matrix lives on in ``earlier`` until the extended one is made)
             tuning, robots = tuned(robots)

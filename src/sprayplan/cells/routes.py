@@ -209,15 +209,18 @@ def _rolls_deg(poses: np.ndarray, tcp: np.ndarray, normals: np.ndarray) -> np.nd
     return np.degrees(np.arctan2(turn[:, 1, 0], turn[:, 0, 0]))
 
 
-def routed_work(cell_robot, work, arm, part, config, standoff_mm: float, seed: int = 0, failed=None) -> tuple:
+def routed_work(
+    cell_robot, work, arm, part, config, standoff_mm: float, seed: int = 0, failed=None, since: int = 0
+) -> tuple:
     """A robot's work (``cells.plan.RobotWork``, its transfers joined: ``cells.repair.free_work``) with each
     transfer whose joint move is in collision re-routed (module docstring). Returns the work and
     ``{"transfers_in_collision", "transfers_routed", "routed_retract", "routed_via", "routed_detour"}``; the
     search of the ``k``-th transfer is seeded ``seed + k``. ``failed``: a set of the transfers no route freed
     (their ends' joints and track positions), added to here, and not tried again (a touch-up round cuts and
-    routes the plan again)."""
+    routes the plan again). Only the transfers from stroke ``since - 1`` on are looked at (the strokes before
+    were routed already)."""
     starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
-    moves = [i for i, s in enumerate(work.strokes) if not s.spray_on and len(s) == 2]
+    moves = [i for i, s in enumerate(work.strokes) if not s.spray_on and len(s) == 2 and i >= since - 1]
     counts = {"transfers_in_collision": 0, "transfers_routed": 0, **{f"routed_{kind}": 0 for kind in ROUTES}}
     if not moves:
         return work, counts
