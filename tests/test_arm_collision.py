@@ -495,3 +495,46 @@ def test_a_touch_up_round_checks_only_the_strokes_it_added(tmp_path):
     np.testing.assert_array_equal(tail.waypoint.collides[first:], whole.waypoint.collides[first:])
     np.testing.assert_array_equal(tail.motion_collides[first:], whole.motion_collides[first:])
     assert not tail.waypoint.collides[:first].any() and not tail.motion_collides[:first].any()
+
+
+def test_runs_in_collision_solved_on_their_own_are_free_and_painted(tmp_path):
+    """``free_work`` with ``resolve``: the runs in collision that get a try of their own are painted (fewer
+    waypoints left out, by exactly those resolved), and every spray waypoint and motion inside a stroke is
+    still free, each resolved piece's gun where its waypoints say."""
+    import sprayplan.cells.plan as cells_plan
+    from sprayplan.cells import load_cell
+    from sprayplan.cells.collide import cell_arms
+    from sprayplan.cells.repair import free_work, resolved_piece
+    from sprayplan.config import JobConfig
+    from tests.test_cell_plan import CELL as SMALL_CELL
+    from tests.test_cell_plan import SIZE
+
+    cell_file = tmp_path / "small2.toml"
+    cell_file.write_text(SMALL_CELL)
+    cell = load_cell(cell_file)
+    plan = cells_plan.plan_cell(grid_box(n=8, size=SIZE), cell, JobConfig())
+    arms = cell_arms(plan.cell, plan.part, JobConfig().collision)
+    work, arm, robot = plan.robots[0], arms[0], cell.robots[0]
+    found = check_robot(arm, work.q, work.track_mm, work.reachable)
+    _, left = free_work(work, found)
+    pieced, counts = free_work(work, found, lambda piece, seed: resolved_piece(robot, arm, piece, seed))
+    assert counts["pieces_resolved"] >= 1
+    assert counts["left_out_in_collision"] + counts["waypoints_resolved"] == left["left_out_in_collision"]
+    again = check_robot(arm, pieced.q, pieced.track_mm, pieced.reachable)
+    starts = np.r_[0, np.cumsum([len(s) for s in pieced.strokes])]
+    for i, s in enumerate(pieced.strokes):
+        a, b = starts[i], starts[i + 1]
+        if s.spray_on:
+            assert not again.waypoint.collides[a:b].any() and not again.motion_collides[a : b - 1].any()
+        else:
+            np.testing.assert_array_equal(pieced.q[a], pieced.q[a - 1])
+            np.testing.assert_array_equal(pieced.q[b - 1], pieced.q[b])
+    got = np.stack([robot.robot(t).fk(j[None])[0] for t, j in zip(pieced.track_mm, pieced.q)])
+    tcp = np.concatenate([s.tcp for s in pieced.strokes])
+    normals = np.concatenate([s.normals for s in pieced.strokes])
+    c, s_ = np.cos(np.radians(pieced.roll_deg)), np.sin(np.radians(pieced.roll_deg))
+    roll = np.broadcast_to(np.eye(4), (len(tcp), 4, 4)).copy()
+    roll[:, 0, 0], roll[:, 0, 1], roll[:, 1, 0], roll[:, 1, 1] = c, -s_, s_, c
+    want = poses_at(tcp, normals) @ roll
+    np.testing.assert_allclose(got[:, :3, 3], want[:, :3, 3], atol=1e-6)
+    np.testing.assert_allclose(got[:, :3, :3], want[:, :3, :3], atol=1e-9)

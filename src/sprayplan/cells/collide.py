@@ -77,14 +77,15 @@ def freed_cell(
     cell, robots, arms, config, repair=None, part=None, standoff_mm: float = 0.0, failed=None, since=None
 ) -> tuple[tuple, dict]:
     """Every robot's work repaired (``repair(cell_robot, work, arm)``, ``cells.repair.repaired_work``, when given
-    and ``config.repair`` is on), checked, cut to what it paints free (``cells.repair.free_work``), and with
+    and ``config.repair`` is on), checked, cut to what it paints free (``cells.repair.free_work``, its runs in
+    collision solved again on their own with ``config.repair``: ``cells.repair.resolved_piece``), and with
     ``config.repair`` its transfers in collision re-routed (``cells.routes.routed_work``, around ``part`` in
     the cell frame; ``standoff_mm`` the plan's; ``failed``: per robot name, the transfers no route freed
     before, not tried again); the film is then made from what the robots can paint
     (``cells.plan.plan_cell``). ``since``: per robot name, the strokes before this index were freed already
     (a touch-up round appends strokes): only the later ones are checked, cut and routed. Returns the robots
     and per robot the repairs', the cut's and the routes' counts."""
-    from sprayplan.cells.repair import free_work
+    from sprayplan.cells.repair import free_work, resolved_piece
     from sprayplan.cells.routes import routed_work
 
     out, counts = [], {}
@@ -97,7 +98,13 @@ def freed_cell(
             found = _tail_checked(arm, work, first)
         else:
             found = check_robot(arm, work.q, work.track_mm, work.reachable)
-        work, left = free_work(work, found)
+        resolve = None
+        if config.repair:
+
+            def resolve(piece, seed, cell_robot=cell_robot, arm=arm):
+                return resolved_piece(cell_robot, arm, piece, seed)
+
+        work, left = free_work(work, found, resolve)
         if config.repair and part is not None:
             mine = None if failed is None else failed.setdefault(work.name, set())
             work, routes = routed_work(cell_robot, work, arm, part, config, standoff_mm, failed=mine, since=first)

@@ -42,6 +42,58 @@ def _screened(arm, ordered: list, colliding: np.ndarray) -> list:
     return ordered
 
 
+def _candidates(cell_robot, robot, stroke, seed: np.ndarray, need: np.ndarray) -> list:
+    """Every (track position, roll) try of ``stroke`` (:func:`~sprayplan.cells.tries.stroke_tries`) and every
+    IK branch that reaches at least the waypoints ``need`` (and as many), each followed from ``seed`` by whole
+    turns: ``(joints (n, dof), reached (n,), track (n,), roll)``, in the order tried (the tries in their order,
+    the branches of a try by their first joints' distance from ``seed``)."""
+    from sprayplan.robots.interface import nearest_turns
+
+    axis = np.zeros(3) if cell_robot.track is None else cell_robot.track.axis
+    tries = stroke_tries(cell_robot, stroke)
+    poses = stroke_poses(stroke)
+    blocks = []
+    for t, r in tries:
+        moved = poses @ rot_z(r)
+        moved[:, :3, 3] -= t[:, None] * axis
+        blocks.append(moved)
+    sols = robot.ik(np.concatenate(blocks))
+    n = len(stroke)
+    ordered = []
+    for k, (t, r) in enumerate(tries):
+        valid = sols.valid[k * n : (k + 1) * n]  # (n, branches)
+        joints = sols.q[k * n : (k + 1) * n]
+        candidates = []
+        for branch in range(valid.shape[1]):
+            ok = valid[:, branch]
+            if ok.sum() < need.sum() or not ok[need].all() or not ok.any():
+                continue
+            qb = np.zeros((n, robot.dof))
+            prev = seed
+            for j in np.flatnonzero(ok):
+                prev = qb[j] = nearest_turns(robot, joints[j, branch], prev)
+            start = qb[np.flatnonzero(ok)[0]]
+            candidates.append((float(((start - seed) ** 2).sum()), branch, qb, ok))
+        ordered += [(qb, ok, t, r) for _, _, qb, ok in sorted(candidates, key=lambda c: c[0])]
+    return ordered
+
+
+def resolved_piece(cell_robot, arm, piece, seed: np.ndarray):
+    """A piece of a stroke (a run of its waypoints in collision, with a free waypoint either side where there is
+    one) solved on its own: the first (track position, roll) try and IK branch (:func:`_candidates`, from
+    ``seed``) that reaches every waypoint with no waypoint and no motion in collision; ``(joints, track,
+    roll_deg)`` or None."""
+    from sprayplan.collision.arms import plan_collides
+
+    robot = cell_robot.robot(0.0)
+    need = np.ones(len(piece), bool)
+    ordered = _candidates(cell_robot, robot, piece, seed, need)
+    for qb, ok, t, r in _screened(arm, ordered, need):
+        if not plan_collides(arm, qb, t, ok):
+            return qb, t, r
+    return None
+
+
 def repaired_work(cell_robot, work, arm) -> tuple:
     """A robot's plan with its strokes in collision solved again, as a programmer would: every (track
     position, roll) try of the stroke (:func:`~sprayplan.cells.tries.stroke_tries`) and every IK branch, the
@@ -61,10 +113,8 @@ def repaired_work(cell_robot, work, arm) -> tuple:
     """
     from sprayplan.cells.plan import joined_transfers
     from sprayplan.collision.arms import check_robot, plan_collides
-    from sprayplan.robots.interface import nearest_turns
 
     robot = cell_robot.robot(0.0)
-    axis = np.zeros(3) if cell_robot.track is None else cell_robot.track.axis
     found = check_robot(arm, work.q, work.track_mm, work.reachable)
     starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
     q, track, roll, reach = work.q.copy(), work.track_mm.copy(), work.roll_deg.copy(), work.reachable.copy()
@@ -86,31 +136,7 @@ def repaired_work(cell_robot, work, arm) -> tuple:
         if i + 2 < len(strokes) and not strokes[i + 1].spray_on and reach[b + 1]:
             if not found.motion_collides[b : b + 1].any():
                 after = b + 1
-        tries = stroke_tries(cell_robot, stroke)
-        poses = stroke_poses(stroke)
-        blocks = []
-        for t, r in tries:
-            moved = poses @ rot_z(r)
-            moved[:, :3, 3] -= t[:, None] * axis
-            blocks.append(moved)
-        sols = robot.ik(np.concatenate(blocks))
-        n = b - a
-        ordered = []  # (joints, reached, track, roll) in the order tried
-        for k, (t, r) in enumerate(tries):
-            valid = sols.valid[k * n : (k + 1) * n]  # (n, branches)
-            joints = sols.q[k * n : (k + 1) * n]
-            candidates = []
-            for branch in range(valid.shape[1]):
-                ok = valid[:, branch]
-                if ok.sum() < need.sum() or not ok[need].all() or not ok.any():
-                    continue
-                qb = np.zeros((n, robot.dof))
-                prev = seed
-                for j in np.flatnonzero(ok):
-                    prev = qb[j] = nearest_turns(robot, joints[j, branch], prev)
-                start = qb[np.flatnonzero(ok)[0]]
-                candidates.append((float(((start - seed) ** 2).sum()), branch, qb, ok))
-            ordered += [(qb, ok, t, r) for _, _, qb, ok in sorted(candidates, key=lambda c: c[0])]
+        ordered = _candidates(cell_robot, robot, stroke, seed, need)
         lead = [] if before is None else [before]
         trail = [] if after is None else [after]
         for qb, ok, t, r in _screened(arm, ordered, found.waypoint.collides[a:b]):
@@ -132,7 +158,7 @@ def repaired_work(cell_robot, work, arm) -> tuple:
     return work, {"strokes_in_collision": flagged, "strokes_repaired": repaired}
 
 
-def free_work(work, found) -> tuple:
+def free_work(work, found, resolve=None) -> tuple:
     """A robot's plan cut to what it can paint free of the part and the floor (``--collisions``): every spray
     stroke cut to its runs of waypoints that are reached, free (``found``: the robot's
     :class:`~sprayplan.collision.arms.RobotCollisions`) and joined by free motions, runs of one waypoint left
@@ -140,12 +166,19 @@ def free_work(work, found) -> tuple:
     run to the start of the next (``cells.plan.joined_transfers``); a transfer between two strokes kept whole
     stays as it was (a route ``cells.routes`` gave it included).
 
+    With ``resolve(piece, seed) -> (joints, track, roll_deg) or None`` (:func:`resolved_piece`), each run of
+    reached waypoints in collision is first solved again on its own, with a free waypoint either side where
+    there is one (so that the spray goes on without a gap): the stroke is then painted in pieces, each with its
+    own track position, roll and branch, joined by transfers. A stroke's one try must suit all of it; a run
+    near a mirror or in a recess often has a try of its own that is free.
+
     A waypoint in collision or unreached is not painted through, as a programmer leaves out what the arm cannot
     reach or cannot reach without touching the body: the robot's programs leave such waypoints out with the gun
     off, so the film is predicted without them, and the move over them (which a program makes as one motion)
     is a transfer of the plan, checked like any other. Returns the work (``collides`` None: not checked yet)
     and the counts of the spray waypoints left out: ``{"left_out_in_collision", "left_out_unreached",
-    "left_out_alone"}`` (the last: free and reached, but alone between others left out).
+    "left_out_alone"}`` (the last: free and reached, but alone between others left out), and with ``resolve``
+    ``"pieces_resolved"`` and ``"waypoints_resolved"``.
     """
     from sprayplan.cells.plan import RobotWork, _transfer
     from sprayplan.cells.seams import cut_stroke
@@ -153,44 +186,70 @@ def free_work(work, found) -> tuple:
     starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
     free = work.reachable & ~found.waypoint.collides
     counts = {"left_out_in_collision": 0, "left_out_unreached": 0, "left_out_alone": 0}
-    strokes, area, rows = [], [], []  # rows: the waypoints of ``work`` each stroke takes
-    whole = -1  # the stroke the last run kept is, when it kept the whole of it
+    if resolve is not None:
+        counts.update(pieces_resolved=0, waypoints_resolved=0)
+    strokes, area, arrays = [], [], []  # arrays: (joints, track, roll) of each stroke's waypoints
+    whole = -1  # the stroke the last run kept is, when it kept the whole of it as it was
     for i, stroke in enumerate(work.strokes):
         if not stroke.spray_on:
             continue
         a, b = starts[i], starts[i + 1]
+        n = b - a
         ok = free[a:b]
-        counts["left_out_in_collision"] += int((work.reachable[a:b] & ~ok).sum())
-        counts["left_out_unreached"] += int((~work.reachable[a:b]).sum())
         joins = ok[:-1] & ok[1:] & ~found.motion_collides[a : b - 1]  # a free motion between two free waypoints
         edges = np.flatnonzero(np.diff(np.r_[0, joins.astype(np.int8), 0]))
-        runs = [(int(s), int(e) + 1) for s, e in zip(edges[::2], edges[1::2])]  # waypoints s .. e inclusive
-        covered = np.zeros(b - a, bool)
-        for s, e in runs:
+        runs = [(int(s), int(e) + 1, None) for s, e in zip(edges[::2], edges[1::2])]  # waypoints s .. e
+        covered = np.zeros(n, bool)
+        for s, e, _ in runs:
             covered[s:e] = True
+        if resolve is not None:
+            hit = work.reachable[a:b] & ~ok
+            edges = np.flatnonzero(np.diff(np.r_[0, hit.astype(np.int8), 0]))
+            for s, e in zip(edges[::2], edges[1::2]):
+                lo, hi = max(int(s) - 1, 0), min(int(e) + 1, n)
+                if hi - lo < 2:
+                    continue
+                seed = work.q[a + lo - 1] if lo > 0 and work.reachable[a + lo - 1] else work.q[a + lo]
+                solved = resolve(cut_stroke(stroke, lo, hi), seed)
+                if solved is not None:
+                    runs.append((lo, hi, solved))
+                    covered[lo:hi] = True
+                    counts["pieces_resolved"] += 1
+                    counts["waypoints_resolved"] += int(e - s)
+            runs.sort(key=lambda run: (run[0], run[1]))
+        counts["left_out_in_collision"] += int((work.reachable[a:b] & ~ok & ~covered).sum())
+        counts["left_out_unreached"] += int((~work.reachable[a:b]).sum())
+        counts["left_out_alone"] += int((ok & ~covered).sum())
+        for s, e, solved in runs:
+            as_was = solved is None and (s, e) == (0, n)  # the whole stroke, as it was solved
+            if solved is None:
+                rows = np.arange(a + s, a + e)
+                solved = (work.q[rows], work.track_mm[rows], work.roll_deg[rows])
+            else:
+                solved = (solved[0], solved[1], np.full(e - s, float(solved[2])))
             if strokes:
-                kept = whole == i - 2 and (s, e) == (0, b - a) and not work.strokes[i - 1].spray_on
+                kept = whole == i - 2 and as_was and not work.strokes[i - 1].spray_on
                 if kept:  # the transfer between two strokes kept whole stays as it was (a route too)
+                    rows = np.arange(starts[i - 1], starts[i])
                     strokes.append(work.strokes[i - 1])
-                    rows.append(np.arange(starts[i - 1], starts[i]))
+                    arrays.append((work.q[rows], work.track_mm[rows], work.roll_deg[rows]))
                 else:
                     strokes.append(_transfer(strokes[-1], cut_stroke(stroke, s, e)))
-                    rows.append(np.array([rows[-1][-1], a + s]))
+                    arrays.append(tuple(np.stack([x[-1], y[0]]) for x, y in zip(arrays[-1], solved)))
                 area.append(-1)
-            whole = i if (s, e) == (0, b - a) else -1
+            whole = i if as_was else -1
             strokes.append(cut_stroke(stroke, s, e))
             area.append(int(work.area[i]))
-            rows.append(np.arange(a + s, a + e))
-        counts["left_out_alone"] += int((ok & ~covered).sum())
-    take = np.concatenate(rows) if rows else np.zeros(0, np.int64)
+            arrays.append(solved)
+    dof = work.q.shape[1]
     freed = RobotWork(
         name=work.name,
         model=work.model,
         strokes=tuple(strokes),
         area=np.array(area, dtype=np.int64),
-        track_mm=work.track_mm[take],
-        roll_deg=work.roll_deg[take],
-        q=work.q[take].reshape(len(take), work.q.shape[1]),
-        reachable=np.ones(len(take), bool),
+        track_mm=np.concatenate([x[1] for x in arrays]) if arrays else np.zeros(0),
+        roll_deg=np.concatenate([x[2] for x in arrays]) if arrays else np.zeros(0),
+        q=np.concatenate([np.reshape(x[0], (-1, dof)) for x in arrays]) if arrays else np.zeros((0, dof)),
+        reachable=np.ones(sum(len(s) for s in strokes), bool),
     )
     return freed, counts
