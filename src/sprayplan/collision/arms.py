@@ -497,9 +497,8 @@ def check_robot(arm: ArmCollision, q, track_mm, reachable) -> RobotCollisions:
         distance[idx], slack[idx] = found.distance_mm, found.slack_mm
     motion = np.zeros(max(n - 1, 0), bool)
     joints, tracks, owner = arm.motion_configs(q, track_mm, reachable, slack=np.where(collides, np.inf, slack))
-    if len(joints):
-        found = arm.check(joints, tracks)
-        motion[np.unique(owner[found.collides])] = True
+    if len(joints):  # only whether each is in collision: the yes/no check (the full check's answer, for less)
+        motion[np.unique(owner[arm.collides(joints, tracks)])] = True
     if n > 1:
         motion |= collides[:-1] | collides[1:]
     return RobotCollisions(ConfigCollisions(collides, body, other, distance, slack), motion, len(joints))
