@@ -158,15 +158,10 @@ def test_screened_repairs_are_the_repairs_of_the_whole_search(tmp_path, monkeypa
     """Screening the candidates in batches drops only candidates the full check would refuse: the repaired
     joints, track positions, rolls and counts are the same as without the screen."""
     import sprayplan.cells.plan as cells_plan
-    from sprayplan.cells import load_cell
     from sprayplan.cells.collide import check_cell
     from sprayplan.config import JobConfig
-    from tests.test_cell_plan import CELL as SMALL_CELL
 
-    cell_file = tmp_path / "small2.toml"
-    cell_file.write_text(SMALL_CELL)
-    size = (700.0, 200.0, 250.0)  # a box on which a stroke in collision has a free try
-    plan = cells_plan.plan_cell(grid_box(n=8, size=size), load_cell(cell_file), JobConfig())
+    _, plan, _ = _box_cell(tmp_path)  # a box on which a stroke in collision has a free try
     config = JobConfig().collision
     screened, report = check_cell(plan, config, cells_plan.repaired_work)
     import sprayplan.cells.repair as cells_repair
@@ -353,10 +348,7 @@ def test_a_cell_plan_with_collisions_flags_each_waypoint_as_its_own_check_does(t
         for st in work["strokes"]:
             good = st["reachable"]
             if good.any():
-                c, s_ = np.cos(np.radians(st["roll_deg"][good])), np.sin(np.radians(st["roll_deg"][good]))
-                roll = np.broadcast_to(np.eye(4), (int(good.sum()), 4, 4)).copy()
-                roll[:, 0, 0], roll[:, 0, 1], roll[:, 1, 0], roll[:, 1, 1] = c, -s_, s_, c
-                want = poses_at(st["tcp_mm"][good], st["normals"][good]) @ roll
+                want = poses_at(st["tcp_mm"][good], st["normals"][good]) @ _rolls(st["roll_deg"][good])
                 got = np.stack([robot.robot(t).fk(j[None])[0] for t, j in zip(st["track_mm"][good], st["q_rad"][good])])
                 np.testing.assert_allclose(got[:, :3, 3], want[:, :3, 3], atol=1e-6)
                 np.testing.assert_allclose(got[:, :3, :3], want[:, :3, :3], atol=1e-9)
@@ -382,21 +374,37 @@ def test_collisions_asked_for_an_arm_without_link_sizes_is_one_line_and_no_outpu
     assert not out.exists()
 
 
-def test_a_plan_cut_to_its_free_runs_paints_only_where_the_arm_is_free(tmp_path):
-    """``free_work``: every spray waypoint it keeps is reached and free and every motion inside a spray stroke
-    is free; each kept stroke is a run of its stroke's waypoints; kept and left out add up to the spray
-    waypoints there were; each transfer is the joint move from the end of one run to the start of the next."""
+def _box_cell(tmp_path, size=(700.0, 200.0, 250.0)):
+    """The small two-robot cell of ``tests.test_cell_plan`` planned (no collision check) over a box of ``size``
+    (the default: a box on which some strokes collide and some have a free try): ``(cell, plan, arms)``."""
     import sprayplan.cells.plan as cells_plan
     from sprayplan.cells import load_cell
     from sprayplan.cells.collide import cell_arms
-    from sprayplan.cells.repair import free_work
     from sprayplan.config import JobConfig
     from tests.test_cell_plan import CELL as SMALL_CELL
 
     cell_file = tmp_path / "small2.toml"
     cell_file.write_text(SMALL_CELL)
-    plan = cells_plan.plan_cell(grid_box(n=8, size=(700.0, 200.0, 250.0)), load_cell(cell_file), JobConfig())
-    arms = cell_arms(plan.cell, plan.part, JobConfig().collision)
+    cell = load_cell(cell_file)
+    plan = cells_plan.plan_cell(grid_box(n=8, size=size), cell, JobConfig())
+    return cell, plan, cell_arms(plan.cell, plan.part, JobConfig().collision)
+
+
+def _rolls(deg) -> np.ndarray:
+    """(n, 4, 4): turns about z by ``deg`` (n,) degrees."""
+    c, s_ = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    out = np.broadcast_to(np.eye(4), (len(c), 4, 4)).copy()
+    out[:, 0, 0], out[:, 0, 1], out[:, 1, 0], out[:, 1, 1] = c, -s_, s_, c
+    return out
+
+
+def test_a_plan_cut_to_its_free_runs_paints_only_where_the_arm_is_free(tmp_path):
+    """``free_work``: every spray waypoint it keeps is reached and free and every motion inside a spray stroke
+    is free; each kept stroke is a run of its stroke's waypoints; kept and left out add up to the spray
+    waypoints there were; each transfer is the joint move from the end of one run to the start of the next."""
+    from sprayplan.cells.repair import free_work
+
+    _, plan, arms = _box_cell(tmp_path)
     work, arm = plan.robots[0], arms[0]
     found = check_robot(arm, work.q, work.track_mm, work.reachable)
     assert found.waypoint.collides.any() and (~work.reachable).any()
@@ -428,20 +436,12 @@ def test_transfers_in_collision_are_routed_free_and_the_gun_is_where_the_waypoin
     """``routed_work``: a transfer in collision that gets a route has nodes and motions free (the check's own
     answer), its ends unchanged, every node's gun pose the one its waypoint (tip, normal, roll) gives, and
     the same seed gives the same routes."""
-    import sprayplan.cells.plan as cells_plan
-    from sprayplan.cells import load_cell
-    from sprayplan.cells.collide import cell_arms
     from sprayplan.cells.repair import free_work
     from sprayplan.cells.routes import routed_work
     from sprayplan.config import JobConfig
-    from tests.test_cell_plan import CELL as SMALL_CELL
 
-    cell_file = tmp_path / "small2.toml"
-    cell_file.write_text(SMALL_CELL)
-    cell = load_cell(cell_file)
-    plan = cells_plan.plan_cell(grid_box(n=8, size=(700.0, 200.0, 250.0)), cell, JobConfig())
+    cell, plan, arms = _box_cell(tmp_path)
     config = JobConfig().collision
-    arms = cell_arms(plan.cell, plan.part, config)
     work, arm = plan.robots[0], arms[0]
     freed, _ = free_work(work, check_robot(arm, work.q, work.track_mm, work.reachable))
     before = check_robot(arm, freed.q, freed.track_mm, freed.reachable)
@@ -464,10 +464,7 @@ def test_transfers_in_collision_are_routed_free_and_the_gun_is_where_the_waypoin
         assert not new.spray_on and not after.motion_collides[a : b - 1].any()
         robot = cell.robots[0]
         got = np.stack([robot.robot(t).fk(q[None])[0] for t, q in zip(routed.track_mm[a:b], routed.q[a:b])])
-        c, s_ = np.cos(np.radians(routed.roll_deg[a:b])), np.sin(np.radians(routed.roll_deg[a:b]))
-        roll = np.broadcast_to(np.eye(4), (b - a, 4, 4)).copy()
-        roll[:, 0, 0], roll[:, 0, 1], roll[:, 1, 0], roll[:, 1, 1] = c, -s_, s_, c
-        want = poses_at(new.tcp, new.normals) @ roll
+        want = poses_at(new.tcp, new.normals) @ _rolls(routed.roll_deg[a:b])
         np.testing.assert_allclose(got[:, :3, 3], want[:, :3, 3], atol=1e-6)
         np.testing.assert_allclose(got[:, :3, :3], want[:, :3, :3], atol=1e-9)
     assert routes == counts["transfers_routed"]
@@ -476,16 +473,9 @@ def test_transfers_in_collision_are_routed_free_and_the_gun_is_where_the_waypoin
 def test_a_touch_up_round_checks_only_the_strokes_it_added(tmp_path):
     """``_tail_checked`` (a touch-up round's check of the strokes appended): the flags from the last waypoint
     before the new strokes on are the whole check's; the rows before it are returned free."""
-    import sprayplan.cells.plan as cells_plan
-    from sprayplan.cells import load_cell
-    from sprayplan.cells.collide import _tail_checked, cell_arms
-    from sprayplan.config import JobConfig
-    from tests.test_cell_plan import CELL as SMALL_CELL
+    from sprayplan.cells.collide import _tail_checked
 
-    cell_file = tmp_path / "small2.toml"
-    cell_file.write_text(SMALL_CELL)
-    plan = cells_plan.plan_cell(grid_box(n=8, size=(700.0, 200.0, 250.0)), load_cell(cell_file), JobConfig())
-    arms = cell_arms(plan.cell, plan.part, JobConfig().collision)
+    _, plan, arms = _box_cell(tmp_path)
     work, arm = plan.robots[0], arms[0]
     whole = check_robot(arm, work.q, work.track_mm, work.reachable)
     since = len(work.strokes) // 2
@@ -501,19 +491,10 @@ def test_runs_in_collision_solved_on_their_own_are_free_and_painted(tmp_path):
     """``free_work`` with ``resolve``: the runs in collision that get a try of their own are painted (fewer
     waypoints left out, by exactly those resolved), and every spray waypoint and motion inside a stroke is
     still free, each resolved piece's gun where its waypoints say."""
-    import sprayplan.cells.plan as cells_plan
-    from sprayplan.cells import load_cell
-    from sprayplan.cells.collide import cell_arms
     from sprayplan.cells.repair import free_work, resolved_piece
-    from sprayplan.config import JobConfig
-    from tests.test_cell_plan import CELL as SMALL_CELL
     from tests.test_cell_plan import SIZE
 
-    cell_file = tmp_path / "small2.toml"
-    cell_file.write_text(SMALL_CELL)
-    cell = load_cell(cell_file)
-    plan = cells_plan.plan_cell(grid_box(n=8, size=SIZE), cell, JobConfig())
-    arms = cell_arms(plan.cell, plan.part, JobConfig().collision)
+    cell, plan, arms = _box_cell(tmp_path, SIZE)
     work, arm, robot = plan.robots[0], arms[0], cell.robots[0]
     found = check_robot(arm, work.q, work.track_mm, work.reachable)
     _, left = free_work(work, found)
@@ -532,9 +513,6 @@ def test_runs_in_collision_solved_on_their_own_are_free_and_painted(tmp_path):
     got = np.stack([robot.robot(t).fk(j[None])[0] for t, j in zip(pieced.track_mm, pieced.q)])
     tcp = np.concatenate([s.tcp for s in pieced.strokes])
     normals = np.concatenate([s.normals for s in pieced.strokes])
-    c, s_ = np.cos(np.radians(pieced.roll_deg)), np.sin(np.radians(pieced.roll_deg))
-    roll = np.broadcast_to(np.eye(4), (len(tcp), 4, 4)).copy()
-    roll[:, 0, 0], roll[:, 0, 1], roll[:, 1, 0], roll[:, 1, 1] = c, -s_, s_, c
-    want = poses_at(tcp, normals) @ roll
+    want = poses_at(tcp, normals) @ _rolls(pieced.roll_deg)
     np.testing.assert_allclose(got[:, :3, 3], want[:, :3, 3], atol=1e-6)
     np.testing.assert_allclose(got[:, :3, :3], want[:, :3, :3], atol=1e-9)

@@ -39,7 +39,7 @@ from sprayplan.export.files import atomic_output
 FORMAT = "sprayplan-cell-plan"
 VERSION = 2
 #: The versions :func:`read_cell_plan` reads: version 1 gave one roll a stroke (``roll_deg`` a number), version 2
-#: one a waypoint (a transfer's ends take their neighbours' rolls: ``cells.plan.joined_transfers``).
+#: one a waypoint (a transfer's ends take their neighbours' rolls: ``cells.work.joined_transfers``).
 READ_VERSIONS = (1, 2)
 #: The files a cell plan writes into its folder.
 CELL_FILES = (

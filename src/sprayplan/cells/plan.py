@@ -80,12 +80,13 @@ from sprayplan.cells.repair import repaired_work
 from sprayplan.cells.seams import SEAM_STEP_MM, SeamGuard, cut_stroke, feathered
 from sprayplan.cells.spec import Cell, place_part
 from sprayplan.cells.tries import rot_z, start_joints, stroke_tries
+from sprayplan.cells.work import RobotWork, joined_transfers, transfer_stroke
 from sprayplan.config import JobConfig
 from sprayplan.errors import ConfigError, InputError
 from sprayplan.progress import Progress, no_progress, per_stage
 from sprayplan.surface.areas import AreaAssignment, Areas, assign_areas, segment_areas
 from sprayplan.surface.poses import stroke_poses
-from sprayplan.types import Part, Paths, Stroke
+from sprayplan.types import Part, Paths
 
 log = logging.getLogger(__name__)
 
@@ -109,65 +110,6 @@ def whole_area(part: Part) -> tuple[Areas, AreaAssignment]:
 #: A piece of an area under this many spray-circle areas is not sliced on its own: it is too small for a
 #: stroke and is painted by the spray of its neighbours.
 MIN_PIECE_CIRCLES = 1.0
-
-
-@dataclass(frozen=True)
-class RobotWork:
-    """One robot's plan.
-
-    Attributes
-    ----------
-    name, model : str
-    strokes : tuple of Stroke
-        Spray strokes and transfers in execution order (cell frame).
-    area : (s,) int
-        The area of each stroke (-1 for transfers).
-    track_mm : (n,) float
-        The track position at every waypoint of all strokes in order, mm (0 without a track).
-    roll_deg : (n,) float
-        The roll of the gun about its axis at every waypoint of all strokes in order, deg: a spray stroke's is
-        one try's (:func:`solve_strokes`), a transfer's ends take their neighbours' (:func:`joined_transfers`).
-    q : (n, dof) float
-        The joints at every waypoint of all strokes in order, rad (0 where unreached); six for the industrial
-        and UR arms, five for the R5150.
-    reachable : (n,) bool
-    collides : (n,) bool or None
-        Waypoints found in collision (``[collision] check``, :mod:`~sprayplan.cells.collide`); None unchecked.
-    t_s : (n,) float or None
-        When the robot reaches each waypoint in the cell's schedule (:mod:`~sprayplan.cells.schedule`, with
-        ``[collision] check``), s; None unscheduled.
-    wait_s : (s,) float or None
-        The schedule's wait before each stroke (spray off, at its first waypoint), s.
-    """
-
-    name: str
-    model: str
-    strokes: tuple
-    area: np.ndarray
-    track_mm: np.ndarray
-    roll_deg: np.ndarray
-    q: np.ndarray
-    reachable: np.ndarray
-    collides: np.ndarray | None = None
-    t_s: np.ndarray | None = None
-    wait_s: np.ndarray | None = None
-
-    @property
-    def waypoints(self) -> int:
-        return int(sum(len(s) for s in self.strokes))
-
-    def cycle_time_s(self, speed_mm_s: float, transfer_speed_mm_s: float) -> float:
-        """Path length over speed: spray strokes at ``speed_mm_s`` divided by their time factors, transfers
-        at ``transfer_speed_mm_s``."""
-        total = 0.0
-        for s in self.strokes:
-            seg = np.linalg.norm(np.diff(s.tcp, axis=0), axis=1)
-            if s.spray_on:
-                factor = (s.dwell[:-1] + s.dwell[1:]) / 2.0
-                total += float((seg * factor).sum()) / speed_mm_s
-            else:
-                total += float(seg.sum()) / transfer_speed_mm_s
-        return total
 
 
 @dataclass(frozen=True)
@@ -213,17 +155,6 @@ def _sub_part(part: Part, keep: np.ndarray, name: str) -> Part:
     from sprayplan.surface.region import keep_faces
 
     return dataclasses.replace(keep_faces(part, keep), vertex_normals=None, name=name)
-
-
-def _transfer(a: Stroke, b: Stroke) -> Stroke:
-    """A spray-off move from the end of ``a`` to the start of ``b`` (two waypoints)."""
-    return Stroke(
-        np.stack([a.points[-1], b.points[0]]),
-        np.stack([a.normals[-1], b.normals[0]]),
-        np.stack([a.tcp[-1], b.tcp[0]]),
-        spray_on=False,
-        on_part=np.zeros(2, bool),
-    )
 
 
 def _slice(sols, start: int, n: int):
@@ -290,27 +221,6 @@ def solve_strokes(cell_robot, strokes) -> list[tuple[np.ndarray, float, np.ndarr
     return out
 
 
-def joined_transfers(work: RobotWork) -> RobotWork:
-    """``work`` with every transfer's ends taken from its neighbours: its first waypoint gets the joints, track
-    position and roll of the last waypoint of the stroke before it, its last those of the first waypoint of the
-    stroke after it, where that waypoint is reached (the gun is at the same place: :func:`_transfer`).
-
-    A transfer solved as a stroke of its own (its own track position, roll and branch) put the gun where its
-    neighbours do, but often with other joints: the arm turned over in place at the surface at both ends (99
-    such turns on the BMW in ``line3``, all but 8 where the transfer's roll was not its neighbour's). Joined,
-    a transfer is the one joint move from the end of a stroke to the start of the next."""
-    starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
-    q, track, roll, reach = work.q.copy(), work.track_mm.copy(), work.roll_deg.copy(), work.reachable.copy()
-    for i, s in enumerate(work.strokes):
-        if s.spray_on:
-            continue
-        a, b = starts[i], starts[i + 1]
-        for mine, theirs, there in ((a, a - 1, i - 1), (b - 1, b, i + 1)):
-            if 0 <= there < len(work.strokes) and reach[theirs]:
-                q[mine], track[mine], roll[mine], reach[mine] = q[theirs], track[theirs], roll[theirs], True
-    return dataclasses.replace(work, q=q, track_mm=track, roll_deg=roll, reachable=reach)
-
-
 def _robot_work(
     cell_robot, index: int, part: Part, areas: Areas, assignment: AreaAssignment, job: JobConfig, guard=None
 ):
@@ -333,7 +243,7 @@ def _robot_work(
             continue
         for s in feathered(paths.strokes, guard, a * labels + index + 1):
             if strokes:
-                strokes.append(_transfer(strokes[-1], s))
+                strokes.append(transfer_stroke(strokes[-1], s))
                 area_of.append(-1)
             strokes.append(s)
             area_of.append(a)
@@ -467,7 +377,7 @@ def with_touch_ups(cell: Cell, robots: tuple, extra: list):
         track, roll, q, ok = solved[r][k]
         pieces = [stroke]
         if grown[r]:
-            transfer = _transfer(grown[r][-1], stroke)
+            transfer = transfer_stroke(grown[r][-1], stroke)
             pieces.insert(0, transfer)
             (solved_transfer,) = solve_strokes(cell.robots[r], [transfer])
             _append(arrays[r], *solved_transfer)

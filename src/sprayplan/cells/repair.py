@@ -100,7 +100,7 @@ def repaired_work(cell_robot, work, arm) -> tuple:
     branches of a try in the order of their first joints' distance from the joints before the stroke, keeping
     the first that reaches at least the waypoints reached before with no waypoint and no motion in collision.
 
-    The transfers are joined to their neighbours (``cells.plan.joined_transfers``): a transfer is the joint move
+    The transfers are joined to their neighbours (``cells.work.joined_transfers``): a transfer is the joint move
     from the end of one spray stroke to the start of the next, so it belongs to the stroke after it. A stroke is
     flagged when its waypoints, its motions or the transfer before it collide; a try is checked from the joints
     before that transfer, and through the transfer after it where that was free before (a repair does not move
@@ -108,10 +108,10 @@ def repaired_work(cell_robot, work, arm) -> tuple:
     on their own: that would turn the arm over in place at their ends. What no try frees stays as it was, and
     is flagged by the check after.
 
-    ``work`` is the robot's ``cells.plan.RobotWork``, ``arm`` its :class:`~sprayplan.collision.arms.ArmCollision`.
+    ``work`` is the robot's ``cells.work.RobotWork``, ``arm`` its :class:`~sprayplan.collision.arms.ArmCollision`.
     Returns the work and ``{"strokes_in_collision", "strokes_repaired"}``.
     """
-    from sprayplan.cells.plan import joined_transfers
+    from sprayplan.cells.work import joined_transfers
     from sprayplan.collision.arms import check_robot, plan_collides
 
     robot = cell_robot.robot(0.0)
@@ -163,7 +163,7 @@ def free_work(work, found, resolve=None) -> tuple:
     stroke cut to its runs of waypoints that are reached, free (``found``: the robot's
     :class:`~sprayplan.collision.arms.RobotCollisions`) and joined by free motions, runs of one waypoint left
     out (they spray nothing), and the runs joined again by transfers, each the one joint move from the end of a
-    run to the start of the next (``cells.plan.joined_transfers``); a transfer between two strokes kept whole
+    run to the start of the next (``cells.work.joined_transfers``); a transfer between two strokes kept whole
     stays as it was (a route ``cells.routes`` gave it included).
 
     With ``resolve(piece, seed) -> (joints, track, roll_deg) or None`` (:func:`resolved_piece`), each run of
@@ -180,8 +180,8 @@ def free_work(work, found, resolve=None) -> tuple:
     "left_out_alone"}`` (the last: free and reached, but alone between others left out), and with ``resolve``
     ``"pieces_resolved"`` and ``"waypoints_resolved"``.
     """
-    from sprayplan.cells.plan import RobotWork, _transfer
     from sprayplan.cells.seams import cut_stroke
+    from sprayplan.cells.work import RobotWork, transfer_stroke
 
     starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
     free = work.reachable & ~found.waypoint.collides
@@ -234,7 +234,7 @@ def free_work(work, found, resolve=None) -> tuple:
                     strokes.append(work.strokes[i - 1])
                     arrays.append((work.q[rows], work.track_mm[rows], work.roll_deg[rows]))
                 else:
-                    strokes.append(_transfer(strokes[-1], cut_stroke(stroke, s, e)))
+                    strokes.append(transfer_stroke(strokes[-1], cut_stroke(stroke, s, e)))
                     arrays.append(tuple(np.stack([x[-1], y[0]]) for x, y in zip(arrays[-1], solved)))
                 area.append(-1)
             whole = i if as_was else -1

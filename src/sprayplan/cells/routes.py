@@ -2,7 +2,7 @@
 programmer would try, the first free kept (:func:`routed_work`).
 
 A transfer of a cell plan is the joint move from the end of one spray run to the start of the next
-(``cells.plan.joined_transfers``, ``cells.repair.free_work``); where that move meets the body or the floor, the
+(``cells.work.joined_transfers``, ``cells.repair.free_work``); where that move meets the body or the floor, the
 routes tried, in order, are the gantry job's (``collision.transfers``) for an arm on a track:
 
 ``retract``
@@ -212,7 +212,7 @@ def _rolls_deg(poses: np.ndarray, tcp: np.ndarray, normals: np.ndarray) -> np.nd
 def routed_work(
     cell_robot, work, arm, part, config, standoff_mm: float, seed: int = 0, failed=None, since: int = 0
 ) -> tuple:
-    """A robot's work (``cells.plan.RobotWork``, its transfers joined: ``cells.repair.free_work``) with each
+    """A robot's work (``cells.work.RobotWork``, its transfers joined: ``cells.repair.free_work``) with each
     transfer whose joint move is in collision re-routed (module docstring). Returns the work and
     ``{"transfers_in_collision", "transfers_routed", "routed_retract", "routed_via", "routed_detour"}``; the
     search of the ``k``-th transfer is seeded ``seed + k``. ``failed``: a set of the transfers no route freed
