@@ -122,9 +122,10 @@ def test_the_reported_gap_and_conflicts_are_recounted_and_waits_take_conflicts_a
     assert got.summary()["kept_apart"] == (got.conflicts["left-right"] == 0)
 
 
-def test_a_wait_keeps_a_later_robot_out_of_an_earlier_ones_way(monkeypatch):
-    """Two robots facing each other over a small box, each painting the top across the middle: the second waits
-    until the first is done with the place they share, and the schedule is then free of conflicts."""
+def _facing_works(from_the_middle: bool = False):
+    """Two robots facing each other over a small box, each painting the top across the middle (from its own side,
+    or ``from_the_middle``: starting 150 mm past the centre, so that the two start where the other does) and back,
+    then a stroke on its own side: ``(works, arms)``."""
     from sprayplan.cells.plan import RobotWork
     from sprayplan.cells.spec import cell_from_dict
     from sprayplan.collision.arms import ArmCollision
@@ -146,6 +147,8 @@ def test_a_wait_keeps_a_later_robot_out_of_an_earlier_ones_way(monkeypatch):
         # a stroke across the middle (y from the robot's side to 150 mm past the centre) and back, then a stroke
         # 500 mm aside on the robot's own side
         y = np.r_[np.linspace(side * 400, -side * 150, 30), np.linspace(-side * 150, side * 400, 30)]
+        if from_the_middle:
+            y = y[30:]
         strokes = []
         for xs, ys in ((np.zeros(len(y)), y), (np.linspace(500.0, 600.0, 10), np.full(10, side * 400.0))):
             pts = np.column_stack([xs, ys, np.full(len(ys), 700.0)])
@@ -164,8 +167,15 @@ def test_a_wait_keeps_a_later_robot_out_of_an_earlier_ones_way(monkeypatch):
         q, branch = follow_solutions(arm, sols, np.radians([0, 0, 0, 0, 30, 0]))
         assert (branch >= 0).all()
         works.append(RobotWork(robot.name, robot.model, tuple(strokes), np.array([0, -1, 0]), np.zeros(len(tcp)),
-                               np.zeros(3), q, np.ones(len(tcp), bool)))  # fmt: skip
+                               np.zeros(len(tcp)), q, np.ones(len(tcp), bool)))  # fmt: skip
         arms.append(ArmCollision(robot, part, -500.0))
+    return works, arms
+
+
+def test_a_wait_keeps_a_later_robot_out_of_an_earlier_ones_way(monkeypatch):
+    """Two robots facing each other over a small box, each painting the top across the middle: the second waits
+    until the first is done with the place they share, and the schedule is then free of conflicts."""
+    works, arms = _facing_works()
     got = sched.schedule_cell(works, arms, 400.0, 1000.0, 30.0)
     monkeypatch.setattr(sched, "MAX_WAIT_S", 0.0)
     naive = sched.schedule_cell(works, arms, 400.0, 1000.0, 30.0)
@@ -175,3 +185,19 @@ def test_a_wait_keeps_a_later_robot_out_of_an_earlier_ones_way(monkeypatch):
     assert got.timelines[1].wait_s[0] > 0  # b waits before its first stroke
     assert got.least_gap_mm["a-b"] >= 30.0  # the clearance, and more by the motion bound
     assert got.cycle_time_s > naive.cycle_time_s and got.cycle_time_s <= first_stroke_s + naive.cycle_time_s + 1.0
+
+
+def test_a_robot_that_would_meet_another_where_both_start_starts_parked():
+    """Both robots start at the middle of the box: held at its first waypoint the second meets the first at time
+    0 whatever it waits, so it starts parked, waits there, and the schedule is free of conflicts."""
+    works, arms = _facing_works(from_the_middle=True)
+    got = sched.schedule_cell(works, arms, 400.0, 1000.0, 30.0)
+    assert got.conflicts["a-b"] == 0 and got.timelines[1].wait_s[0] > 0
+    q, track = works[1].q, works[1].track_mm
+    home = sched.park_joints(arms[1], q[0], float(track[0]))
+    np.testing.assert_allclose(got.timelines[1].at(np.array([0.0, got.timelines[1].wait_s[0]]))[0], [home, home])
+    assert len(got.timelines[1].arrive_s) == len(q) and got.timelines[1].arrive_s[0] > got.timelines[1].wait_s[0]
+    np.testing.assert_allclose(got.timelines[0].at(np.array([0.0]))[0][0], works[0].q[0])  # the first does not
+    # held at their first waypoints the two would be closer than the clearance
+    a, b = (arm.segments(w.q[:1], w.track_mm[:1]) for arm, w in zip(arms, works))
+    assert sched.pair_gaps(a, np.asarray(arms[0].radii), b, np.asarray(arms[1].radii))[0] < 30.0

@@ -17,7 +17,9 @@ keeping them apart in space alone is not proven. :func:`schedule_cell` keeps the
    it may wait at the stroke's first waypoint, spray off (never in the middle of a stroke, where a stop would
    spoil the film), for the least whole number of ``WAIT_STEP_S`` that makes the wait and the stroke free of
    every robot before it. A robot that has finished holds its last configuration; one that has not started holds
-   its first. If no wait before the stroke frees it, a wait up to ``BACKTRACK`` strokes earlier is tried (the
+   its first, unless no wait there frees its first stroke (it would meet an earlier robot where both start):
+   then it starts **parked** (:func:`park_joints` near its first waypoint), waits there, and its first move
+   is the approach to its work. If no wait before the stroke frees it, a wait up to ``BACKTRACK`` strokes earlier is tried (the
    strokes between moved with it). If none up to ``MAX_WAIT_S`` frees it, it is not delayed and its conflict
    is counted (data, as a collision is).
    When a robot has done its work it **parks** (:func:`park_joints`): a joint move, at its axis speeds, to the
@@ -139,6 +141,13 @@ def park_joints(arm, q_last: np.ndarray, track_mm: float) -> np.ndarray:
         if not arm.collides(path, np.full(len(path), float(track_mm))).any():
             return rows[i]
     return rows[order[0]]
+
+
+def _move_s(arm, q_from: np.ndarray, q_to: np.ndarray) -> float:
+    """The time of a park move (a joint move at the arm's axis speeds, at least :data:`MIN_PARK_S`), s."""
+    speed = np.asarray(arm.params.max_speed, dtype=float)
+    known = np.isfinite(speed)
+    return max(float((np.abs(q_to - q_from)[known] / speed[known]).max(initial=0.0)), MIN_PARK_S)
 
 
 def _held(q: np.ndarray, track: np.ndarray, reachable: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -332,6 +341,20 @@ def _refined_conflict(line_a, arm_a, line_b, arm_b, t: float, clearance_mm: floa
     return bool((_gaps(a, rows, b, rows, clearance_mm) < 0).any())
 
 
+def _block_wait(arm, t0, q, track, starts, chosen, first: int, j: int, earlier, clearance_mm: float):
+    """The wait before stroke ``first`` (held at its first waypoint) that frees strokes ``first .. j`` of a
+    robot's timeline (``t0``, ``q``, ``track`` at its waypoints; ``chosen``: the waits before ``first``) from
+    the ``earlier`` robots: None when none does, False when there is nothing to sample."""
+    shift = float(chosen[:first].sum())
+    end = starts[j + 1] if j + 1 < len(starts) else len(t0) - 1
+    g = _grid(t0[starts[first]] + shift, t0[end] + shift)
+    if not len(g):
+        return False
+    block = _Sampled.of(arm, *_configs(g * DT_S - shift, t0, q, track), first=int(g[0]))
+    hold = _Sampled.of(arm, q[starts[first]][None], track[starts[first] : starts[first] + 1])
+    return _wait_for(block, hold, earlier, clearance_mm)
+
+
 def schedule_cell(
     robots, arms, speed_mm_s: float, transfer_speed_mm_s: float, clearance_mm: float, track_speeds=None, times=None
 ) -> Schedule:
@@ -351,18 +374,24 @@ def schedule_cell(
         q, track = _held(np.asarray(w.q, dtype=float), np.asarray(w.track_mm, dtype=float), w.reachable)
         starts = np.cumsum([0] + [len(s) for s in w.strokes])[:-1]
         chosen = np.zeros(len(starts))
+        parked = False  # the robot starts parked, its first move the approach (the first stroke's hold fails)
         if k and len(t0):
+            # held at its first waypoint it would meet an earlier robot, whatever it waited: it starts parked
+            if _block_wait(arm, t0, q, track, starts, chosen, 0, 0, sampled, clearance_mm) is None:
+                home = park_joints(arm, q[0], float(track[0]))
+                t0 = np.r_[t0[0], t0 + _move_s(arm, home, q[0])]
+                q, track = np.vstack([home, q]), np.r_[track[0], track]
+                starts = np.r_[0, starts + 1]
+                chosen = np.zeros(len(starts))
+                parked = True
             for j in range(len(starts)):
                 for first in range(j, max(-1, j - BACKTRACK - 1), -1):
+                    if parked and first == 1:  # the first stroke's wait is made parked, before the approach
+                        continue
                     # strokes first .. j as one block, waiting only before the first (the later waits dropped)
-                    shift = float(chosen[:first].sum())
-                    end = starts[j + 1] if j + 1 < len(starts) else len(t0) - 1
-                    g = _grid(t0[starts[first]] + shift, t0[end] + shift)
-                    if not len(g):
+                    wait = _block_wait(arm, t0, q, track, starts, chosen, first, j, sampled, clearance_mm)
+                    if wait is False:
                         break
-                    block = _Sampled.of(arm, *_configs(g * DT_S - shift, t0, q, track), first=int(g[0]))
-                    hold = _Sampled.of(arm, q[starts[first]][None], track[starts[first] : starts[first] + 1])
-                    wait = _wait_for(block, hold, sampled, clearance_mm)
                     if wait is not None:
                         chosen[first : j + 1] = 0.0
                         chosen[first] = wait
@@ -376,6 +405,9 @@ def schedule_cell(
             knots[0] = np.r_[knots[0], knots[0][-1] + max(move, MIN_PARK_S)]
             knots[1] = np.vstack([knots[1], park])
             knots[2] = np.r_[knots[2], track[-1]]
+        if parked:  # the park at the start is not a waypoint; its wait is the first stroke's
+            knots[3] = knots[3][1:]
+            chosen = np.r_[chosen[0], chosen[2:]]
         line = Timeline(knots[0], knots[1], knots[2], knots[3], chosen)
         timelines.append(line)
         g = _grid(0.0, line.end_s) if len(t0) else np.zeros(1, dtype=int)
