@@ -74,7 +74,7 @@ def test_the_timelines_are_the_plans_timing_with_waits_only_before_strokes(box_p
         if k == 0:
             assert not line.wait_s.any()  # the first robot never waits
         # then it parks: a joint move at its axis speeds to the park configuration
-        park = sched.park_joints(arms[k], q[-1], float(track[-1]))
+        park = sched.park_joints(arms[k], q[-1], float(track[-1]), _others(plan.robots, arms, k))
         moved = float((np.abs(park - q[-1]) / arms[k].params.max_speed).max())
         done = t0[-1] + line.wait_s.sum()
         assert line.end_s == pytest.approx(done + max(moved, sched.MIN_PARK_S))
@@ -83,6 +83,14 @@ def test_the_timelines_are_the_plans_timing_with_waits_only_before_strokes(box_p
         along = q[-1] + np.linspace(0.0, 1.0, 200)[:, None] * (park - q[-1])
         assert not arms[k].check(along, np.full(200, track[-1])).collides.any()  # the move there is free too
     assert got.cycle_time_s == pytest.approx(max(tl.end_s for tl in got.timelines))
+
+
+def _others(works, arms, k):
+    """The points of every robot's work but robot ``k``'s, that its park keeps away from."""
+    return np.concatenate(
+        [sched.work_points(arm, *sched._held(w.q, w.track_mm, w.reachable)) for i, (w, arm) in
+         enumerate(zip(works, arms)) if i != k]
+    )  # fmt: skip
 
 
 def _sampled_points(arm, q, track):
@@ -194,10 +202,27 @@ def test_a_robot_that_would_meet_another_where_both_start_starts_parked():
     got = sched.schedule_cell(works, arms, 400.0, 1000.0, 30.0)
     assert got.conflicts["a-b"] == 0 and got.timelines[1].wait_s[0] > 0
     q, track = works[1].q, works[1].track_mm
-    home = sched.park_joints(arms[1], q[0], float(track[0]))
+    home = sched.park_joints(arms[1], q[0], float(track[0]), _others(works, arms, 1))
     np.testing.assert_allclose(got.timelines[1].at(np.array([0.0, got.timelines[1].wait_s[0]]))[0], [home, home])
     assert len(got.timelines[1].arrive_s) == len(q) and got.timelines[1].arrive_s[0] > got.timelines[1].wait_s[0]
     np.testing.assert_allclose(got.timelines[0].at(np.array([0.0]))[0][0], works[0].q[0])  # the first does not
     # held at their first waypoints the two would be closer than the clearance
     a, b = (arm.segments(w.q[:1], w.track_mm[:1]) for arm, w in zip(arms, works))
     assert sched.pair_gaps(a, np.asarray(arms[0].radii), b, np.asarray(arms[1].radii))[0] < 30.0
+
+
+def test_a_park_keeps_away_from_the_other_robots_work(box_plan):
+    """With the points of another robot's work where the park farthest from the part would be, the park chosen
+    is another one, farther from those points, and still free of the part."""
+    plan, arms = box_plan
+    work, arm = plan.robots[0], arms[0]
+    q, track = sched._held(work.q, work.track_mm, work.reachable)
+    alone = sched.park_joints(arm, q[-1], float(track[-1]))
+    ends = arm.segments(alone[None], track[-1:])[0, 3:].reshape(-1, 3)  # the forearm, wrist, flange and gun
+    away = np.column_stack([ends, np.full(len(ends), 50.0)])  # another robot's capsules where this one would park
+    kept = sched.park_joints(arm, q[-1], float(track[-1]), away)
+    assert not np.allclose(kept, alone)
+    from scipy.spatial.distance import cdist
+
+    near = cdist(arm.segments(kept[None], track[-1:])[0, 3:].reshape(-1, 3), ends).min()
+    assert near > 100.0 and not arm.check(kept[None], track[-1:]).collides[0]

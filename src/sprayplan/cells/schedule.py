@@ -118,11 +118,14 @@ def waypoint_times(
     return np.r_[0.0, np.cumsum(steps)]
 
 
-def park_joints(arm, q_last: np.ndarray, track_mm: float) -> np.ndarray:
+def park_joints(arm, q_last: np.ndarray, track_mm: float, away: np.ndarray | None = None) -> np.ndarray:
     """The park configuration of a robot whose last configuration is ``q_last`` at ``track_mm``: of the
     candidates (module docstring, within the joint limits; axes 4-6 as ``q_last`` but the wrist bent 30 degrees),
     the one with the largest slack to the part and the floor (``arm.check``) whose joint move from ``q_last``
-    is free of them too (checked at ``PARK_STEPS`` configurations along it); the largest slack if no move is."""
+    is free of them too (checked at ``PARK_STEPS`` configurations along it); the largest slack if no move is.
+    ``away`` (m, 4): points of the other robots' work with a radius each (their capsules' ends along their
+    plans, :func:`work_points`): the slack is then the least of the slack to the part and the gap to those, so
+    that a robot does not park in another's way."""
     lower, upper = np.asarray(arm.params.lower, dtype=float), np.asarray(arm.params.upper, dtype=float)
     rows = []
     for a1, a2, a3 in itertools.product(PARK_AXIS1_DEG, PARK_AXIS2_DEG, PARK_AXIS3_DEG):
@@ -134,13 +137,37 @@ def park_joints(arm, q_last: np.ndarray, track_mm: float) -> np.ndarray:
     if not rows:
         return np.asarray(q_last, dtype=float)
     rows = np.asarray(rows)
-    order = np.argsort(-arm.check(rows, np.full(len(rows), float(track_mm))).slack_mm, kind="stable")
+    slack = arm.check(rows, np.full(len(rows), float(track_mm))).slack_mm
+    if away is not None and len(away):
+        from scipy.spatial import cKDTree
+
+        segments = arm.segments(rows, np.full(len(rows), float(track_mm)))  # (c, b, 2, 3)
+        t = np.linspace(0.0, 1.0, 5)[None, None, :, None]
+        points = segments[:, :, :1] + t * (segments[:, :, 1:] - segments[:, :, :1])  # (c, b, 5, 3)
+        d, k = cKDTree(away[:, :3]).query(points.reshape(-1, 3))
+        radii = np.broadcast_to(np.asarray(arm.radii, float)[None, :, None], points.shape[:3]).reshape(-1)
+        gap = (d - away[k, 3] - radii).reshape(len(rows), -1).min(axis=1)
+        slack = np.minimum(slack, gap)
+    order = np.argsort(-slack, kind="stable")
     s = np.linspace(0.0, 1.0, PARK_STEPS)[:, None]
     for i in order:
         path = q_last + s * (rows[i] - q_last)
         if not arm.collides(path, np.full(len(path), float(track_mm))).any():
             return rows[i]
     return rows[order[0]]
+
+
+#: The waypoints of a robot's plan whose capsules' ends :func:`work_points` takes: one in this many.
+WORK_POINTS_EVERY = 10
+
+
+def work_points(arm, q: np.ndarray, track: np.ndarray) -> np.ndarray:
+    """(m, 4): the ends of a robot's capsules at every :data:`WORK_POINTS_EVERY`-th waypoint of its plan, each
+    with its capsule's radius (what another robot's park keeps away from, :func:`park_joints`)."""
+    take = slice(None, None, WORK_POINTS_EVERY)
+    segments = arm.segments(np.asarray(q, float)[take], np.asarray(track, float)[take])  # (m, b, 2, 3)
+    radii = np.broadcast_to(np.asarray(arm.radii, float)[None, :, None], segments.shape[:3])
+    return np.column_stack([segments.reshape(-1, 3), radii.reshape(-1)])
 
 
 def _move_s(arm, q_from: np.ndarray, q_to: np.ndarray) -> float:
@@ -365,7 +392,10 @@ def schedule_cell(
     timelines: list[Timeline] = []
     sampled: list[_Sampled] = []
     waits: dict = {}
+    held = [_held(np.asarray(w.q, dtype=float), np.asarray(w.track_mm, dtype=float), w.reachable) for w in robots]
+    points = [work_points(arm, *h) if len(h[0]) else np.zeros((0, 4)) for arm, h in zip(arms, held)]
     for k, (w, arm) in enumerate(zip(robots, arms)):
+        others = np.concatenate([p for i, p in enumerate(points) if i != k] or [np.zeros((0, 4))])
         track_speed = None if track_speeds is None else track_speeds[k]
         if times is not None:
             t0 = np.asarray(times[k], dtype=float)
@@ -378,7 +408,7 @@ def schedule_cell(
         if k and len(t0):
             # held at its first waypoint it would meet an earlier robot, whatever it waited: it starts parked
             if _block_wait(arm, t0, q, track, starts, chosen, 0, 0, sampled, clearance_mm) is None:
-                home = park_joints(arm, q[0], float(track[0]))
+                home = park_joints(arm, q[0], float(track[0]), others)
                 t0 = np.r_[t0[0], t0 + _move_s(arm, home, q[0])]
                 q, track = np.vstack([home, q]), np.r_[track[0], track]
                 starts = np.r_[0, starts + 1]
@@ -398,7 +428,7 @@ def schedule_cell(
                         break
         knots = list(_knots(t0, q, track, starts, chosen))
         if len(t0):
-            park = park_joints(arm, q[-1], float(track[-1]))
+            park = park_joints(arm, q[-1], float(track[-1]), others)
             speed = np.asarray(arm.params.max_speed, dtype=float)
             known = np.isfinite(speed)
             move = float((np.abs(park - q[-1])[known] / speed[known]).max(initial=0.0))
