@@ -21,6 +21,8 @@ import numpy as np
 from sprayplan.collision.arms import (
     COVER_MM,
     ArmCollision,
+    ConfigCollisions,
+    RobotCollisions,
     check_robot,
     part_mesh,
     separation,
@@ -57,20 +59,22 @@ def cell_arms(cell, part, config) -> list:
     ]
 
 
-def _tail_checked(arm, work, since: int):
+def _tail_checked(arm, work, since: int) -> RobotCollisions:
     """``check_robot``'s flags for a robot's work whose strokes before ``since`` were cut and routed already
     (their waypoints reached and free, their motions free or known): only the strokes from ``since`` on are
-    checked, with the motion into them; the rows before are returned free."""
-    from types import SimpleNamespace
-
+    checked, with the motion into them; the rows before are returned free and unchecked (slack NaN)."""
     first = max(int(sum(len(s) for s in work.strokes[:since])) - 1, 0)
     found = check_robot(arm, work.q[first:], work.track_mm[first:], work.reachable[first:])
-    n = len(work.q)
-    collides = np.zeros(n, bool)
-    collides[first:] = found.waypoint.collides
-    motion = np.zeros(max(n - 1, 0), bool)
-    motion[first:] = found.motion_collides
-    return SimpleNamespace(waypoint=SimpleNamespace(collides=collides), motion_collides=motion)
+
+    def padded(values, fill):
+        return np.concatenate([np.full(first, fill, dtype=np.asarray(values).dtype), values])
+
+    w = found.waypoint
+    head = ConfigCollisions(
+        padded(w.collides, False), padded(w.body, 0), padded(w.other, ""),
+        padded(w.distance_mm, np.nan), padded(w.slack_mm, np.nan),
+    )  # fmt: skip
+    return RobotCollisions(head, padded(found.motion_collides, False), found.motion_checked)
 
 
 def freed_cell(

@@ -16,16 +16,17 @@ keeping them apart in space alone is not proven. :func:`schedule_cell` keeps the
    robot is scheduled against the timelines of the robots before it, stroke by stroke: before a stroke starts
    it may wait at the stroke's first waypoint, spray off (never in the middle of a stroke, where a stop would
    spoil the film), for the least whole number of ``WAIT_STEP_S`` that makes the wait and the stroke free of
-   every robot before it. A robot that has finished holds its last configuration; one that has not started holds
-   its first, unless no wait there frees its first stroke (it would meet an earlier robot where both start):
-   then it starts **parked** (:func:`park_joints` near its first waypoint), waits there, and its first move
-   is the approach to its work. If no wait before the stroke frees it, a wait up to ``BACKTRACK`` strokes earlier is tried (the
-   strokes between moved with it). If none up to ``MAX_WAIT_S`` frees it, it is not delayed and its conflict
+   every robot before it. A robot that has finished holds its park (below); one that has not started holds
+   its first waypoint, unless no wait there frees its first stroke (it would meet an earlier robot where both
+   start): then it starts **parked** (:func:`park_joints` near its first waypoint), waits there, and its
+   first move is the approach to its work. If no wait before a stroke frees it, a wait up to ``BACKTRACK``
+   strokes earlier is tried (the strokes between moved with it). If none up to ``MAX_WAIT_S`` frees it, it is not delayed and its conflict
    is counted (data, as a collision is).
    When a robot has done its work it **parks** (:func:`park_joints`): a joint move, at its axis speeds, to the
    configuration of a small set (axis 1 turned 0, 90, -90 or 180 degrees, axes 2 and 3 folded back) farthest
-   from the part and the floor whose move there is free of them, at its last track position; so a robot that has finished does not stand in the
-   way of one still painting.
+   from the part, the floor and the other robots' work whose move there is free of the part and the floor, at
+   its last track position; so a robot that has finished stands out of the way of one still painting as far
+   as its arm alone can (its track stays where it ended).
 3. **The check** samples the common time axis every ``DT_S`` and measures, at every sample, the least distance
    between any capsule of one robot and any capsule of the other (:func:`segment_distances`, exact for segments;
    the arms' own capsules, ``collision.arms``). Two robots may conflict where that distance is below the sum of
@@ -429,10 +430,7 @@ def schedule_cell(
         knots = list(_knots(t0, q, track, starts, chosen))
         if len(t0):
             park = park_joints(arm, q[-1], float(track[-1]), others)
-            speed = np.asarray(arm.params.max_speed, dtype=float)
-            known = np.isfinite(speed)
-            move = float((np.abs(park - q[-1])[known] / speed[known]).max(initial=0.0))
-            knots[0] = np.r_[knots[0], knots[0][-1] + max(move, MIN_PARK_S)]
+            knots[0] = np.r_[knots[0], knots[0][-1] + _move_s(arm, q[-1], park)]
             knots[1] = np.vstack([knots[1], park])
             knots[2] = np.r_[knots[2], track[-1]]
         if parked:  # the park at the start is not a waypoint; its wait is the first stroke's
