@@ -468,6 +468,19 @@ def test_transfers_in_collision_are_routed_free_and_the_gun_is_where_the_waypoin
         np.testing.assert_allclose(got[:, :3, 3], want[:, :3, 3], atol=1e-6)
         np.testing.assert_allclose(got[:, :3, :3], want[:, :3, :3], atol=1e-9)
     assert routes == counts["transfers_routed"]
+    # the robot's programs move through every route's waypoints, on the route's joints, and read back as the plan
+    import dataclasses
+
+    from sprayplan.programs.arms import build_cell_programs, write_cell_programs
+
+    built = build_cell_programs(dataclasses.replace(plan, robots=(routed, *plan.robots[1:])), plan.job, ("rapid",))
+    write_cell_programs(tmp_path / "programs", built, plan.job)  # raises if a program read back is not the plan
+    moves = [m for m, _ in built[0].builts[0].program.sequence() if m.role == "route"]
+    inner = np.concatenate(
+        [routed.q[a + 1 : b - 1] for a, b, s in zip(new_starts, new_starts[1:], routed.strokes) if not s.spray_on]
+    )
+    assert len(moves) == len(inner) > 0
+    np.testing.assert_allclose(np.stack([m.joints for m in moves]), inner, atol=1e-12)
 
 
 def test_a_touch_up_round_checks_only_the_strokes_it_added(tmp_path):

@@ -455,3 +455,75 @@ def test_view_of_a_cell_folder_names_its_viewer(written, capsys):
     assert main(["view", str(written["out"])]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cell.html" in err[0]
+
+
+def _split_at(work, i: int, m: int, flip: bool):
+    """``work`` with spray stroke ``i`` cut in two that share its waypoint ``m`` (the first ends there, the
+    second starts there again), joined by a transfer: the second on the same joints, or with the wrist turned
+    over (axis 4 +-180 degrees, axis 5 negated, axis 6 +-180: the same gun pose on another branch)."""
+    import dataclasses
+
+    from sprayplan.cells.seams import cut_stroke
+    from sprayplan.cells.work import transfer_stroke
+
+    starts = np.r_[0, np.cumsum([len(s) for s in work.strokes])]
+    a, b = starts[i], starts[i + 1]
+    stroke = work.strokes[i]
+    first, second = cut_stroke(stroke, 0, m + 1), cut_stroke(stroke, m, b - a)
+    rows = [np.arange(a, a + m + 1), np.array([a + m, a + m]), np.arange(a + m, b)]
+    q = [work.q[r].copy() for r in rows]
+    if flip:
+        turn = np.where(q[2][:, 3] > 0, -np.pi, np.pi)
+        q[2][:, 3] += turn
+        q[2][:, 4] *= -1.0
+        q[2][:, 5] += np.where(q[2][:, 5] > 0, -np.pi, np.pi)
+        q[1][1] = q[2][0]
+    pick = lambda x: np.concatenate([x[:a], *(x[r] for r in rows), x[b:]])
+    joints = np.concatenate([work.q[:a], *q, work.q[b:]])
+    strokes = work.strokes[:i] + (first, transfer_stroke(first, second), second) + work.strokes[i + 1 :]
+    area = np.concatenate([work.area[:i], [work.area[i], -1, work.area[i]], work.area[i + 1 :]])
+    return dataclasses.replace(
+        work, strokes=strokes, area=area, q=joints, track_mm=pick(work.track_mm), roll_deg=pick(work.roll_deg),
+        reachable=pick(work.reachable), collides=None, t_s=None, wait_s=None,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("flip", [False, True])
+def test_a_stroke_that_starts_where_the_one_before_ended_reads_back_as_its_own(written, tmp_path, flip):
+    """A cell robot's stroke may start at the gun pose where the stroke before ended (a run solved on its own
+    with its free neighbour, ``cells.repair.free_work``), on the same joints or another branch: the read-back
+    check takes each run for its own stroke, so the programs pass and every spray waypoint is moved to."""
+    import dataclasses
+
+    from sprayplan.cells.plan import plan_cell
+    from sprayplan.io.load import load_part
+    from sprayplan.programs.arms import arm_plan, build_cell_programs
+
+    job = JobConfig()
+    plan = plan_cell(load_part(str(written["part"])), written["cell"], job)
+    work = plan.robots[1]
+    starts = np.r_[0, np.cumsum([len(s) for s in work.strokes])]
+    i = next(
+        k
+        for k, s in enumerate(work.strokes)
+        if s.spray_on and len(s) >= 8 and work.reachable[starts[k] : starts[k + 1]].all()
+    )
+    m = len(work.strokes[i]) // 2
+    split = _split_at(work, i, m, flip)
+    arm = ArmCell(written["cell"].robots[1], plan.job.paths.standoff_mm)
+    at = starts[i] + m  # the shared waypoint: the first stroke's last, the second's first (two rows on)
+    assert np.allclose(arm.poses(split.q[[at]], [])[0], arm.poses(split.q[[at + 3]], [])[0], atol=1e-9)
+    assert (arm.branches(split.q[[at]])[0] != arm.branches(split.q[[at + 3]])[0]) == flip
+    assert ((split.q >= arm.lower - 1e-9) & (split.q <= arm.upper + 1e-9)).all()
+    results = []
+    for robot in (work, split):
+        built = build_cell_programs(dataclasses.replace(plan, robots=(plan.robots[0], robot)), job, ("rapid",))
+        folder = tmp_path / f"rapid{len(results)}"
+        folder.mkdir()
+        for name, text in built[1].builts[0].files.items():
+            (folder / name).write_text(text)
+        results.append(check_program(read_programs(folder, job, "rapid", 0), arm_plan(robot, arm), job, arm))
+    whole, result = results
+    assert whole.ok and result.ok, result.failures[:3]
+    # the same waypoints moved to and left out, the shared one twice (once for each stroke)
+    assert result.waypoints == whole.waypoints + 1 and len(result.left_out) == len(whole.left_out)

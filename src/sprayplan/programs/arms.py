@@ -286,6 +286,19 @@ class ArmPlan:
     left_in_collision: int = 0
 
 
+#: The label (``StationPlan.repair``) of a routed transfer's waypoints in a cell robot's plan: a cell plan keeps
+#: no route kind, and the programs treat every kind alike (``programs.build.route_moves``).
+ROUTE_LABEL = "detour"
+
+
+def routed_rows(strokes) -> np.ndarray:
+    """(n,) object: :data:`ROUTE_LABEL` at the waypoints of every transfer with waypoints between its ends (one
+    ``cells.routes`` routed: a joined transfer has two), empty elsewhere, so that the programs move through
+    them (``programs.build.route_moves``) and the check asks for them."""
+    labels = [np.full(len(s), ROUTE_LABEL if not s.spray_on and len(s) > 2 else "", dtype=object) for s in strokes]
+    return np.concatenate(labels) if labels else np.zeros(0, dtype=object)
+
+
 def arm_plan(work, cell: ArmCell, name: str = "") -> ArmPlan:
     """The plan of one robot's work (``cells.plan.RobotWork``) for :func:`programs.build.build_program`."""
     n = work.waypoints
@@ -302,7 +315,7 @@ def arm_plan(work, cell: ArmCell, name: str = "") -> ArmPlan:
         q9,
         reachable,
         home,
-        np.full(n, "", dtype=object),
+        routed_rows(work.strokes),
         np.full(n, "analytic"),
         waits,
         colliding,

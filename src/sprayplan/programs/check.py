@@ -276,13 +276,35 @@ def _match(station: _Station, pose, start: int, stroke: int | None = None) -> in
     return None
 
 
+def _first_waypoint(station, chain, a: int, pointer: int, joints, matched) -> int | None:
+    """The waypoint a run's approach (``chain[a]``) ends at (:func:`_match` from ``pointer``). A run split for a
+    file's size starts again at the waypoint the one before ended at (``pointer``, matched already), but so can
+    a stroke the plan starts at the gun pose where the stroke before ended (a cell robot's run solved on its own
+    with its free neighbour, ``cells.repair.resolved_piece``, on another branch or the same). Of the two
+    candidates, the one whose stroke the run's next target continues is taken; if both or neither, the one
+    whose joints are nearer the joint move's to the approach (the program's IK on the plan's branch there)."""
+    first = _match(station, chain[a].pose, pointer)
+    if first != pointer or not matched[pointer]:
+        return first
+    later = _match(station, chain[a].pose, pointer + 1)
+    if later is None:
+        return first
+    candidates = [first, later]
+    if a + 2 < len(chain):  # chain[a + 1] is a spray move (the chain's last is the retract)
+        fits = [_match(station, chain[a + 1].pose, c + 1, station.data["stroke"][c]) == c + 1 for c in candidates]
+        if fits[0] != fits[1]:
+            return candidates[fits.index(True)]
+    near = np.abs(station.q9[candidates, :6] - np.asarray(joints, float)[None, :6]).max(axis=1)
+    return later if near[1] < near[0] else first
+
+
 def _check_run(station, transfer, chain, fmt, cfg, cell, job, result, matched, pointer):
     """One run: ``transfer`` (the joint move to the approach pose), then ``chain``: via points on the approach,
     the approach (to the run's first waypoint), spray moves and via points, the retract."""
     external = transfer.external_mm if transfer.external_mm is not None else station.st.platform_mm
     start_pose = cell.poses(transfer.joints, external)[0]
     a = next((j for j, m in enumerate(chain[:-1]) if _match(station, m.pose, pointer) is not None), None)
-    first = None if a is None else _match(station, chain[a].pose, pointer)
+    first = None if a is None else _first_waypoint(station, chain, a, pointer, transfer.joints, matched)
     if first is None:
         result.fail(chain[0], "the approach does not end at a reachable spray waypoint of the station (in order)")
         return None
@@ -527,6 +549,7 @@ def _check_backoff(station, move, i, cfg, cell, fmt, result, is_approach: bool) 
     if angle_between_deg(pose[:3, :3], base[:3, :3]) > ANGLE_DEG:
         result.fail(move, "an approach or retract must keep the waypoint's orientation")
     branch = int(station.branch[i])
+    distance = min(tries, key=lambda d: abs(distance - d))  # the back-off the program means, not as read back
     q, ok = cell.joints_on_branch(offset_along_z(base, distance)[None], station.q9[i, 6:], branch, station.q9[i, :6])
     if is_approach:
         error = float(np.abs(move.joints - q[0]).max())
