@@ -527,3 +527,40 @@ def test_a_stroke_that_starts_where_the_one_before_ended_reads_back_as_its_own(w
     assert whole.ok and result.ok, result.failures[:3]
     # the same waypoints moved to and left out, the shared one twice (once for each stroke)
     assert result.waypoints == whole.waypoints + 1 and len(result.left_out) == len(whole.left_out)
+
+
+def test_a_scheduled_robots_programs_start_and_end_where_the_schedule_has_it(written, tmp_path):
+    """With the cell's schedule (``cells.schedule.scheduled``): each robot's program starts where the schedule
+    has it at time 0 and ends at the park the schedule gives it (joints and track), both read back from
+    cell_plan.json and from the program, and the programs pass their read-back check."""
+    import dataclasses
+
+    from sprayplan.cells.collide import cell_arms
+    from sprayplan.cells.files import cell_plan_dict, cell_plan_from_file
+    from sprayplan.cells.plan import plan_cell
+    from sprayplan.cells.schedule import scheduled
+    from sprayplan.config import CollisionConfig
+    from sprayplan.io.load import load_part
+    from sprayplan.programs.arms import build_cell_programs, write_cell_programs
+
+    job = JobConfig()
+    plan = plan_cell(load_part(str(written["part"])), written["cell"], job)
+    arms = cell_arms(plan.cell, plan.part, CollisionConfig(check=True))
+    robots, _ = scheduled(plan.cell, plan.robots, arms, plan.job)
+    (tmp_path / "cell_plan.json").write_text(json.dumps(cell_plan_dict(dataclasses.replace(plan, robots=robots))))
+    back = cell_plan_from_file(tmp_path / "cell_plan.json")
+    built = build_cell_programs(back, back.job, ("rapid",))
+    write_cell_programs(tmp_path / "programs", built, back.job)  # raises if a program read back is not its plan
+    for k, (cr, work) in enumerate(zip(plan.cell.robots, robots)):
+        np.testing.assert_allclose(back.robots[k].ends_q, work.ends_q, atol=1e-11)
+        np.testing.assert_allclose(back.robots[k].ends_track_mm, work.ends_track_mm, atol=1e-6)
+        # the park is not where the work ended, and it is free of the part
+        park, at = work.ends_q[1], work.ends_track_mm[1:]
+        assert not np.allclose(park, work.q[-1]) and not arms[k].check(park[None], at).collides[0]
+        axes = 0 if cr.track is None else 1
+        read = read_programs(tmp_path / "programs" / cr.name / "rapid", back.job, "rapid", axes)
+        for move, row in ((read.moves[0], 0), (read.moves[-1], 1)):
+            assert move.kind == "joint"
+            np.testing.assert_allclose(move.joints, work.ends_q[row], atol=1e-7)
+            if axes:
+                assert move.external_mm[0] == pytest.approx(work.ends_track_mm[row], abs=1e-3)

@@ -54,7 +54,8 @@ def box_plan(tmp_path_factory):
 def test_the_timelines_are_the_plans_timing_with_waits_only_before_strokes(box_plan):
     plan, arms = box_plan
     tracks = [None if r.track is None else r.track.speed_mm_s for r in plan.cell.robots]
-    got = sched.schedule_cell(plan.robots, arms, 400.0, 1000.0, 30.0, tracks)
+    ranges = [None if r.track is None else tuple(r.track.range_mm) for r in plan.cell.robots]
+    got = sched.schedule_cell(plan.robots, arms, 400.0, 1000.0, 30.0, tracks, track_ranges=ranges)
     for k, (work, line) in enumerate(zip(plan.robots, got.timelines)):
         path = sched.waypoint_times(work, 400.0, 1000.0)
         assert path[-1] == pytest.approx(work.cycle_time_s(400.0, 1000.0), rel=1e-12)
@@ -74,14 +75,19 @@ def test_the_timelines_are_the_plans_timing_with_waits_only_before_strokes(box_p
         if k == 0:
             assert not line.wait_s.any()  # the first robot never waits
         # then it parks: a joint move at its axis speeds to the park configuration
-        park = sched.park_joints(arms[k], q[-1], float(track[-1]), _others(plan.robots, arms, k))
+        ends = None if tracks[k] is None else tuple(plan.cell.robots[k].track.range_mm)
+        park, at = sched.park_joints(arms[k], q[-1], float(track[-1]), _others(plan.robots, arms, k), ends, tracks[k])
         moved = float((np.abs(park - q[-1]) / arms[k].params.max_speed).max())
+        rail = abs(at - track[-1]) / tracks[k] if tracks[k] else 0.0
         done = t0[-1] + line.wait_s.sum()
-        assert line.end_s == pytest.approx(done + max(moved, sched.MIN_PARK_S))
+        assert line.end_s == pytest.approx(done + max(moved, rail, sched.MIN_PARK_S))
         np.testing.assert_allclose(line.at(np.array([line.end_s + 5.0]))[0][0], park)
-        assert not arms[k].check(park[None], track[-1:]).collides[0]
-        along = q[-1] + np.linspace(0.0, 1.0, 200)[:, None] * (park - q[-1])
-        assert not arms[k].check(along, np.full(200, track[-1])).collides.any()  # the move there is free too
+        assert line.at(np.array([line.end_s + 5.0]))[1][0] == pytest.approx(at)
+        assert at == pytest.approx(track[-1]) or (ends is not None and min(abs(at - e) for e in ends) < 1e-9)
+        assert not arms[k].check(park[None], [at]).collides[0]
+        s = np.linspace(0.0, 1.0, 200)
+        along = q[-1] + s[:, None] * (park - q[-1])
+        assert not arms[k].check(along, track[-1] + s * (at - track[-1])).collides.any()  # the move there is free
     assert got.cycle_time_s == pytest.approx(max(tl.end_s for tl in got.timelines))
 
 
@@ -202,7 +208,7 @@ def test_a_robot_that_would_meet_another_where_both_start_starts_parked():
     got = sched.schedule_cell(works, arms, 400.0, 1000.0, 30.0)
     assert got.conflicts["a-b"] == 0 and got.timelines[1].wait_s[0] > 0
     q, track = works[1].q, works[1].track_mm
-    home = sched.park_joints(arms[1], q[0], float(track[0]), _others(works, arms, 1))
+    home, _ = sched.park_joints(arms[1], q[0], float(track[0]), _others(works, arms, 1))
     np.testing.assert_allclose(got.timelines[1].at(np.array([0.0, got.timelines[1].wait_s[0]]))[0], [home, home])
     assert len(got.timelines[1].arrive_s) == len(q) and got.timelines[1].arrive_s[0] > got.timelines[1].wait_s[0]
     np.testing.assert_allclose(got.timelines[0].at(np.array([0.0]))[0][0], works[0].q[0])  # the first does not
@@ -217,12 +223,43 @@ def test_a_park_keeps_away_from_the_other_robots_work(box_plan):
     plan, arms = box_plan
     work, arm = plan.robots[0], arms[0]
     q, track = sched._held(work.q, work.track_mm, work.reachable)
-    alone = sched.park_joints(arm, q[-1], float(track[-1]))
+    alone, _ = sched.park_joints(arm, q[-1], float(track[-1]))
     ends = arm.segments(alone[None], track[-1:])[0, 3:].reshape(-1, 3)  # the forearm, wrist, flange and gun
     away = np.column_stack([ends, np.full(len(ends), 50.0)])  # another robot's capsules where this one would park
-    kept = sched.park_joints(arm, q[-1], float(track[-1]), away)
+    kept, _ = sched.park_joints(arm, q[-1], float(track[-1]), away)
     assert not np.allclose(kept, alone)
     from scipy.spatial.distance import cdist
 
     near = cdist(arm.segments(kept[None], track[-1:])[0, 3:].reshape(-1, 3), ends).min()
     assert near > 100.0 and not arm.check(kept[None], track[-1:]).collides[0]
+
+
+def test_a_park_goes_to_a_track_end_when_the_other_robots_work_is_where_the_robot_ended(box_plan):
+    """With another robot's work over every park at the robot's last track position, the park chosen is at an
+    end of its track, farther from that work than any park there, its move (joints and track together) free of
+    the part and timed at the track's speed."""
+    import itertools
+
+    plan, arms = box_plan
+    work, arm, track_cfg = plan.robots[0], arms[0], plan.cell.robots[0].track
+    q, track = sched._held(work.q, work.track_mm, work.reachable)
+    last = float(track[-1])
+    rows = []
+    for a1, a2, a3 in itertools.product(sched.PARK_AXIS1_DEG, sched.PARK_AXIS2_DEG, sched.PARK_AXIS3_DEG):
+        r = q[-1].copy()
+        r[:3], r[4] = np.radians([a1, a2, a3]), np.radians(30.0)
+        rows.append(r)
+    rows = np.array(rows)
+    ends = arm.segments(rows, np.full(len(rows), last)).reshape(-1, 3)
+    away = np.column_stack([ends, np.full(len(ends), 20.0)])  # another robot's capsules over every park here
+    park, at = sched.park_joints(arm, q[-1], last, away, tuple(track_cfg.range_mm), track_cfg.speed_mm_s)
+    assert at != last and min(abs(at - e) for e in track_cfg.range_mm) < 1e-9
+    from scipy.spatial.distance import cdist
+
+    def gap(r, t):
+        return cdist(arm.segments(r[None], [t])[0].reshape(-1, 3), ends).min()
+
+    assert gap(park, at) > max(gap(r, last) for r in rows) + 100.0
+    s = np.linspace(0.0, 1.0, 400)
+    assert not arm.check(q[-1] + s[:, None] * (park - q[-1]), last + s * (at - last)).collides.any()
+    assert sched._move_s(arm, q[-1], park, last, at, track_cfg.speed_mm_s) >= abs(at - last) / track_cfg.speed_mm_s

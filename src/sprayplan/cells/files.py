@@ -7,8 +7,9 @@
     split or not); per robot its strokes in order, each with its kind and area, and per waypoint the gun
     tip, the gun's roll about its axis (``roll_deg``, deg), the normal, the time factor, the track position,
     the six joints (rad), whether it is reached and (with ``--collisions``) whether it collides, when the robot gets there (``t_s``) and the stroke's wait
-    (``wait_s``) in the cell's schedule (``cells.schedule``); and the
-    report (film over the whole body, per area, per robot, per seam; cycle times). mm, rad, s.
+    (``wait_s``) in the cell's schedule (``cells.schedule``), and where the schedule has the robot when the
+    cycle starts and ends (``schedule_ends``: ``q_rad`` (2, 6), ``track_mm`` (2,); its programs start and end
+    there; absent without a schedule); and the report (film over the whole body, per area, per robot, per seam; cycle times). mm, rad, s.
 ``waypoints.csv``
     One row a waypoint of every robot: ``robot, stroke, waypoint, kind, area, x_mm, y_mm, z_mm, nx, ny, nz,
     dwell, track_mm, roll_deg, q1..q6, reachable, collides, t_s`` (``q6`` empty for the five-axis R5150;
@@ -127,7 +128,10 @@ def cell_plan_dict(plan) -> dict:
                 }
             )
             at += n
-        work.append({"name": r.name, "model": r.model, "strokes": strokes})
+        ends = {}
+        if r.ends_q is not None:
+            ends = {"schedule_ends": {"q_rad": np.round(r.ends_q, 12), "track_mm": np.round(r.ends_track_mm, 6)}}
+        work.append({"name": r.name, "model": r.model, "strokes": strokes, **ends})
     return _clean(
         {
             "format": FORMAT,
@@ -300,12 +304,15 @@ def cell_plan_from_file(path):
                 hit.append(st.get("collides", np.zeros(len(st["tcp_mm"]), bool)))
                 times.append(st.get("t_s", np.zeros(len(st["tcp_mm"]))))
                 waits.append(st.get("wait_s") or 0.0)
+            ends = entry.get("schedule_ends")
             works.append(
                 RobotWork(
                     entry["name"], entry["model"], tuple(strokes), np.asarray(area, int), np.concatenate(track_mm),
                     np.concatenate(roll), np.concatenate(q), np.concatenate(reach),
                     np.concatenate(hit) if flags else None, np.concatenate(times) if timed else None,
                     np.asarray(waits, float) if timed else None,
+                    None if ends is None else np.asarray(ends["q_rad"], float).reshape(2, -1),
+                    None if ends is None else np.asarray(ends["track_mm"], float).reshape(2),
                 )
             )  # fmt: skip
     except (KeyError, TypeError, ValueError, ConfigError) as exc:

@@ -19,14 +19,20 @@ keeping them apart in space alone is not proven. :func:`schedule_cell` keeps the
    every robot before it. A robot that has finished holds its park (below); one that has not started holds
    its first waypoint, unless no wait there frees its first stroke (it would meet an earlier robot where both
    start): then it starts **parked** (:func:`park_joints` near its first waypoint), waits there, and its
-   first move is the approach to its work. If no wait before a stroke frees it, a wait up to ``BACKTRACK``
-   strokes earlier is tried (the strokes between moved with it). If none up to ``MAX_WAIT_S`` frees it, it is not delayed and its conflict
-   is counted (data, as a collision is).
+   first move is the approach to its work. If no wait before a stroke frees it, a wait before each of the
+   ``BACKTRACK`` strokes before it is tried, then before strokes ever farther back (each ``BACKTRACK_GROWTH``
+   times farther, back to the first: :func:`_backtrack`), the strokes between moved with it: where an earlier
+   robot's transfer sweeps through the place where this one would hold, it must be made to arrive there
+   later (on the BMW in ``line3`` the roof robot's routed transfers left 49 samples too close with six strokes
+   back, none with the strokes far back). If none up to ``MAX_WAIT_S`` frees it, it is not delayed and its
+   conflict is counted (data, as a collision is).
    When a robot has done its work it **parks** (:func:`park_joints`): a joint move, at its axis speeds, to the
    configuration of a small set (axis 1 turned 0, 90, -90 or 180 degrees, axes 2 and 3 folded back) farthest
    from the part, the floor and the other robots' work whose move there is free of the part and the floor, at
-   its last track position; so a robot that has finished stands out of the way of one still painting as far
-   as its arm alone can (its track stays where it ended).
+   its last track position or at either end of its track (the track at its speed, with the joints); of parks
+   as far away, the one reached soonest. So a robot that has finished stands out of the way of one still
+   painting: on the BMW in ``line3`` the roof robot, parked at its last track position, stood over the part
+   of the body the left robot still painted (47 samples too close), and a track end frees it.
 3. **The check** samples the common time axis every ``DT_S`` and measures, at every sample, the least distance
    between any capsule of one robot and any capsule of the other (:func:`segment_distances`, exact for segments;
    the arms' own capsules, ``collision.arms``). Two robots may conflict where that distance is below the sum of
@@ -55,8 +61,27 @@ DT_S = 0.05
 WAIT_STEP_S = 0.5
 #: The longest wait tried before a stroke, s.
 MAX_WAIT_S = 600.0
-#: How many strokes back a wait may move when none before the stroke itself frees it.
+#: A block's samples are checked this many at a time (:func:`_wait_for`: a wait is refused at its first chunk
+#: too close).
+WAIT_CHUNK = 64
+#: How many strokes back a wait is tried, stroke by stroke, when none before the stroke itself frees it.
 BACKTRACK = 6
+#: Past those, the strokes back tried grow this much each time (:func:`_backtrack`).
+BACKTRACK_GROWTH = 1.5
+
+
+def _backtrack(j: int, first: int = 0) -> list[int]:
+    """The strokes before which a wait is tried to free stroke ``j``, nearest first: ``j`` and the
+    :data:`BACKTRACK` strokes before it, then ``j - d`` for ``d`` growing by :data:`BACKTRACK_GROWTH` (at least
+    one stroke each time), and ``first`` (the first stroke a wait may go before) last."""
+    out = list(range(j, max(first - 1, j - BACKTRACK - 1), -1))
+    d = float(BACKTRACK)
+    while out[-1] > first:
+        d = max(d * BACKTRACK_GROWTH, d + 1.0)
+        out.append(max(first, j - int(d)))
+    return out
+
+
 #: The park configurations tried at the end of a robot's work: axes 1, 2 and 3 (degrees), the wrist bent 30.
 PARK_AXIS1_DEG = (0.0, 90.0, -90.0, 180.0)
 PARK_AXIS2_DEG = (-60.0, -30.0, 0.0)
@@ -119,15 +144,29 @@ def waypoint_times(
     return np.r_[0.0, np.cumsum(steps)]
 
 
-def park_joints(arm, q_last: np.ndarray, track_mm: float, away: np.ndarray | None = None) -> np.ndarray:
-    """The park configuration of a robot whose last configuration is ``q_last`` at ``track_mm``: of the
-    candidates (module docstring, within the joint limits; axes 4-6 as ``q_last`` but the wrist bent 30 degrees),
-    the one with the largest slack to the part and the floor (``arm.check``) whose joint move from ``q_last``
-    is free of them too (checked at ``PARK_STEPS`` configurations along it); the largest slack if no move is.
-    ``away`` (m, 4): points of the other robots' work with a radius each (their capsules' ends along their
-    plans, :func:`work_points`): the slack is then the least of the slack to the part and the gap to those, so
-    that a robot does not park in another's way."""
+#: A park's gap to the other robots' work counts up to this much, mm: past it a park with a shorter move is as
+#: good (:func:`park_joints`).
+PARK_GAP_ENOUGH_MM = 1000.0
+#: Parks whose gaps differ by less than this are ranked by their move's time, mm.
+PARK_GAP_STEP_MM = 10.0
+
+
+def park_joints(
+    arm, q_last: np.ndarray, track_mm: float, away: np.ndarray | None = None, track_range=None, track_speed=None
+) -> tuple[np.ndarray, float]:
+    """The park of a robot whose last configuration is ``q_last`` at ``track_mm``: joints and track position.
+
+    Of the candidates (module docstring, within the joint limits; axes 4-6 as ``q_last`` but the wrist bent 30
+    degrees) at ``track_mm``, and with ``track_range`` (lo, hi mm) at both ends of the track too, the one with
+    the largest slack to the part and the floor (``arm.check``) whose move from ``q_last`` (joints and track
+    linear together) is free of them too (checked at least every ``PARK_STEPS``-th of the move and every 25 mm
+    of track); the largest slack if no move is. ``away`` (m, 4): points of the other robots' work with a
+    radius each (their capsules' ends along their plans, :func:`work_points`): the slack is then the least of
+    the slack to the part and the gap to those, so that a robot does not park in another's way. Slacks count
+    up to :data:`PARK_GAP_ENOUGH_MM`, in steps of :data:`PARK_GAP_STEP_MM`; of equal ones the park reached
+    soonest (:func:`_move_s`, with ``track_speed`` mm/s) is taken, the last track position first."""
     lower, upper = np.asarray(arm.params.lower, dtype=float), np.asarray(arm.params.upper, dtype=float)
+    q_last = np.asarray(q_last, dtype=float)
     rows = []
     for a1, a2, a3 in itertools.product(PARK_AXIS1_DEG, PARK_AXIS2_DEG, PARK_AXIS3_DEG):
         q = np.array(q_last, dtype=float)
@@ -136,26 +175,32 @@ def park_joints(arm, q_last: np.ndarray, track_mm: float, away: np.ndarray | Non
         if np.all(q >= lower - 1e-12) and np.all(q <= upper + 1e-12):
             rows.append(q)
     if not rows:
-        return np.asarray(q_last, dtype=float)
-    rows = np.asarray(rows)
-    slack = arm.check(rows, np.full(len(rows), float(track_mm))).slack_mm
+        return q_last, float(track_mm)
+    tracks = [float(track_mm)]
+    if track_range is not None:
+        tracks += [float(t) for t in track_range if abs(float(t) - float(track_mm)) > 1e-9]
+    rows = np.concatenate([rows] * len(tracks))
+    where = np.repeat(tracks, len(rows) // len(tracks))
+    slack = arm.check(rows, where).slack_mm
     if away is not None and len(away):
         from scipy.spatial import cKDTree
 
-        segments = arm.segments(rows, np.full(len(rows), float(track_mm)))  # (c, b, 2, 3)
+        segments = arm.segments(rows, where)  # (c, b, 2, 3)
         t = np.linspace(0.0, 1.0, 5)[None, None, :, None]
         points = segments[:, :, :1] + t * (segments[:, :, 1:] - segments[:, :, :1])  # (c, b, 5, 3)
         d, k = cKDTree(away[:, :3]).query(points.reshape(-1, 3))
         radii = np.broadcast_to(np.asarray(arm.radii, float)[None, :, None], points.shape[:3]).reshape(-1)
         gap = (d - away[k, 3] - radii).reshape(len(rows), -1).min(axis=1)
         slack = np.minimum(slack, gap)
-    order = np.argsort(-slack, kind="stable")
-    s = np.linspace(0.0, 1.0, PARK_STEPS)[:, None]
+    level = np.floor(np.minimum(slack, PARK_GAP_ENOUGH_MM) / PARK_GAP_STEP_MM)
+    seconds = np.array([_move_s(arm, q_last, r, float(track_mm), float(w), track_speed) for r, w in zip(rows, where)])
+    order = np.lexsort((seconds, -level))
     for i in order:
-        path = q_last + s * (rows[i] - q_last)
-        if not arm.collides(path, np.full(len(path), float(track_mm))).any():
-            return rows[i]
-    return rows[order[0]]
+        steps = max(PARK_STEPS, math.ceil(abs(where[i] - float(track_mm)) / 25.0) + 1)
+        s = np.linspace(0.0, 1.0, steps)[:, None]
+        if not arm.collides(q_last + s * (rows[i] - q_last), float(track_mm) + s[:, 0] * (where[i] - track_mm)).any():
+            return rows[i], float(where[i])
+    return rows[order[0]], float(where[order[0]])
 
 
 #: The waypoints of a robot's plan whose capsules' ends :func:`work_points` takes: one in this many.
@@ -171,11 +216,13 @@ def work_points(arm, q: np.ndarray, track: np.ndarray) -> np.ndarray:
     return np.column_stack([segments.reshape(-1, 3), radii.reshape(-1)])
 
 
-def _move_s(arm, q_from: np.ndarray, q_to: np.ndarray) -> float:
-    """The time of a park move (a joint move at the arm's axis speeds, at least :data:`MIN_PARK_S`), s."""
+def _move_s(arm, q_from: np.ndarray, q_to: np.ndarray, track_from=0.0, track_to=0.0, track_speed=None) -> float:
+    """The time of a park move (a joint move at the arm's axis speeds, the track at its speed, at least
+    :data:`MIN_PARK_S`), s."""
     speed = np.asarray(arm.params.max_speed, dtype=float)
     known = np.isfinite(speed)
-    return max(float((np.abs(q_to - q_from)[known] / speed[known]).max(initial=0.0)), MIN_PARK_S)
+    rail = abs(float(track_to) - float(track_from)) / track_speed if track_speed else 0.0
+    return max(float((np.abs(q_to - q_from)[known] / speed[known]).max(initial=0.0)), rail, MIN_PARK_S)
 
 
 def _held(q: np.ndarray, track: np.ndarray, reachable: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -340,8 +387,9 @@ def _wait_for(stroke: _Sampled, hold: _Sampled, earlier, clearance_mm: float) ->
     does. The hold only grows with the wait, so the search ends at the first wait whose hold is not clear."""
     per = round(WAIT_STEP_S / DT_S)
     g0, m = stroke.first, len(stroke.segments)
-    rows = np.arange(m)
     zero = np.zeros(1, dtype=int)
+    chunks = [np.arange(c, min(c + WAIT_CHUNK, m)) for c in range(0, m, WAIT_CHUNK)]
+    last = 0  # the chunk that failed last: a conflict most often lasts over several waits, so it is tried first
     for k in range(int(MAX_WAIT_S / WAIT_STEP_S) + 1):
         shift = k * per
         if shift:  # the hold's new samples, g0 + shift - per .. g0 + shift - 1
@@ -349,8 +397,13 @@ def _wait_for(stroke: _Sampled, hold: _Sampled, earlier, clearance_mm: float) ->
             for other in earlier:
                 if (_gaps(hold, np.repeat(zero, len(new)), other, other.rows(new), clearance_mm) < 0).any():
                     return None
-        g = g0 + shift + rows
-        if all((_gaps(stroke, rows, other, other.rows(g), clearance_mm) >= 0).all() for other in earlier):
+        for c in [last, *range(last), *range(last + 1, len(chunks))]:
+            rows = chunks[c]
+            g = g0 + shift + rows
+            if any((_gaps(stroke, rows, other, other.rows(g), clearance_mm) < 0).any() for other in earlier):
+                last = c
+                break
+        else:
             return shift * DT_S
     return None
 
@@ -384,11 +437,19 @@ def _block_wait(arm, t0, q, track, starts, chosen, first: int, j: int, earlier, 
 
 
 def schedule_cell(
-    robots, arms, speed_mm_s: float, transfer_speed_mm_s: float, clearance_mm: float, track_speeds=None, times=None
+    robots,
+    arms,
+    speed_mm_s: float,
+    transfer_speed_mm_s: float,
+    clearance_mm: float,
+    track_speeds=None,
+    times=None,
+    track_ranges=None,
 ) -> Schedule:
     """Schedule the robots' work (``RobotWork`` each, in the cell's order) with their ``ArmCollision`` models
     (module docstring); ``track_speeds``: each robot's track speed, mm/s (None without a track); ``times``:
-    each robot's timed arrival at its waypoints (``cells.timing``), in place of :func:`waypoint_times`."""
+    each robot's timed arrival at its waypoints (``cells.timing``), in place of :func:`waypoint_times`;
+    ``track_ranges``: each robot's track ends (lo, hi) mm or None, where its park may be too."""
     names = [w.name for w in robots]
     timelines: list[Timeline] = []
     sampled: list[_Sampled] = []
@@ -398,6 +459,7 @@ def schedule_cell(
     for k, (w, arm) in enumerate(zip(robots, arms)):
         others = np.concatenate([p for i, p in enumerate(points) if i != k] or [np.zeros((0, 4))])
         track_speed = None if track_speeds is None else track_speeds[k]
+        track_range = None if track_ranges is None else track_ranges[k]
         if times is not None:
             t0 = np.asarray(times[k], dtype=float)
         else:
@@ -409,14 +471,14 @@ def schedule_cell(
         if k and len(t0):
             # held at its first waypoint it would meet an earlier robot, whatever it waited: it starts parked
             if _block_wait(arm, t0, q, track, starts, chosen, 0, 0, sampled, clearance_mm) is None:
-                home = park_joints(arm, q[0], float(track[0]), others)
+                home, _ = park_joints(arm, q[0], float(track[0]), others)
                 t0 = np.r_[t0[0], t0 + _move_s(arm, home, q[0])]
                 q, track = np.vstack([home, q]), np.r_[track[0], track]
                 starts = np.r_[0, starts + 1]
                 chosen = np.zeros(len(starts))
                 parked = True
             for j in range(len(starts)):
-                for first in range(j, max(-1, j - BACKTRACK - 1), -1):
+                for first in _backtrack(j):
                     if parked and first == 1:  # the first stroke's wait is made parked, before the approach
                         continue
                     # strokes first .. j as one block, waiting only before the first (the later waits dropped)
@@ -429,10 +491,10 @@ def schedule_cell(
                         break
         knots = list(_knots(t0, q, track, starts, chosen))
         if len(t0):
-            park = park_joints(arm, q[-1], float(track[-1]), others)
-            knots[0] = np.r_[knots[0], knots[0][-1] + _move_s(arm, q[-1], park)]
+            park, at = park_joints(arm, q[-1], float(track[-1]), others, track_range, track_speed)
+            knots[0] = np.r_[knots[0], knots[0][-1] + _move_s(arm, q[-1], park, float(track[-1]), at, track_speed)]
             knots[1] = np.vstack([knots[1], park])
-            knots[2] = np.r_[knots[2], track[-1]]
+            knots[2] = np.r_[knots[2], at]
         if parked:  # the park at the start is not a waypoint; its wait is the first stroke's
             knots[3] = knots[3][1:]
             chosen = np.r_[chosen[0], chosen[2:]]
@@ -467,6 +529,7 @@ def scheduled(cell, robots: tuple, arms, job) -> tuple[tuple, dict]:
     with the ``[motion]`` speeds, the tracks' speeds and the ``[collision]`` clearance), and the schedule's
     summary."""
     tracks = [None if r.track is None else r.track.speed_mm_s for r in cell.robots]
+    ranges = [None if r.track is None else tuple(r.track.range_mm) for r in cell.robots]
     timed = job.timing.enabled and all(r.t_s is not None for r in robots)
     plan = schedule_cell(
         robots,
@@ -476,8 +539,16 @@ def scheduled(cell, robots: tuple, arms, job) -> tuple[tuple, dict]:
         job.collision.clearance_mm,
         tracks,
         times=[r.t_s for r in robots] if timed else None,
+        track_ranges=ranges,
     )
     out = tuple(
-        replace(r, t_s=line.arrive_s.copy(), wait_s=line.wait_s.copy()) for r, line in zip(robots, plan.timelines)
+        replace(
+            r,
+            t_s=line.arrive_s.copy(),
+            wait_s=line.wait_s.copy(),
+            ends_q=line.knot_q[[0, -1]].copy() if len(line.knot_q) else None,
+            ends_track_mm=line.knot_track[[0, -1]].copy() if len(line.knot_q) else None,
+        )
+        for r, line in zip(robots, plan.timelines)
     )
     return out, plan.summary()

@@ -40,6 +40,12 @@ class RobotWork:
         ``[collision] check``), s; None unscheduled.
     wait_s : (s,) float or None
         The schedule's wait before each stroke (spray off, at its first waypoint), s.
+    ends_q : (2, dof) float or None
+        Where the schedule has the robot when the cycle starts and when it ends, rad: its first waypoint's joints
+        or the park it starts from, then the park it ends at (``cells.schedule``); the robot's programs start and
+        end there. None unscheduled.
+    ends_track_mm : (2,) float or None
+        The track positions of ``ends_q``, mm.
     """
 
     name: str
@@ -53,6 +59,8 @@ class RobotWork:
     collides: np.ndarray | None = None
     t_s: np.ndarray | None = None
     wait_s: np.ndarray | None = None
+    ends_q: np.ndarray | None = None
+    ends_track_mm: np.ndarray | None = None
 
     @property
     def waypoints(self) -> int:

@@ -96,7 +96,7 @@ def format_refusal(name: str, model: str, fmt: str) -> str | None:
     maker = str(model).split("-", 1)[0].lower()
     wanted = MAKER_FORMATS.get(maker)
     if wanted is not None and wanted != fmt:
-        return f"robot {name} is a {maker.upper()} arm ({model}): its controller runs {wanted}, not {fmt}"
+        return f"robot {name} is an {maker.upper()} arm ({model}): its controller runs {wanted}, not {fmt}"
     return None
 
 
@@ -278,12 +278,19 @@ class ArmPlan:
     home_mm : (axes,) float
     left_in_collision : int
         Waypoints the plan reaches but finds in collision, left out of the program.
+    ends_joints : (2, 6) float or None
+        Where the program starts and ends (rad) when the robot's work is scheduled (``RobotWork.ends_q``: where
+        the cell's schedule has it when the cycle starts and ends); None: at the arm's home joints.
+    ends_mm : (2, axes) float or None
+        The track positions there (none for a fixed base), mm.
     """
 
     name: str
     stations: tuple
     home_mm: np.ndarray
     left_in_collision: int = 0
+    ends_joints: np.ndarray | None = None
+    ends_mm: np.ndarray | None = None
 
 
 #: The label (``StationPlan.repair``) of a routed transfer's waypoints in a cell robot's plan: a cell plan keeps
@@ -320,7 +327,13 @@ def arm_plan(work, cell: ArmCell, name: str = "") -> ArmPlan:
         waits,
         colliding,
     )
-    return ArmPlan(name or work.name, (station,), home, int(colliding.sum()))
+    ends_q, ends_mm = None, None
+    if getattr(work, "ends_q", None) is not None:
+        ends_q = np.asarray(work.ends_q, float).reshape(2, -1)
+        track = np.asarray(work.ends_track_mm, float).reshape(2, 1)
+        ends_mm = track if cell.external_axes else np.zeros((2, 0))
+        home = ends_mm[0].copy()
+    return ArmPlan(name or work.name, (station,), home, int(colliding.sum()), ends_q, ends_mm)
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,8 @@
 """A plan as moves (:class:`~sprayplan.programs.model.CellProgram`): what every format's program does.
 
 For each station in visiting order: a joint move home (the arm's home joints, where the plan solved each
-station from), then each spray run, then home again. A *run* is a stretch of one spray stroke whose waypoints
+station from), then each spray run, then home again (a cell robot whose work the cell's schedule timed: from
+where the schedule has it when the cycle starts, to the park it ends at: :func:`plan_ends`). A *run* is a stretch of one spray stroke whose waypoints
 the program reaches (docs/programs.md, "What the programs do"):
 
 - a joint move (``transfer``) to the run's approach pose: its first waypoint moved back along the gun axis by
@@ -248,7 +249,8 @@ def build_program(plan, job, fmt: str, strict: bool | None = None, cell=None) ->
         data = station_arrays(st, job)
         q9 = target_q9(st, fmt)
         poses = cell.poses(q9[:, :6], q9[:, 6:]) if len(q9) else np.zeros((0, 4, 4))
-        moves = [_home(cell, st.platform_mm)]
+        start, end = plan_ends(plan, cell, st.platform_mm)
+        moves = [start]
         routed: set = set()
         waits = getattr(st, "wait_s", None)  # a cell robot's schedule: the wait before each stroke
         waited: set = set()
@@ -260,11 +262,11 @@ def build_program(plan, job, fmt: str, strict: bool | None = None, cell=None) ->
                 if waits[run.stroke] > 0:
                     run_moves[1] = dataclasses.replace(run_moves[1], wait_s=float(waits[run.stroke]))
             moves += run_moves
-        moves.append(_home(cell, st.platform_mm))
+        moves.append(end)
         stations.append(StationProgram(order, st.index, np.array(st.platform_mm), tuple(moves)))
     if strict:
         _refuse(report)
-    home = _home(cell, plan.home_mm)
+    home, park = plan_ends(plan, cell, plan.home_mm)
     return CellProgram(
         tuple(stations),
         np.array(plan.home_mm),
@@ -273,6 +275,7 @@ def build_program(plan, job, fmt: str, strict: bool | None = None, cell=None) ->
         plan.name,
         report,
         home,
+        park=park,
         **getattr(cell, "program_fields", dict)(),
     )
 
@@ -308,10 +311,21 @@ def _refuse(report: dict) -> None:
             )
 
 
-def _home(cell: Cell, external_mm) -> Move:
-    home = cell.home_joints
+def _home(cell: Cell, external_mm, joints=None) -> Move:
+    home = cell.home_joints if joints is None else np.asarray(joints, float)
     pose = cell.poses(home, external_mm)[0]
     return Move(JOINT, "home", pose, home, np.array(external_mm, float))
+
+
+def plan_ends(plan, cell: Cell, external_mm) -> tuple[Move, Move]:
+    """The joint moves a program (or a station, ``external_mm`` its gantry position) starts and ends with: home
+    (the arm's home joints at ``external_mm``), or, for a cell robot whose work is scheduled
+    (``programs.arms.ArmPlan.ends_joints``), where the cell's schedule has it when the cycle starts (its first
+    waypoint, or the park it starts from) and the park it ends at, with their track positions."""
+    joints = getattr(plan, "ends_joints", None)
+    if joints is None:
+        return _home(cell, external_mm), _home(cell, external_mm)
+    return _home(cell, plan.ends_mm[0], joints[0]), _home(cell, plan.ends_mm[1], joints[1])
 
 
 def line_joints(cell: Cell, start: np.ndarray, end: np.ndarray, external_mm, q_start: np.ndarray):

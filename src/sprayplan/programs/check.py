@@ -32,7 +32,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sprayplan.programs.build import APPROACH_TRIES, MIN_SPEED_MM_S, station_arrays, target_q9, wanted_targets
+from sprayplan.programs.build import (
+    APPROACH_TRIES,
+    MIN_SPEED_MM_S,
+    plan_ends,
+    station_arrays,
+    target_q9,
+    wanted_targets,
+)
 from sprayplan.programs.model import (
     JOINT,
     LINEAR,
@@ -147,18 +154,20 @@ def _by_station(read, plan, cell: Cell, result: CheckResult) -> list:
         return out
     if np.abs(read.frame - np.eye(4)).max() > 1e-6:
         result.fail(None, "the work object / base is not the part frame (identity in the plan's world)")
-    for end in (0, -1):
-        if not moves or not _is_home(moves[end], plan.home_mm, cell.home_joints):
+    ends = plan_ends(plan, cell, plan.home_mm)
+    for end, home in zip((0, -1), ends):
+        if not moves or not _is_home(moves[end], home.external_mm, home.joints):
             result.fail(moves[end] if moves else None, "the program must start and end at home (gantry at home_mm)")
             return []
     body, out, k = moves[1:-1], [], 0
     for order, st in enumerate(plan.stations):
-        if k >= len(body) or not _is_home(body[k], st.platform_mm, cell.home_joints):
+        start, stop = plan_ends(plan, cell, st.platform_mm)
+        if k >= len(body) or not _is_home(body[k], start.external_mm, start.joints):
             result.fail(
                 body[k] if k < len(body) else None, f"station {order + 1} must begin at home at its gantry position"
             )
             return out
-        end = next((j for j in range(k + 1, len(body)) if _is_home(body[j], st.platform_mm, cell.home_joints)), None)
+        end = next((j for j in range(k + 1, len(body)) if _is_home(body[j], stop.external_mm, stop.joints)), None)
         if end is None:
             result.fail(body[k], f"station {order + 1} never returns home")
             return out

@@ -112,6 +112,8 @@ class CellProgram:
     home : Move
         The joint move home with the gantry at ``home_mm``: where a whole-cell program (RAPID, KRL) starts and
         ends.
+    park : Move or None
+        Where the program ends when not at ``home`` (a scheduled cell robot's park: ``programs.build.plan_ends``).
     external_axes : int
         How many external axes the moves carry: 3 for the gantry, 1 for a cell robot's track, 0 for a fixed base
         (``programs.arms``).
@@ -132,6 +134,7 @@ class CellProgram:
     external_note: str = "the gantry in eax_a..eax_c / E1..E3 (mm)"
     frame_note: str = "the part frame"
     gun_mm: np.ndarray | None = None
+    park: Move | None = None
 
     def sequence(self) -> list[tuple[Move, str | None]]:
         """Every move of a whole-cell program with a note where a station begins: home, each station's moves
@@ -143,7 +146,7 @@ class CellProgram:
             if self.external_axes != 3:  # a robot of a cell: its whole work is one station
                 note = "the robot's work" + (f", track at {p} mm" if len(st.platform_mm) else "")
             out += [(move, note if k == 0 else None) for k, move in enumerate(st.moves)]
-        return out + [(self.home, None)]
+        return out + [(self.home if self.park is None else self.park, None)]
 
 
 @dataclass(frozen=True)
