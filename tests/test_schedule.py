@@ -263,3 +263,16 @@ def test_a_park_goes_to_a_track_end_when_the_other_robots_work_is_where_the_robo
     s = np.linspace(0.0, 1.0, 400)
     assert not arm.check(q[-1] + s[:, None] * (park - q[-1]), last + s * (at - last)).collides.any()
     assert sched._move_s(arm, q[-1], park, last, at, track_cfg.speed_mm_s) >= abs(at - last) / track_cfg.speed_mm_s
+
+
+@pytest.mark.parametrize("j, first", [(0, 0), (3, 0), (20, 0), (200, 1), (9, 5)])
+def test_the_strokes_a_wait_is_tried_before_are_every_stroke_back_once_the_nearest_first(j, first):
+    """``_backtrack``: every stroke from ``first`` to ``j`` once; ``j`` and the ``BACKTRACK`` strokes before it
+    first, in order; then ``first`` among the far ones before any stroke skipped."""
+    got = sched._backtrack(j, first)
+    assert sorted(got) == list(range(first, j + 1))
+    near = list(range(j, max(first - 1, j - sched.BACKTRACK - 1), -1))
+    assert got[: len(near)] == near
+    if j - first > sched.BACKTRACK:
+        sparse = got[len(near) : got.index(first) + 1]
+        assert all(a > b for a, b in zip(sparse, sparse[1:])) and len(sparse) < j - first - sched.BACKTRACK

@@ -21,11 +21,13 @@ keeping them apart in space alone is not proven. :func:`schedule_cell` keeps the
    start): then it starts **parked** (:func:`park_joints` near its first waypoint), waits there, and its
    first move is the approach to its work. If no wait before a stroke frees it, a wait before each of the
    ``BACKTRACK`` strokes before it is tried, then before strokes ever farther back (each ``BACKTRACK_GROWTH``
-   times farther, back to the first: :func:`_backtrack`), the strokes between moved with it: where an earlier
-   robot's transfer sweeps through the place where this one would hold, it must be made to arrive there
-   later (on the BMW in ``line3`` the roof robot's routed transfers left 49 samples too close with six strokes
-   back, none with the strokes far back). If none up to ``MAX_WAIT_S`` frees it, it is not delayed and its
-   conflict is counted (data, as a collision is).
+   times farther, back to the first), then before every stroke between (:func:`_backtrack`), the strokes
+   between moved with it: where an earlier robot's transfer sweeps through the place where this one would
+   hold, it must be made to arrive there later. On the BMW in ``line3`` the roof robot's routed transfers left
+   49 samples too close with six strokes back, 31 with the strokes far back tried sparsely, none with every
+   stroke back tried (the right robot then waits 223 s before a stroke 70 strokes before the one in the
+   way). If none up to ``MAX_WAIT_S`` frees it, it is not delayed and its conflict is counted (data, as a
+   collision is).
    When a robot has done its work it **parks** (:func:`park_joints`): a joint move, at its axis speeds, to the
    configuration of a small set (axis 1 turned 0, 90, -90 or 180 degrees, axes 2 and 3 folded back) farthest
    from the part, the floor and the other robots' work whose move there is free of the part and the floor, at
@@ -71,15 +73,17 @@ BACKTRACK_GROWTH = 1.5
 
 
 def _backtrack(j: int, first: int = 0) -> list[int]:
-    """The strokes before which a wait is tried to free stroke ``j``, nearest first: ``j`` and the
-    :data:`BACKTRACK` strokes before it, then ``j - d`` for ``d`` growing by :data:`BACKTRACK_GROWTH` (at least
-    one stroke each time), and ``first`` (the first stroke a wait may go before) last."""
+    """The strokes before which a wait is tried to free stroke ``j``, in order: ``j`` and the :data:`BACKTRACK`
+    strokes before it, then ``j - d`` for ``d`` growing by :data:`BACKTRACK_GROWTH` (at least one stroke each
+    time) down to ``first`` (the first stroke a wait may go before), then every stroke skipped, nearest first
+    (a long block is dear to check, so the far strokes are tried sparsely first)."""
     out = list(range(j, max(first - 1, j - BACKTRACK - 1), -1))
     d = float(BACKTRACK)
     while out[-1] > first:
         d = max(d * BACKTRACK_GROWTH, d + 1.0)
         out.append(max(first, j - int(d)))
-    return out
+    tried = set(out)
+    return out + [i for i in range(j, first - 1, -1) if i not in tried]
 
 
 #: The park configurations tried at the end of a robot's work: axes 1, 2 and 3 (degrees), the wrist bent 30.

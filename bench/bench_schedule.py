@@ -1,0 +1,97 @@
+"""The cell's schedule alone (``cells.schedule``, issue 18), on a plan already made: samples too close, waits,
+cycle time and the schedule's wall time, this checkout against another.
+
+A cell plan folder written by ``sprayplan plan BODY --cell line3 --collisions`` holds every robot's work in
+``cell_plan.json``. Each build reads it back, places the body in the cell again (the preset of the plan's cell,
+for the skid), times every robot's work within its limits (``cells.timing``) and schedules the robots
+(``cells.schedule.scheduled``). The builds run at once, one process each (a machine of two cores); each prints
+one JSON line: the schedule's summary (samples too close per pair, least gaps, waits, each robot's time, the
+cycle) and the seconds the timing and the schedule took.
+
+Usage::
+
+    python bench/bench_schedule.py OUT --part bmw --base ../wt-base
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+SRC = HERE.parent / "src"
+PARTS = {"bmw": ("meshes/bmw_m6_body_m_yup.ply", "y"), "suv": ("meshes/gazebo_suv_body_m.ply", "z")}
+
+
+def child(folder: str, name: str) -> None:
+    sys.path.insert(0, str(HERE))
+    from _data import testdata_dir
+
+    from sprayplan.cells.collide import cell_arms
+    from sprayplan.cells.files import cell_plan_from_file
+    from sprayplan.cells.plan import area_surface
+    from sprayplan.cells.schedule import scheduled
+    from sprayplan.cells.spec import load_cell, place_part
+    from sprayplan.cells.timing import timed_cell
+    from sprayplan.io.load import load_part
+    from sprayplan.surface.normals import oriented_part
+    from sprayplan.surface.region import painted_surface
+
+    plan = cell_plan_from_file(Path(folder) / "cell_plan.json")
+    path, up = PARTS[name]
+    placed = place_part(load_part(testdata_dir() / path, units="m", up=up), load_cell(plan.cell.name))
+    painted, _ = painted_surface(oriented_part(placed.part), plan.job.collision)
+    painted, _ = area_surface(painted)
+    config = dataclasses.replace(plan.job.collision, check=True)
+    arms = cell_arms(plan.cell, painted, config)
+    robots = tuple(dataclasses.replace(w, t_s=None, wait_s=None, ends_q=None, ends_track_mm=None) for w in plan.robots)
+    start = time.perf_counter()
+    report = {"cycle_time_s": 0.0, "robots": {w.name: {"cycle_time_s": 0.0} for w in robots}}
+    robots = timed_cell(plan.cell, robots, plan.job, report)
+    timed = time.perf_counter() - start
+    start = time.perf_counter()
+    _, summary = scheduled(plan.cell, robots, arms, plan.job)
+    took = time.perf_counter() - start
+    keep = ("conflicts", "least_gap_mm", "waits", "robot_time_s", "cycle_time_s")
+    print(json.dumps({"timing_s": round(timed, 1), "schedule_s": round(took, 1), **{k: summary[k] for k in keep}}))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("folder", help="a cell plan folder written with --collisions")
+    parser.add_argument("--part", default="bmw", choices=sorted(PARTS))
+    parser.add_argument("--base", help="another checkout to compare with (its src/)")
+    parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child:
+        child(args.folder, args.part)
+        return
+    builds = {"new": SRC} | ({"base": Path(args.base).resolve() / "src"} if args.base else {})
+    running = {
+        build: subprocess.Popen(
+            [sys.executable, __file__, args.folder, "--part", args.part, "--child"],
+            env=dict(os.environ, PYTHONPATH=str(src)),
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        for build, src in builds.items()
+    }
+    for build, proc in running.items():
+        out, _ = proc.communicate()
+        result = json.loads(out.strip().splitlines()[-1])
+        print(json.dumps({"build": build, **result}), flush=True)
+        print(
+            f"{build}: {sum(result['conflicts'].values())} samples too close, cycle {result['cycle_time_s']} s, "
+            f"schedule {result['schedule_s']} s",
+            flush=True,
+        )
+
+
+if __name__ == "__main__":
+    main()
