@@ -50,7 +50,10 @@ def child(folder: str, name: str) -> None:
     painted, _ = area_surface(painted)
     config = dataclasses.replace(plan.job.collision, check=True)
     arms = cell_arms(plan.cell, painted, config)
-    robots = tuple(dataclasses.replace(w, t_s=None, wait_s=None, ends_q=None, ends_track_mm=None) for w in plan.robots)
+    unscheduled = {"t_s": None, "wait_s": None}
+    if hasattr(plan.robots[0], "ends_q"):  # a build that keeps the schedule's ends
+        unscheduled.update(ends_q=None, ends_track_mm=None)
+    robots = tuple(dataclasses.replace(w, **unscheduled) for w in plan.robots)
     start = time.perf_counter()
     report = {"cycle_time_s": 0.0, "robots": {w.name: {"cycle_time_s": 0.0} for w in robots}}
     robots = timed_cell(plan.cell, robots, plan.job, report)
