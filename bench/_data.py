@@ -33,3 +33,23 @@ def testdata_dir() -> Path:
 def meshes_dir() -> Path:
     """``testdata_dir() / "meshes"``."""
     return testdata_dir() / "meshes"
+
+
+def builds_at_once(argv: list[str], base: str | None):
+    """Run ``argv`` (a bench script and its child's arguments) once per build at the same time, this checkout's
+    ``src`` (``new``) and, with ``base``, another checkout's, each with its ``src`` first on ``PYTHONPATH``;
+    yield ``(build, result)`` as each ends, the result the JSON of its last line of output."""
+    import json
+    import subprocess
+    import sys
+
+    builds = {"new": REPO / "src"} | ({"base": Path(base).resolve() / "src"} if base else {})
+    running = {
+        build: subprocess.Popen(
+            [sys.executable, *argv], env=dict(os.environ, PYTHONPATH=str(src)), stdout=subprocess.PIPE, text=True
+        )
+        for build, src in builds.items()
+    }
+    for build, proc in running.items():
+        out, _ = proc.communicate()
+        yield build, json.loads(out.strip().splitlines()[-1])

@@ -19,14 +19,11 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import os
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-SRC = HERE.parent / "src"
 PARTS = {"bmw": ("meshes/bmw_m6_body_m_yup.ply", "y"), "suv": ("meshes/gazebo_suv_body_m.ply", "z")}
 KEYS = (
     "waypoints_in_collision", "motions_in_collision", "strokes_in_collision", "strokes_repaired",
@@ -92,20 +89,11 @@ def main() -> None:
     if args.child:
         child(args.child, args.cell)
         return
-    builds = {"new": SRC} | ({"base": Path(args.base).resolve() / "src"} if args.base else {})
+    sys.path.insert(0, str(HERE))
+    from _data import builds_at_once
+
     for name in args.parts.split(","):
-        running = {
-            build: subprocess.Popen(
-                [sys.executable, __file__, "--child", name, "--cell", args.cell],
-                env=dict(os.environ, PYTHONPATH=str(src)),
-                stdout=subprocess.PIPE,
-                text=True,
-            )
-            for build, src in builds.items()
-        }
-        for build, proc in running.items():
-            out, _ = proc.communicate()
-            result = json.loads(out.strip().splitlines()[-1])
+        for build, result in builds_at_once([__file__, "--child", name, "--cell", args.cell], args.base):
             print(json.dumps({"build": build, **result}), flush=True)
             total = {k: sum(r.get(k, 0) for r in result["robots"].values()) for k in KEYS[:2]}
             print(f"{name} {build}: {result['collision_step_s']} s; in collision after it: {total}", flush=True)

@@ -18,14 +18,11 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import os
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-SRC = HERE.parent / "src"
 PARTS = {"bmw": ("meshes/bmw_m6_body_m_yup.ply", "y"), "suv": ("meshes/gazebo_suv_body_m.ply", "z")}
 
 
@@ -75,19 +72,10 @@ def main() -> None:
     if args.child:
         child(args.folder, args.part)
         return
-    builds = {"new": SRC} | ({"base": Path(args.base).resolve() / "src"} if args.base else {})
-    running = {
-        build: subprocess.Popen(
-            [sys.executable, __file__, args.folder, "--part", args.part, "--child"],
-            env=dict(os.environ, PYTHONPATH=str(src)),
-            stdout=subprocess.PIPE,
-            text=True,
-        )
-        for build, src in builds.items()
-    }
-    for build, proc in running.items():
-        out, _ = proc.communicate()
-        result = json.loads(out.strip().splitlines()[-1])
+    sys.path.insert(0, str(HERE))
+    from _data import builds_at_once
+
+    for build, result in builds_at_once([__file__, args.folder, "--part", args.part, "--child"], args.base):
         print(json.dumps({"build": build, **result}), flush=True)
         print(
             f"{build}: {sum(result['conflicts'].values())} samples too close, cycle {result['cycle_time_s']} s, "
