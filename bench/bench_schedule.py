@@ -58,8 +58,9 @@ def child(folder: str, name: str) -> None:
     start = time.perf_counter()
     _, summary = scheduled(plan.cell, robots, arms, plan.job)
     took = time.perf_counter() - start
-    keep = ("conflicts", "least_gap_mm", "waits", "robot_time_s", "cycle_time_s")
-    print(json.dumps({"timing_s": round(timed, 1), "schedule_s": round(took, 1), **{k: summary[k] for k in keep}}))
+    keep = ("priority", "conflicts", "least_gap_mm", "waits", "robot_time_s", "cycle_time_s")
+    kept = {k: summary[k] for k in keep if k in summary}  # an older build has no priority
+    print(json.dumps({"timing_s": round(timed, 1), "schedule_s": round(took, 1), **kept}))
 
 
 def main() -> None:

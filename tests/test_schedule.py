@@ -4,6 +4,9 @@ conflicts the schedule reports recounted independently."""
 
 from __future__ import annotations
 
+import itertools
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
@@ -201,6 +204,27 @@ def test_a_wait_keeps_a_later_robot_out_of_an_earlier_ones_way(monkeypatch):
     assert got.cycle_time_s > naive.cycle_time_s and got.cycle_time_s <= first_stroke_s + naive.cycle_time_s + 1.0
 
 
+def test_the_robot_first_in_priority_never_waits_and_the_result_stays_in_the_robots_order():
+    """The same two facing robots scheduled b first: b never waits and a does; the timelines, the waits and the
+    pair keys stay in the robots' own order (a's timeline has a's waypoints), and the schedule is free of
+    conflicts either way."""
+    works, arms = _facing_works()
+    b = works[1]  # b paints the middle stroke alone: fewer waypoints than a
+    works = [works[0], replace(b, strokes=b.strokes[:1], track_mm=b.track_mm[:60], roll_deg=b.roll_deg[:60],
+                               q=b.q[:60], reachable=b.reachable[:60])]  # fmt: skip
+    ab = sched.schedule_cell(works, arms, 400.0, 1000.0, 30.0)
+    ba = sched.schedule_cell(works, arms, 400.0, 1000.0, 30.0, priority=[1, 0])
+    assert ab.summary()["priority"] == ["a", "b"] and ba.summary()["priority"] == ["b", "a"]
+    assert list(ba.waits) == ["a", "b"] and list(ba.conflicts) == ["a-b"]
+    for got, first, later in ((ab, 0, 1), (ba, 1, 0)):
+        assert got.conflicts["a-b"] == 0
+        assert got.timelines[first].wait_s.sum() == 0 and got.timelines[later].wait_s.sum() > 0
+        assert [len(line.arrive_s) for line in got.timelines] == [len(w.q) for w in works]
+        np.testing.assert_allclose(got.timelines[1].at(np.array([0.0]))[0][0], works[1].q[0])
+    # b alone (shorter, no wait) ends sooner than a with its wait
+    assert ba.timelines[1].end_s < ab.timelines[1].end_s
+
+
 def test_a_robot_that_would_meet_another_where_both_start_starts_parked():
     """Both robots start at the middle of the box: held at its first waypoint the second meets the first at time
     0 whatever it waits, so it starts parked, waits there, and the schedule is free of conflicts."""
@@ -275,4 +299,4 @@ def test_the_strokes_a_wait_is_tried_before_are_every_stroke_back_once_the_neare
     assert got[: len(near)] == near
     if j - first > sched.BACKTRACK:
         sparse = got[len(near) : got.index(first) + 1]
-        assert all(a > b for a, b in zip(sparse, sparse[1:])) and len(sparse) < j - first - sched.BACKTRACK
+        assert all(a > b for a, b in itertools.pairwise(sparse)) and len(sparse) < j - first - sched.BACKTRACK

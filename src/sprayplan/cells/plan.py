@@ -58,7 +58,7 @@ share, but the arms' swept spaces are not compared. With it (``--collisions``):
   transfer, so the film is made only by what the robots can paint, touch-ups cut the same way; after the
   film, the whole plan is checked again for the report (:func:`~sprayplan.cells.collide.check_cell`: what is
   left in collision is in the transfers between runs);
-- then the robots are scheduled (:mod:`~sprayplan.cells.schedule`): in the cell's order, a later robot waits,
+- then the robots are scheduled (:mod:`~sprayplan.cells.schedule`): the robot with the longest work first, a later robot waits,
   spray off, before a stroke that would bring it within the clearance of an earlier one, each robot parks
   when done, and the times of every waypoint, the waits and the cell's cycle time (the longest robot's, with
   its waits, no step faster than its axis and track speeds) go into the plan.

@@ -12,7 +12,14 @@ keeping them apart in space alone is not proven. :func:`schedule_cell` keeps the
    ``robots.opw``) and the track's speed allow for its largest joint or track move; the joints and the track
    move linearly between waypoints. An unreached waypoint (no joints) holds the last reached configuration (the first reached one
    before any).
-2. **Priority in the cell's order**: the first robot (the roof robot of ``line3``) never waits. Each later
+2. **Priority by the length of the work** (:func:`scheduled`): the robot whose timeline (step 1, no waits) is
+   longest goes first and never waits, then the next longest, and so on (ties in the cell's order): every wait
+   adds to the robot that waits, so the robots with the most slack to the cycle wait. (On the BMW in
+   ``line3`` the roof robot, whose work is half as long as a side robot's, went first in session 12: the side
+   robots then waited out its routed transfers, by 223 s before a stroke 70 strokes back for the right one,
+   cycle 1,549.8 s, the schedule 489 s of work; with the sides first the roof robot waits 63 s over 13
+   strokes, the right one 0.5 s, the cycle is 1,459.2 s (the left robot's own time: no schedule of these
+   timelines is shorter), the schedule 1.9 s, and no sample is too close either way.) :func:`schedule_cell` takes any order (``priority``). Each later
    robot is scheduled against the timelines of the robots before it, stroke by stroke: before a stroke starts
    it may wait at the stroke's first waypoint, spray off (never in the middle of a stroke, where a stop would
    spoil the film), for the least whole number of ``WAIT_STEP_S`` that makes the wait and the stroke free of
@@ -23,10 +30,10 @@ keeping them apart in space alone is not proven. :func:`schedule_cell` keeps the
    ``BACKTRACK`` strokes before it is tried, then before strokes ever farther back (each ``BACKTRACK_GROWTH``
    times farther, back to the first), then before every stroke between (:func:`_backtrack`), the strokes
    between moved with it: where an earlier robot's transfer sweeps through the place where this one would
-   hold, it must be made to arrive there later. On the BMW in ``line3`` the roof robot's routed transfers left
-   49 samples too close with six strokes back, 31 with the strokes far back tried sparsely, none with every
-   stroke back tried (the right robot then waits 223 s before a stroke 70 strokes before the one in the
-   way). If none up to ``MAX_WAIT_S`` frees it, it is not delayed and its conflict is counted (data, as a
+   hold, it must be made to arrive there later. On the BMW in ``line3`` with the roof robot first (session 13)
+   its routed transfers left 49 samples too close with six strokes back, 31 with the strokes far back tried
+   sparsely, none with every stroke back tried (the right robot then waited 223 s before a stroke 70 strokes
+   before the one in the way; with the longest work first no wait needs to go back). If none up to ``MAX_WAIT_S`` frees it, it is not delayed and its conflict is counted (data, as a
    collision is).
    When a robot has done its work it **parks** (:func:`park_joints`): a joint move, at its axis speeds, to the
    configuration of a small set (axis 1 turned 0, 90, -90 or 180 degrees, axes 2 and 3 folded back) farthest
@@ -364,6 +371,8 @@ class Schedule:
         Per robot: strokes delayed and the seconds waited.
     cycle_time_s : float
         The longest robot's time, waits included.
+    priority : tuple of str
+        The robots' names in the order they were scheduled in (the first never waits).
     """
 
     timelines: tuple
@@ -371,11 +380,13 @@ class Schedule:
     conflicts: dict
     waits: dict
     cycle_time_s: float
+    priority: tuple = ()
 
     def summary(self) -> dict:
         return {
-            "rule": "robots in the cell's order; a later robot waits, spray off, before a stroke that would come "
+            "rule": "robots in priority order; a later robot waits, spray off, before a stroke that would come "
             f"within the clearance of an earlier robot (samples every {DT_S:g} s, waits of {WAIT_STEP_S:g} s)",
+            "priority": list(self.priority),
             "cycle_time_s": round(self.cycle_time_s, 3),
             "robot_time_s": {name: round(line.end_s, 3) for name, line in zip(self.waits, self.timelines)},
             "waits": self.waits,
@@ -449,18 +460,24 @@ def schedule_cell(
     track_speeds=None,
     times=None,
     track_ranges=None,
+    priority=None,
 ) -> Schedule:
-    """Schedule the robots' work (``RobotWork`` each, in the cell's order) with their ``ArmCollision`` models
+    """Schedule the robots' work (``RobotWork`` each) with their ``ArmCollision`` models
     (module docstring); ``track_speeds``: each robot's track speed, mm/s (None without a track); ``times``:
     each robot's timed arrival at its waypoints (``cells.timing``), in place of :func:`waypoint_times`;
-    ``track_ranges``: each robot's track ends (lo, hi) mm or None, where its park may be too."""
+    ``track_ranges``: each robot's track ends (lo, hi) mm or None, where its park may be too; ``priority``: the
+    robots' indices in the order they are scheduled in (the first never waits; default: as given). The
+    timelines and the summary are in the robots' own order."""
     names = [w.name for w in robots]
-    timelines: list[Timeline] = []
-    sampled: list[_Sampled] = []
-    waits: dict = {}
+    order = list(range(len(robots))) if priority is None else [int(k) for k in priority]
+    timelines: list = [None] * len(robots)
+    by_robot: list = [None] * len(robots)
+    sampled: list[_Sampled] = []  # the robots scheduled so far, in priority order
+    waited: dict = {}
     held = [_held(np.asarray(w.q, dtype=float), np.asarray(w.track_mm, dtype=float), w.reachable) for w in robots]
     points = [work_points(arm, *h) if len(h[0]) else np.zeros((0, 4)) for arm, h in zip(arms, held)]
-    for k, (w, arm) in enumerate(zip(robots, arms)):
+    for rank, k in enumerate(order):
+        w, arm = robots[k], arms[k]
         others = np.concatenate([p for i, p in enumerate(points) if i != k] or [np.zeros((0, 4))])
         track_speed = None if track_speeds is None else track_speeds[k]
         track_range = None if track_ranges is None else track_ranges[k]
@@ -472,7 +489,7 @@ def schedule_cell(
         starts = np.cumsum([0] + [len(s) for s in w.strokes])[:-1]
         chosen = np.zeros(len(starts))
         parked = False  # the robot starts parked, its first move the approach (the first stroke's hold fails)
-        if k and len(t0):
+        if rank and len(t0):
             # held at its first waypoint it would meet an earlier robot, whatever it waited: it starts parked
             if _block_wait(arm, t0, q, track, starts, chosen, 0, 0, sampled, clearance_mm) is None:
                 home, _ = park_joints(arm, q[0], float(track[0]), others)
@@ -503,16 +520,18 @@ def schedule_cell(
             knots[3] = knots[3][1:]
             chosen = np.r_[chosen[0], chosen[2:]]
         line = Timeline(knots[0], knots[1], knots[2], knots[3], chosen)
-        timelines.append(line)
+        timelines[k] = line
         g = _grid(0.0, line.end_s) if len(t0) else np.zeros(1, dtype=int)
-        sampled.append(
+        by_robot[k] = (
             _Sampled.of(arm, *line.at(g * DT_S)) if len(t0) else _Sampled.of(arm, np.zeros((1, 6)), np.zeros(1))
         )
-        waits[w.name] = {"strokes_delayed": int((chosen > 0).sum()), "waited_s": round(float(chosen.sum()), 3)}
+        sampled.append(by_robot[k])
+        waited[k] = {"strokes_delayed": int((chosen > 0).sum()), "waited_s": round(float(chosen.sum()), 3)}
+    waits = {robots[k].name: waited[k] for k in range(len(robots))}
     cycle = max((tl.end_s for tl in timelines), default=0.0)
     everywhere = _grid(0.0, cycle)
     gaps, conflicts = {}, {}
-    for (i, a), (j, b) in itertools.combinations(enumerate(sampled), 2):
+    for (i, a), (j, b) in itertools.combinations(enumerate(by_robot), 2):
         ra, rb = a.rows(everywhere), b.rows(everywhere)
         found = _gaps(a, ra, b, rb, clearance_mm)
         least = math.inf
@@ -525,25 +544,34 @@ def schedule_cell(
         conflicts[key] = sum(
             _refined_conflict(timelines[i], arms[i], timelines[j], arms[j], g * DT_S, clearance_mm) for g in suspects
         )
-    return Schedule(tuple(timelines), gaps, conflicts, waits, cycle)
+    return Schedule(tuple(timelines), gaps, conflicts, waits, cycle, tuple(robots[k].name for k in order))
 
 
 def scheduled(cell, robots: tuple, arms, job) -> tuple[tuple, dict]:
     """The robots' work with its schedule's times and waits (:func:`schedule_cell`,
-    with the ``[motion]`` speeds, the tracks' speeds and the ``[collision]`` clearance), and the schedule's
-    summary."""
+    with the ``[motion]`` speeds, the tracks' speeds and the ``[collision]`` clearance, the robot with the
+    longest work first: module docstring, step 2), and the schedule's summary."""
     tracks = [None if r.track is None else r.track.speed_mm_s for r in cell.robots]
     ranges = [None if r.track is None else tuple(r.track.range_mm) for r in cell.robots]
     timed = job.timing.enabled and all(r.t_s is not None for r in robots)
+    times = [r.t_s for r in robots] if timed else None
+    speed, transfer = job.motion.gun_speed_mm_s, job.motion.transfer_speed_mm_s
+    own = [
+        float(np.asarray(times[k])[-1:].sum())
+        if times is not None
+        else float(waypoint_times(r, speed, transfer, arms[k].params.max_speed, tracks[k])[-1:].sum())
+        for k, r in enumerate(robots)
+    ]
     plan = schedule_cell(
         robots,
         arms,
-        job.motion.gun_speed_mm_s,
-        job.motion.transfer_speed_mm_s,
+        speed,
+        transfer,
         job.collision.clearance_mm,
         tracks,
-        times=[r.t_s for r in robots] if timed else None,
+        times=times,
         track_ranges=ranges,
+        priority=sorted(range(len(robots)), key=lambda k: -own[k]),
     )
     out = tuple(
         replace(
