@@ -146,6 +146,11 @@ def test_tilted_turns_the_aim_about_the_direction_of_travel():
     np.testing.assert_allclose(turned.tcp, turned.points + H * turned.normals)
     assert turned.kind == "touch-up"
     assert tilted(stroke, 0.0, H) is stroke
+    # across: about the axis across the travel (+z x +x = +y), the aim's axis leans toward the travel (+x)
+    leaned = tilted(stroke, 30.0, H, across=True)
+    np.testing.assert_array_equal(leaned.points, stroke.points)
+    np.testing.assert_allclose(leaned.normals, [[math.sin(math.radians(30)), 0.0, math.cos(math.radians(30))]] * count)
+    np.testing.assert_allclose(leaned.tcp, leaned.points + H * leaned.normals)
 
 
 SLOPE = math.tan(math.radians(30.0))

@@ -106,7 +106,7 @@ def freed_cell(
         if config.repair:
 
             def resolve(piece, seed, cell_robot=cell_robot, arm=arm):
-                return resolved_piece(cell_robot, arm, piece, seed)
+                return resolved_piece(cell_robot, arm, piece, seed, standoff_mm or None)
 
         work, left = free_work(work, found, resolve)
         if config.repair and part is not None:

@@ -155,12 +155,14 @@ AIM_TILTS_DEG = (-40.0, -20.0, 0.0, 20.0, 40.0)
 AIM_SCALES = (0.25, 0.5, 1.0, 2.0)
 
 
-def tilted(stroke: Stroke, degrees: float, standoff_mm: float) -> Stroke:
+def tilted(stroke: Stroke, degrees: float, standoff_mm: float, across: bool = False) -> Stroke:
     """The stroke with its aim turned by ``degrees`` about its direction of travel at every waypoint (the
     waypoints stay; the gun moves round them at the standoff). Positive turns follow the right-hand rule
     about the direction of travel: at each waypoint the chord between its neighbours, or the stroke's
-    overall direction where that chord is zero or along the normal. A stroke without a direction (fewer than
-    two distinct waypoints) is returned unchanged."""
+    overall direction where that chord is zero or along the normal. With ``across``, the turn is about the
+    axis across the travel (normal x travel) instead: the gun leans forward or back along the stroke, a
+    positive turn bringing the aim's axis toward the direction of travel. A stroke without a direction (fewer
+    than two distinct waypoints) is returned unchanged."""
     overall = stroke.points[-1] - stroke.points[0] if len(stroke) else np.zeros(3)
     if degrees == 0.0 or len(stroke) < 2 or np.linalg.norm(overall) < 1e-9:
         return stroke
@@ -173,7 +175,8 @@ def tilted(stroke: Stroke, degrees: float, standoff_mm: float) -> Stroke:
     good = np.linalg.norm(tangent, axis=1) > 1e-12
     tangent = nm.unit(np.where(good[:, None], tangent, 0.0))
     angle = np.radians(degrees)
-    turned = stroke.normals * np.cos(angle) + np.cross(tangent, stroke.normals) * np.sin(angle)
+    # about the travel t: n cos + (t x n) sin; about the axis across it, s = n x t: (s x n) = t
+    turned = stroke.normals * np.cos(angle) + (tangent if across else np.cross(tangent, stroke.normals)) * np.sin(angle)
     normals = np.where(good[:, None], nm.unit(turned), stroke.normals)
     return Stroke(
         stroke.points,
