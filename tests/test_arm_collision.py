@@ -535,25 +535,28 @@ def test_runs_in_collision_solved_on_their_own_are_free_and_painted(tmp_path):
 
 def test_a_piece_no_untilted_try_frees_is_painted_with_the_gun_tilted_round_its_targets(tmp_path):
     """``resolved_piece`` with the standoff: the runs no (track, roll, branch) try frees get the gun tilted
-    (``PIECE_TILTS_DEG``), so more waypoints are painted than without; a tilted piece aims at its own targets
-    (the same points), its gun at the standoff along its new axis, that axis turned by one of the tilts,
+    (``piece_tilts`` of the default ``piece_tilt_deg``), so more waypoints are painted than without; a tilted
+    piece aims at its own targets (the same points), its gun at the standoff along its new axis, that axis turned by one of the tilts,
     sideways (within the plane across the travel) or along the travel (within the plane of the normal and the
     travel), and the arm's FK at the tilted poses, free of the body."""
-    from sprayplan.cells.repair import PIECE_TILTS_DEG, free_work, resolved_piece
+    from sprayplan.cells.repair import free_work, piece_tilts, resolved_piece
     from tests.test_cell_plan import SIZE
 
     cell, plan, arms = _box_cell(tmp_path, SIZE)
     standoff = plan.job.paths.standoff_mm
+    tilts = piece_tilts(plan.job.collision.piece_tilt_deg)
+    assert tilts == tuple((across, a) for across in (False, True) for a in (20.0, -20.0, 40.0, -40.0))
+    assert piece_tilts(0.0) == ()
     work, arm, robot = plan.robots[1], arms[1], cell.robots[1]
     found = check_robot(arm, work.q, work.track_mm, work.reachable)
     pieces = []
 
     def resolve(piece, seed):
-        got = resolved_piece(robot, arm, piece, seed, standoff)
+        got = resolved_piece(robot, arm, piece, seed, standoff, tilts)
         pieces.append((piece, got))
         return got
 
-    _, flat = free_work(work, found, lambda piece, seed: resolved_piece(robot, arm, piece, seed))
+    _, flat = free_work(work, found, lambda piece, seed: resolved_piece(robot, arm, piece, seed, standoff))
     tilted, counts = free_work(work, found, resolve)
     assert counts["pieces_tilted"] >= 1 and counts["waypoints_resolved"] > flat["waypoints_resolved"]
     assert counts["left_out_in_collision"] < flat["left_out_in_collision"]
@@ -564,7 +567,7 @@ def test_a_piece_no_untilted_try_frees_is_painted_with_the_gun_tilted_round_its_
         np.testing.assert_array_equal(aimed.points, piece.points)
         np.testing.assert_allclose(aimed.tcp, aimed.points + standoff * aimed.normals, atol=1e-9)
         turned = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", aimed.normals, piece.normals), -1, 1)))
-        assert any(np.allclose(turned, abs(t), atol=1e-6) for _, t in PIECE_TILTS_DEG)
+        assert any(np.allclose(turned, abs(t), atol=1e-6) for _, t in tilts)
         travel = np.gradient(piece.points, axis=0)
         travel -= np.einsum("ij,ij->i", travel, piece.normals)[:, None] * piece.normals
         change = aimed.normals - piece.normals

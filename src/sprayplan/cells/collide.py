@@ -89,10 +89,11 @@ def freed_cell(
     (``cells.plan.plan_cell``). ``since``: per robot name, the strokes before this index were freed already
     (a touch-up round appends strokes): only the later ones are checked, cut and routed. Returns the robots
     and per robot the repairs', the cut's and the routes' counts."""
-    from sprayplan.cells.repair import free_work, resolved_piece
+    from sprayplan.cells.repair import free_work, piece_tilts, resolved_piece
     from sprayplan.cells.routes import routed_work
 
     out, counts = [], {}
+    tilts = piece_tilts(config.piece_tilt_deg) if standoff_mm > 0 else ()
     for cell_robot, work, arm in zip(cell.robots, robots, arms):
         repairs, routes = {}, {}
         first = 0 if since is None else int(since.get(work.name, 0))
@@ -106,7 +107,7 @@ def freed_cell(
         if config.repair:
 
             def resolve(piece, seed, cell_robot=cell_robot, arm=arm):
-                return resolved_piece(cell_robot, arm, piece, seed, standoff_mm or None)
+                return resolved_piece(cell_robot, arm, piece, seed, standoff_mm, tilts)
 
         work, left = free_work(work, found, resolve)
         if config.repair and part is not None:

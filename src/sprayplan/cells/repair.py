@@ -17,12 +17,19 @@ from sprayplan.surface.poses import stroke_poses
 #: this many of those in collision before, then up to :data:`SCREEN_SPREAD` spread along the stroke.
 SCREEN_QUICK = 16
 SCREEN_SPREAD = 64
-#: The tilts of the gun tried for a piece in collision that no untilted try frees, ``(across, degrees)`` in the
-#: order tried: sideways (about the direction of travel), then leaning forward or back (about the axis across
-#: it; ``refine.touchup.tilted``: the targets stay, the gun moves round them at the standoff). The film is made
-#: with the gun as tilted. On the BMW in ``line3`` the sideways tilts left 231 of 350 waypoints in collision,
-#: with the leaning ones 153; tilts of 60 degrees freed none more.
-PIECE_TILTS_DEG = tuple((across, a) for across in (False, True) for a in (20.0, -20.0, 40.0, -40.0))
+
+
+def piece_tilts(max_deg: float) -> tuple:
+    """The tilts of the gun tried for a piece in collision that no untilted try frees (``[collision]
+    piece_tilt_deg``), ``(across, degrees)`` in the order tried: half of ``max_deg`` and all of it, either way,
+    sideways (about the direction of travel), then leaning forward or back (about the axis across it;
+    ``refine.touchup.tilted``: the targets stay, the gun moves round them at the standoff); () for 0. On the BMW
+    in ``line3`` (40 degrees) the sideways tilts left 231 of the 350 spray waypoints of the planned strokes in
+    collision, with the leaning ones 153; tilts of 60 degrees sideways freed none more
+    (``bench/bench_piece_tilts.py``)."""
+    if max_deg <= 0:
+        return ()
+    return tuple((across, a) for across in (False, True) for a in (max_deg / 2, -max_deg / 2, max_deg, -max_deg))
 
 
 def _screened(arm, ordered: list, colliding: np.ndarray) -> list:
@@ -86,21 +93,20 @@ def _candidates(cell_robot, robot, stroke, seed: np.ndarray, need: np.ndarray) -
     return ordered
 
 
-def resolved_piece(cell_robot, arm, piece, seed: np.ndarray, standoff_mm: float | None = None):
+def resolved_piece(cell_robot, arm, piece, seed: np.ndarray, standoff_mm: float = 0.0, tilts: tuple = ()):
     """A piece of a stroke (a run of its waypoints in collision, with a free waypoint either side where there is
     one) solved on its own: the first (track position, roll) try and IK branch (:func:`_candidates`, from
-    ``seed``) that reaches every waypoint with no waypoint and no motion in collision; failing that, with
-    ``standoff_mm`` (the plan's), the same for the piece with its gun tilted by each of
-    :data:`PIECE_TILTS_DEG` in turn, sideways or along the travel (near a mirror or in a recess the gun leans
-    away from what it would touch, and still aims at the same targets). ``(joints, track, roll_deg, piece)`` (the piece as painted,
+    ``seed``) that reaches every waypoint with no waypoint and no motion in collision; failing that, the same
+    for the piece with its gun tilted by each of ``tilts`` (:func:`piece_tilts`) in turn at ``standoff_mm`` (the
+    plan's), sideways or along the travel (near a mirror or in a recess the gun leans away from what it would
+    touch, and still aims at the same targets). ``(joints, track, roll_deg, piece)`` (the piece as painted,
     tilted or not) or None."""
     from sprayplan.collision.arms import plan_collides
     from sprayplan.refine.touchup import tilted
 
     robot = cell_robot.robot(0.0)
     need = np.ones(len(piece), bool)
-    tilts = ((False, 0.0),) if standoff_mm is None else ((False, 0.0), *PIECE_TILTS_DEG)
-    for across, angle in tilts:
+    for across, angle in ((False, 0.0), *tilts):
         aimed = tilted(piece, angle, standoff_mm, across) if angle else piece
         if angle and aimed is piece:  # a piece without a direction of travel does not tilt
             break
