@@ -1,8 +1,8 @@
 """The repairs of a cell robot's strokes in collision (``sprayplan plan --cell ... --collisions``): every track
 position and roll of the stroke (:func:`~sprayplan.cells.tries.stroke_tries`) and every IK branch, screened in
 batched yes/no checks, the first free kept (:func:`repaired_work`); a run of waypoints still in collision
-solved on its own, with the gun tilted sideways about its targets when no untilted try frees it
-(:func:`resolved_piece`)."""
+solved on its own, with the gun tilted about its targets (sideways, then forward or back) when no untilted
+try frees it (:func:`resolved_piece`)."""
 
 from __future__ import annotations
 
