@@ -225,6 +225,21 @@ def test_the_robot_first_in_priority_never_waits_and_the_result_stays_in_the_rob
     assert ba.timelines[1].end_s < ab.timelines[1].end_s
 
 
+def test_a_robot_with_no_work_is_scheduled_idle_and_the_other_never_waits():
+    """A cell robot given no area (no strokes, no waypoints) has an empty timeline and is left out of the checks
+    (its pair has no gap and no conflict); the other robot's schedule is its own timing, no wait, and the cycle
+    is its time."""
+    works, arms = _facing_works()
+    b = works[1]
+    idle = replace(b, strokes=(), area=np.zeros(0, np.int64), track_mm=np.zeros(0), roll_deg=np.zeros(0),
+                   q=np.zeros((0, 6)), reachable=np.zeros(0, bool))  # fmt: skip
+    for order in (None, [1, 0]):
+        got = sched.schedule_cell([works[0], idle], arms, 400.0, 1000.0, 30.0, priority=order)
+        assert len(got.timelines[1].arrive_s) == 0 and got.timelines[1].end_s == 0.0
+        assert got.timelines[0].wait_s.sum() == 0 and got.conflicts["a-b"] == 0 and got.least_gap_mm["a-b"] is None
+        assert got.cycle_time_s == got.timelines[0].end_s > works[0].cycle_time_s(400.0, 1000.0) - 1e-9
+
+
 def test_a_robot_that_would_meet_another_where_both_start_starts_parked():
     """Both robots start at the middle of the box: held at its first waypoint the second meets the first at time
     0 whatever it waits, so it starts parked, waits there, and the schedule is free of conflicts."""

@@ -288,6 +288,8 @@ def _knots(t0, q, track, starts, waits):
             qs.append(q[i])
             tracks.append(track[i])
     times = np.asarray(times)
+    if not n:  # a robot with no work (no area given to it)
+        return times, np.zeros((0, np.shape(q)[1] if np.ndim(q) == 2 else 0)), np.zeros(0), arrive
     keep = np.r_[True, np.diff(times) > 1e-12]  # zero-length steps (a stroke's end and the next's start)
     return times[keep], np.asarray(qs)[keep], np.asarray(tracks)[keep], arrive
 
@@ -522,23 +524,26 @@ def schedule_cell(
         line = Timeline(knots[0], knots[1], knots[2], knots[3], chosen)
         timelines[k] = line
         g = _grid(0.0, line.end_s) if len(t0) else np.zeros(1, dtype=int)
-        by_robot[k] = (
-            _Sampled.of(arm, *line.at(g * DT_S)) if len(t0) else _Sampled.of(arm, np.zeros((1, 6)), np.zeros(1))
-        )
-        sampled.append(by_robot[k])
+        # a robot with no work (no area given to it) has no motion to keep apart: it is left out of the checks
+        by_robot[k] = _Sampled.of(arm, *line.at(g * DT_S)) if len(t0) else None
+        if by_robot[k] is not None:
+            sampled.append(by_robot[k])
         waited[k] = {"strokes_delayed": int((chosen > 0).sum()), "waited_s": round(float(chosen.sum()), 3)}
     waits = {robots[k].name: waited[k] for k in range(len(robots))}
     cycle = max((tl.end_s for tl in timelines), default=0.0)
     everywhere = _grid(0.0, cycle)
     gaps, conflicts = {}, {}
     for (i, a), (j, b) in itertools.combinations(enumerate(by_robot), 2):
+        key = f"{names[i]}-{names[j]}"
+        if a is None or b is None:  # a robot with no work: no program, nothing of its motion to check
+            gaps[key], conflicts[key] = None, 0
+            continue
         ra, rb = a.rows(everywhere), b.rows(everywhere)
         found = _gaps(a, ra, b, rb, clearance_mm)
         least = math.inf
         for c in range(0, len(everywhere), 4096):
             part = slice(c, c + 4096)
             least = min(least, float(pair_gaps(a.segments[ra[part]], a.radii, b.segments[rb[part]], b.radii).min()))
-        key = f"{names[i]}-{names[j]}"
         gaps[key] = None if math.isinf(least) else round(least, 1)
         suspects = everywhere[found < 0]
         conflicts[key] = sum(
