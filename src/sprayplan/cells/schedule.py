@@ -15,11 +15,12 @@ keeping them apart in space alone is not proven. :func:`schedule_cell` keeps the
 2. **Priority by the length of the work** (:func:`scheduled`): the robot whose timeline (step 1, no waits) is
    longest goes first and never waits, then the next longest, and so on (ties in the cell's order): every wait
    adds to the robot that waits, so the robots with the most slack to the cycle wait. (On the BMW in
-   ``line3`` the roof robot, whose work is half as long as a side robot's, went first in session 12: the side
-   robots then waited out its routed transfers, by 223 s before a stroke 70 strokes back for the right one,
-   cycle 1,549.8 s, the schedule 489 s of work; with the sides first the roof robot waits 63 s over 13
-   strokes, the right one 0.5 s, the cycle is 1,459.2 s (the left robot's own time: no schedule of these
-   timelines is shorter), the schedule 1.9 s, and no sample is too close either way.) :func:`schedule_cell` takes any order (``priority``). Each later
+   ``line3`` the roof robot, whose work is half as long as a side robot's, went first until session 14 (the
+   cell's order): the side robots then waited out its routed transfers, the right one 223 s before a stroke
+   70 strokes back, cycle 1,549.8 s, the schedule 370 s of work; with the sides first the roof robot waits
+   63 s over 13 strokes, the right one 0.5 s, the cycle is 1,459.2 s (the left robot's own time: no schedule
+   of these timelines is shorter), the schedule 2.6 s, and no sample is too close either way.)
+   :func:`schedule_cell` takes any order (``priority``). Each later
    robot is scheduled against the timelines of the robots before it, stroke by stroke: before a stroke starts
    it may wait at the stroke's first waypoint, spray off (never in the middle of a stroke, where a stop would
    spoil the film), for the least whole number of ``WAIT_STEP_S`` that makes the wait and the stroke free of
@@ -33,7 +34,8 @@ keeping them apart in space alone is not proven. :func:`schedule_cell` keeps the
    hold, it must be made to arrive there later. On the BMW in ``line3`` with the roof robot first (session 13)
    its routed transfers left 49 samples too close with six strokes back, 31 with the strokes far back tried
    sparsely, none with every stroke back tried (the right robot then waited 223 s before a stroke 70 strokes
-   before the one in the way; with the longest work first no wait needs to go back). If none up to ``MAX_WAIT_S`` frees it, it is not delayed and its conflict is counted (data, as a
+   before the one in the way; with the longest work first no wait needs to go back). If none up to
+   ``MAX_WAIT_S`` frees it, it is not delayed and its conflict is counted (data, as a
    collision is).
    When a robot has done its work it **parks** (:func:`park_joints`): a joint move, at its axis speeds, to the
    configuration of a small set (axis 1 turned 0, 90, -90 or 180 degrees, axes 2 and 3 folded back) farthest
@@ -289,7 +291,7 @@ def _knots(t0, q, track, starts, waits):
             tracks.append(track[i])
     times = np.asarray(times)
     if not n:  # a robot with no work (no area given to it)
-        return times, np.zeros((0, np.shape(q)[1] if np.ndim(q) == 2 else 0)), np.zeros(0), arrive
+        return times, np.asarray(q)[:0], np.zeros(0), arrive
     keep = np.r_[True, np.diff(times) > 1e-12]  # zero-length steps (a stroke's end and the next's start)
     return times[keep], np.asarray(qs)[keep], np.asarray(tracks)[keep], arrive
 
