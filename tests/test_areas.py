@@ -325,14 +325,21 @@ def test_areas_command_with_the_collision_model_reaches_no_more_and_needs_link_s
     suv = testdata / "meshes" / "gazebo_suv_body_m.ply"
     plain, checked = tmp_path / "plain.csv", tmp_path / "checked.csv"
     assert _run(["-q", "areas", suv, "--units", "m", "--cell", "sides2", "-o", plain], capsys)[0] == 0
-    code, _, err = _run(["-q", "areas", suv, "--units", "m", "--cell", "sides2", "--collisions", "-o", checked], capsys)
+    tilted = tmp_path / "tilted.csv"
+    base = ["-q", "areas", suv, "--units", "m", "--cell", "sides2", "--collisions"]
+    code, _, err = _run([*base, "--piece-tilt-deg", "0", "-o", checked], capsys)
     assert code == 0, err
-    a, b = list(csv.DictReader(plain.open())), list(csv.DictReader(checked.open()))
-    assert [r["face"] for r in a] == [r["face"] for r in b]
+    code, _, err = _run([*base, "-o", tilted], capsys)
+    assert code == 0, err
+    a, b, c = (list(csv.DictReader(f.open())) for f in (plain, checked, tilted))
+    assert [r["face"] for r in a] == [r["face"] for r in b] == [r["face"] for r in c]
     reached = np.array([r["robot"] != "" for r in a])
     reached_free = np.array([r["robot"] != "" for r in b])
+    reached_tilted = np.array([r["robot"] != "" for r in c])
     assert not (reached_free & ~reached).any()  # the model only takes reach away
     assert reached_free.sum() < reached.sum()  # and on this body it does (1,002 faces reached against 594)
+    # the gun tilted by up to 40 degrees (the default) gives some of it back, and takes none away
+    assert not (reached_free & ~reached_tilted).any() and reached_tilted.sum() > reached_free.sum()
     # a cell of a robot the collision model has no link sizes for: one line, exit 2, nothing written
     ur = tmp_path / "ur.toml"
     ur.write_text('[[robot]]\nname = "a"\nmodel = "ur5"\nbase_mm = [0, 1500, 0]\n')
@@ -348,6 +355,7 @@ def test_areas_command_with_the_collision_model_reaches_no_more_and_needs_link_s
         (["--min-share", "2"], "--min-share"),
         (["--standoff-mm", "nan"], "--standoff-mm"),
         (["--floor-facing-deg", "nan"], "--floor-facing-deg"),
+        (["--piece-tilt-deg", "90"], "--piece-tilt-deg"),
     ],
 )
 def test_areas_bad_options_are_one_line_and_write_nothing(testdata, tmp_path, capsys, extra, words):
@@ -388,6 +396,35 @@ def test_a_split_areas_seam_moves_to_where_both_robots_reach_well():
     # without the rule (robust 0) the band stays with robot 0, the seam at the edge of its reach
     edge = assign_areas(areas, box.face_areas, reach, robust=0.0)
     assert np.all(edge.face_robot[weak] == 0)
+
+
+def test_a_robot_that_reaches_an_area_only_tilted_does_not_take_it_from_one_that_reaches_most_of_it_straight():
+    """``assign_areas`` with tilt-only scores (``TILTED``): the top goes to robot 1, which reaches 3/4 of it
+    along the normal, not to robot 0, which reaches all of it but only tilted; the quarter robot 1 does not
+    reach goes to robot 0 (tilted is reached). Counting tilt-only faces as covered would give robot 0 the top."""
+    from sprayplan.surface.areas import TILTED
+
+    box = grid_box()
+    areas = segment_areas(box, min_share=0.0)
+    x = box.triangles.mean(axis=1)[:, 0]
+    top = areas.direction.index("top")
+    on_top = areas.face_area == top
+    reach = np.zeros((2, len(box.faces)))
+    reach[0, on_top] = TILTED
+    reach[1, on_top & (x > -100.0)] = 0.5
+    got = assign_areas(areas, box.face_areas, reach)
+    assert got.area_robot[top] == 1 and got.split[top]
+    assert np.all(got.face_robot[on_top & (x > -100.0)] == 1)
+    assert np.all(got.face_robot[on_top & (x < -100.0)] == 0)
+    # an area no robot reaches straight goes to the one that reaches more of it tilted
+    reach[1] = 0.0
+    reach[1, on_top & (x > 0.0)] = TILTED
+    assert assign_areas(areas, box.face_areas, reach).area_robot[top] == 0
+    # counted as covered like any other face (the rule this replaces), the tilted robot takes the top
+    reach[1, on_top & (x > -100.0)] = 0.5
+    flat = np.where(reach > 0, 1.0, 0.0)
+    flat[1] = reach[1]
+    assert assign_areas(areas, box.face_areas, flat).area_robot[top] == 0
 
 
 def test_with_the_collision_model_a_face_reached_only_through_the_body_is_not_reached(bmw):
@@ -446,6 +483,45 @@ def test_with_the_collision_model_a_face_reached_only_through_the_body_is_not_re
         assert valid > 0 and free == 0
     for f in np.flatnonzero(kept[1])[:8]:
         assert free_tries(int(f))[1] > 0
+
+    # tilted tries (reach_tilts): the faces reached straight keep their scores, some lost ones come back at
+    # TILTED, and each of those has a tilted pose (the gun turned about the pose's x or y axis through the
+    # face's target, built here with scipy) that the robot reaches free
+    from scipy.spatial.transform import Rotation
+
+    from sprayplan.cells.reach import reach_tilts
+    from sprayplan.surface.areas import TILTED
+
+    tilts = reach_tilts(40.0)
+    assert tilts == tuple((axis, a) for axis in (0, 1) for a in (20.0, -20.0, 40.0, -40.0)) and reach_tilts(0.0) == ()
+    tilted = reach_matrix(cell, sub, normals[pick], 113.0, cluster_mm=0.0, arms=arms, tilts_deg=tilts)
+    np.testing.assert_array_equal(tilted[kept], checked[kept])
+    back = (tilted > 0) & ~kept
+    assert back[1].sum() >= 1 and np.all(tilted[back] == TILTED) and np.all(checked[kept] > TILTED)
+
+    def tilted_free(f: int) -> bool:
+        target = centres[pick][f]
+        straight = poses_at((target + 113.0 * normals[pick][f])[None], normals[pick][f][None])[0]
+        along = float((straight[:3, 3] - robot.base2cell[:3, 3]) @ robot.track.axis)  # as the straight tries
+        for axis, angle in tilts:
+            pose = straight.copy()
+            pose[:3, :3] = straight[:3, :3] @ Rotation.from_rotvec(np.radians(angle) * np.eye(3)[axis]).as_matrix()
+            pose[:3, 3] = target - 113.0 * pose[:3, 2]
+            for offset in TRACK_OFFSETS_MM:
+                s = float(np.clip(along + offset, *robot.track.range_mm))
+                for roll in ROLLS_DEG:
+                    c, sn = np.cos(np.radians(roll)), np.sin(np.radians(roll))
+                    rz = np.array([[c, -sn, 0, 0], [sn, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+                    moved = pose @ rz
+                    moved[:3, 3] -= s * robot.track.axis
+                    sols = solver.ik(moved[None])
+                    q = sols.q[0][sols.valid[0]]
+                    if len(q) and (~arm.check(q, np.full(len(q), s)).collides).any():
+                        return True
+        return False
+
+    for f in np.flatnonzero(back[1])[:4]:
+        assert tilted_free(int(f))
 
 
 def test_a_cell_files_description_is_its_description_and_it_is_placed_by_its_rules():

@@ -515,7 +515,9 @@ def test_runs_in_collision_solved_on_their_own_are_free_and_painted(tmp_path):
     _, left = free_work(work, found)
     pieced, counts = free_work(work, found, lambda piece, seed: resolved_piece(robot, arm, piece, seed))
     assert counts["pieces_resolved"] >= 1
-    assert counts["left_out_in_collision"] + counts["waypoints_resolved"] == left["left_out_in_collision"]
+    # every waypoint resolved was left out before, in collision or unreached
+    after = counts["left_out_in_collision"] + counts["left_out_unreached"] + counts["waypoints_resolved"]
+    assert after == left["left_out_in_collision"] + left["left_out_unreached"]
     again = check_robot(arm, pieced.q, pieced.track_mm, pieced.reachable)
     starts = np.r_[0, np.cumsum([len(s) for s in pieced.strokes])]
     for i, s in enumerate(pieced.strokes):
@@ -586,3 +588,52 @@ def test_a_piece_no_untilted_try_frees_is_painted_with_the_gun_tilted_round_its_
     kept = [s for s in tilted.strokes if s.spray_on]
     aimed = [got[3] for piece, got in pieces if got is not None and got[3] is not piece]
     assert aimed and all(any(s is a for s in kept) for a in aimed)
+
+
+def test_an_unreached_run_solved_on_its_own_is_painted_from_the_joints_before_it(tmp_path):
+    """``free_work`` with ``resolve``: a run of waypoints the stroke's one try does not reach (here made so by
+    marking a free run unreached) is solved on its own like a run in collision: where it gets a try, its
+    waypoints are painted (left out unreached drops by exactly those resolved), its solve starts from the
+    joints of the last reached waypoint before it, and the arm's FK puts the gun on its targets."""
+    import dataclasses
+
+    from sprayplan.cells.repair import free_work, resolved_piece
+    from tests.test_cell_plan import SIZE
+
+    cell, plan, arms = _box_cell(tmp_path, SIZE)
+    work, arm, robot = plan.robots[0], arms[0], cell.robots[0]
+    found = check_robot(arm, work.q, work.track_mm, work.reachable)
+    free = work.reachable & ~found.waypoint.collides
+    starts = np.r_[0, np.cumsum([len(s) for s in work.strokes])]
+    # the middle fifth of the first spray stroke that is free all along, marked unreached
+    i = next(
+        k for k, s in enumerate(work.strokes) if s.spray_on and len(s) >= 10 and free[starts[k] : starts[k + 1]].all()
+    )
+    a, n = starts[i], len(work.strokes[i])
+    lo, hi = a + 2 * n // 5, a + 3 * n // 5
+    reach = work.reachable.copy()
+    reach[lo:hi] = False
+    marked = dataclasses.replace(work, reachable=reach)
+    _, left = free_work(marked, found)
+    assert left["left_out_unreached"] == (~reach).sum() and (~reach).sum() >= hi - lo
+    seeds = []
+
+    def resolve(piece, seed):
+        seeds.append((piece, seed))
+        return resolved_piece(robot, arm, piece, seed)
+
+    pieced, counts = free_work(marked, found, resolve)
+    around = work.strokes[i].points[lo - a - 1 : hi - a + 1]  # the run with a reached waypoint either side
+    mine = [(p, s) for p, s in seeds if len(p) == len(around) and np.array_equal(p.points, around)]
+    assert len(mine) == 1
+    np.testing.assert_array_equal(mine[0][1], work.q[lo - 1])  # from the reached waypoint just before
+    _, plain = free_work(work, found, lambda piece, seed: resolved_piece(robot, arm, piece, seed))
+    assert counts["left_out_unreached"] == plain["left_out_unreached"] < left["left_out_unreached"]
+    got = np.stack([robot.robot(t).fk(j[None])[0] for t, j in zip(pieced.track_mm, pieced.q)])
+    tcp = np.concatenate([s.tcp for s in pieced.strokes])
+    normals = np.concatenate([s.normals for s in pieced.strokes])
+    want = poses_at(tcp, normals) @ _rolls(pieced.roll_deg)
+    np.testing.assert_allclose(got[:, :3, 3], want[:, :3, 3], atol=1e-6)
+    painted = np.concatenate([s.points for s in pieced.strokes if s.spray_on])
+    for p in work.strokes[i].points[lo - a : hi - a]:
+        assert np.min(np.linalg.norm(painted - p, axis=1)) < 1e-9

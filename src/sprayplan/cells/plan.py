@@ -52,8 +52,12 @@ share, but the arms' swept spaces are not compared. With it (``--collisions``):
 - the areas' reach counts a face only where a robot reaches it free of the part and the floor
   (:func:`~sprayplan.cells.reach.reach_matrix` with the cell's :func:`~sprayplan.cells.collide.cell_arms`), so
   surface reached only through the body (the inner faces of the sills under a car) is unreached, as data;
+  with ``[collision] repair``, a face no try along its normal reaches free is tried with the gun tilted by up
+  to ``piece_tilt_deg`` (:func:`~sprayplan.cells.reach.reach_tilts`) and counts as reached, though below any
+  face reached straight;
 - before the film, every robot's strokes are checked and repaired, then cut to what the robot paints free
-  (:func:`~sprayplan.cells.collide.freed_cell`, :func:`~sprayplan.cells.repair.free_work`): a waypoint still
+  (:func:`~sprayplan.cells.collide.freed_cell`, :func:`~sprayplan.cells.repair.free_work`; a run of
+  waypoints in collision or unreached solved again on its own, tilted where it must be): a waypoint still
   in collision, or unreached, is left out with the spray off and the runs on either side are joined by a
   transfer, so the film is made only by what the robots can paint, touch-ups cut the same way; after the
   film, the whole plan is checked again for the report (:func:`~sprayplan.cells.collide.check_cell`: what is
@@ -75,7 +79,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sprayplan.cells.film import film_at_timed_speeds, film_report, timed_film_summary
-from sprayplan.cells.reach import reach_matrix
+from sprayplan.cells.reach import reach_matrix, reach_tilts
 from sprayplan.cells.repair import repaired_work
 from sprayplan.cells.seams import SEAM_STEP_MM, SeamGuard, cut_stroke, feathered
 from sprayplan.cells.spec import Cell, place_part
@@ -486,7 +490,10 @@ def plan_cell(
         areas, assignment = whole_area(painted)
     else:
         areas = segment_areas(painted)
-        reach = reach_matrix(cell, painted, areas.face_normals, job.paths.standoff_mm, arms=arms)
+        tilts = ()  # tilted tries where the plan paints tilted: its pieces solved again (cells.repair)
+        if job.collision.check and job.collision.repair:
+            tilts = reach_tilts(job.collision.piece_tilt_deg)
+        reach = reach_matrix(cell, painted, areas.face_normals, job.paths.standoff_mm, arms=arms, tilts_deg=tilts)
         assignment = assign_areas(areas, painted.face_areas, reach)
     begin("paths and kinematics")
     guard = None

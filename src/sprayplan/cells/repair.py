@@ -1,8 +1,8 @@
 """The repairs of a cell robot's strokes in collision (``sprayplan plan --cell ... --collisions``): every track
 position and roll of the stroke (:func:`~sprayplan.cells.tries.stroke_tries`) and every IK branch, screened in
-batched yes/no checks, the first free kept (:func:`repaired_work`); a run of waypoints still in collision
-solved on its own, with the gun tilted about its targets (sideways, then forward or back) when no untilted
-try frees it (:func:`resolved_piece`)."""
+batched yes/no checks, the first free kept (:func:`repaired_work`); a run of waypoints still in collision, or
+unreached, solved on its own, with the gun tilted about its targets (sideways, then forward or back) when no
+untilted try reaches it free (:func:`resolved_piece`)."""
 
 from __future__ import annotations
 
@@ -94,8 +94,8 @@ def _candidates(cell_robot, robot, stroke, seed: np.ndarray, need: np.ndarray) -
 
 
 def resolved_piece(cell_robot, arm, piece, seed: np.ndarray, standoff_mm: float = 0.0, tilts: tuple = ()):
-    """A piece of a stroke (a run of its waypoints in collision, with a free waypoint either side where there is
-    one) solved on its own: the first (track position, roll) try and IK branch (:func:`_candidates`, from
+    """A piece of a stroke (a run of its waypoints in collision or unreached, with a free waypoint either side
+    where there is one) solved on its own: the first (track position, roll) try and IK branch (:func:`_candidates`, from
     ``seed``) that reaches every waypoint with no waypoint and no motion in collision; failing that, the same
     for the piece with its gun tilted by each of ``tilts`` (:func:`piece_tilts`) in turn at ``standoff_mm`` (the
     plan's), sideways or along the travel (near a mirror or in a recess the gun leans away from what it would
@@ -190,8 +190,9 @@ def free_work(work, found, resolve=None) -> tuple:
     stays as it was (a route ``cells.routes`` gave it included).
 
     With ``resolve(piece, seed) -> (joints, track, roll_deg, piece) or None`` (:func:`resolved_piece`), each run
-    of reached waypoints in collision is first solved again on its own, with a free waypoint either side where
-    there is one (so that the spray goes on without a gap): the stroke is then painted in pieces, each with its
+    of waypoints in collision or unreached is first solved again on its own, with a free waypoint either side
+    where there is one (so that the spray goes on without a gap), from the joints of the last reached waypoint
+    before it: the stroke is then painted in pieces, each with its
     own track position, roll and branch (and the piece as returned: its gun tilted, if it had to be), joined
     by transfers. A stroke's one try must suit all of it; a run near a mirror or in a recess often has a try of
     its own that is free.
@@ -209,6 +210,8 @@ def free_work(work, found, resolve=None) -> tuple:
 
     starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
     free = work.reachable & ~found.waypoint.collides
+    # the last reached waypoint at or before each one (-1: none), the joints an unreached run is solved from
+    last_reached = np.maximum.accumulate(np.where(work.reachable, np.arange(len(free)), -1)) if len(free) else free
     counts = {"left_out_in_collision": 0, "left_out_unreached": 0, "left_out_alone": 0}
     if resolve is not None:
         counts.update(pieces_resolved=0, waypoints_resolved=0, pieces_tilted=0)
@@ -227,13 +230,13 @@ def free_work(work, found, resolve=None) -> tuple:
         for s, e, _ in runs:
             covered[s:e] = True
         if resolve is not None:
-            hit = work.reachable[a:b] & ~ok
-            edges = np.flatnonzero(np.diff(np.r_[0, hit.astype(np.int8), 0]))
+            edges = np.flatnonzero(np.diff(np.r_[0, (~ok).astype(np.int8), 0]))
             for s, e in zip(edges[::2], edges[1::2]):
                 lo, hi = max(int(s) - 1, 0), min(int(e) + 1, n)
                 if hi - lo < 2:
                     continue
-                seed = work.q[a + lo - 1] if lo > 0 and work.reachable[a + lo - 1] else work.q[a + lo]
+                k = a + lo - 1 if lo > 0 and work.reachable[a + lo - 1] else last_reached[a + lo]
+                seed = work.q[k] if k >= 0 else start_joints(work.q.shape[1])
                 cut = cut_stroke(stroke, lo, hi)
                 solved = resolve(cut, seed)
                 if solved is not None:
@@ -244,7 +247,7 @@ def free_work(work, found, resolve=None) -> tuple:
                     counts["waypoints_resolved"] += int(e - s)
             runs.sort(key=lambda run: (run[0], run[1]))
         counts["left_out_in_collision"] += int((work.reachable[a:b] & ~ok & ~covered).sum())
-        counts["left_out_unreached"] += int((~work.reachable[a:b]).sum())
+        counts["left_out_unreached"] += int((~work.reachable[a:b] & ~covered).sum())
         counts["left_out_alone"] += int((ok & ~covered).sum())
         for s, e, solved in runs:
             as_was = solved is None and (s, e) == (0, n)  # the whole stroke, as it was solved

@@ -47,7 +47,7 @@ def cmd_areas(args) -> int:
 
     from sprayplan.cells import load_cell, place_part
     from sprayplan.cells.plan import area_surface
-    from sprayplan.cells.reach import reach_matrix
+    from sprayplan.cells.reach import reach_matrix, reach_tilts
     from sprayplan.config import CollisionConfig
     from sprayplan.errors import ConfigError
     from sprayplan.export.files import staged_files
@@ -64,6 +64,9 @@ def cmd_areas(args) -> int:
         raise ConfigError(f"--floor-facing-deg: must be in [0, 90], got {args.floor_facing_deg}")
     if not (0.0 <= args.min_share < 1.0):
         raise ConfigError(f"--min-share: must be in [0, 1), got {args.min_share}")
+    tilt_deg = CollisionConfig().piece_tilt_deg if args.piece_tilt_deg is None else args.piece_tilt_deg
+    if not (0.0 <= tilt_deg <= 60.0):
+        raise ConfigError(f"--piece-tilt-deg: must be in [0, 60], got {args.piece_tilt_deg}")
     cell = load_cell(args.cell)
     with _stage("load"):
         part = load_part(args.part, units=args.units, up=args.up)
@@ -91,7 +94,8 @@ def cmd_areas(args) -> int:
         with _stage("collision model"):
             arms = cell_arms(cell, painted, CollisionConfig(check=True))
     with _stage("reach"):
-        reach = reach_matrix(cell, painted, areas.face_normals, args.standoff_mm, arms=arms)
+        tilts = () if arms is None else reach_tilts(tilt_deg)  # as plan_cell tries them
+        reach = reach_matrix(cell, painted, areas.face_normals, args.standoff_mm, arms=arms, tilts_deg=tilts)
         assigned = assign_areas(areas, painted.face_areas, reach)
     names = [r.name for r in cell.robots]
     index = np.flatnonzero(kept)[parent]
@@ -159,6 +163,13 @@ def add_parsers(sub, common, add_load_options) -> None:
         action="store_true",
         help="count a face as reached only where a try of the robot is free of the part and the floor "
         "(the default [collision] settings; the industrial arms only)",
+    )
+    areas.add_argument(
+        "--piece-tilt-deg",
+        type=float,
+        default=None,
+        help="with --collisions: a face no try along its normal reaches free is tried with the gun tilted by up "
+        "to this much, as the plan does (0-60; default [collision] piece_tilt_deg, 40)",
     )
     add_load_options(areas)
     areas.set_defaults(func=cmd_areas)

@@ -16,7 +16,9 @@ steps, both over the mesh itself:
    areas: the roof, hood and boot lid face up (``top``), the two sides face +-y, the two ends face +-x.
 2. :func:`assign_areas`: given which robot reaches which face (:func:`reach_matrix` from the robots'
    inverse kinematics, a score in [0, 1] a face), each area goes to the robot that reaches the largest
-   share of its surface (ties: the higher mean score, then the lower robot index). An area no single robot
+   share of its surface with the gun along the normal (a face reached only with a tilted gun scores at most
+   :data:`TILTED` and counts only where that share ties, such as an area no robot reaches straight; ties
+   beyond that: the larger share reached at all, the higher mean score, then the lower robot index). An area no single robot
    reaches whole is split along the seam where the reach changes: its faces the chosen robot does not reach
    go to the robot that reaches them best, and so do its faces the chosen robot reaches only at the edge of
    its reach (a score under :data:`ROBUST`) where another robot scores more, so that the seam lies where both
@@ -281,6 +283,11 @@ def segment_areas(part: Part, min_share: float = MIN_SHARE, directions: dict | N
     )
 
 
+#: The score of a face a robot reaches only with its gun tilted off the normal
+#: (``cells.reach.reach_matrix``'s tilted tries): reached, but below any face reached along the normal, so that
+#: an area goes to the robot that paints it straight (:func:`assign_areas`).
+TILTED = 0.01
+
 #: In an area split between robots, a face stays with the area's robot only where it scores at least this, or
 #: no other robot scores more (:func:`assign_areas`).
 ROBUST = 0.5
@@ -297,7 +304,7 @@ def assign_areas(areas: Areas, face_area_mm2: np.ndarray, reach: np.ndarray, rob
         The part's face areas (``Part.face_areas``).
     reach : (r, m) float or bool
         How well robot ``i`` reaches face ``j``: 0 (not at all) to 1; a face counts as reached where it is
-        above 0.
+        above 0, and as reached straight (along its normal) where it is above :data:`TILTED`.
     """
     reach = np.asarray(reach, dtype=float)
     face_area_mm2 = np.asarray(face_area_mm2, dtype=float)
@@ -321,8 +328,9 @@ def assign_areas(areas: Areas, face_area_mm2: np.ndarray, reach: np.ndarray, rob
         if not r or total <= 0:
             continue
         covered = reached[:, mine] @ w / total
+        straight = (reach[:, mine] > TILTED) @ w / total
         score = (reach[:, mine] * reached[:, mine]) @ w / total
-        best = int(np.lexsort((np.arange(r), -score, -covered))[0])
+        best = int(np.lexsort((np.arange(r), -score, -covered, -straight))[0])
         if covered[best] <= 0:
             continue
         area_robot[a], share[a] = best, covered[best]
