@@ -360,6 +360,34 @@ def test_touch_ups_are_counted_and_carried_like_any_stroke(planned):
             assert len(s["q_rad"]) == len(s["track_mm"]) == len(s["reachable"]) == len(s["dwell"]) == n
 
 
+def test_touch_ups_are_visited_in_a_nearest_neighbour_tour_each_run_the_nearer_way():
+    """``touch_up_order``: a permutation of the strokes; each next stroke is the nearest (by either end) of those
+    left to where the last ended, run backwards exactly when its end is the nearer; checked against a brute
+    force of every step on random strokes."""
+    from sprayplan.cells.plan import touch_up_order
+    from sprayplan.types import Stroke
+
+    rng = np.random.default_rng(11)
+    strokes = []
+    for _ in range(25):
+        tcp = rng.uniform(-2000, 2000, (2, 3))
+        tcp = np.linspace(tcp[0], tcp[1], 5)
+        strokes.append(Stroke(tcp - [0, 0, 100], np.tile([0.0, 0.0, 1.0], (5, 1)), tcp))
+    start = np.array([0.0, 0.0, 500.0])
+    labels = list(range(100, 125))
+    order = touch_up_order(strokes, start, labels)
+    assert sorted(k for k, _ in order) == labels
+    at, left = start, set(range(25))
+    for label, back in order:
+        k = label - 100
+        gaps = {j: min(np.linalg.norm(strokes[j].tcp[0] - at), np.linalg.norm(strokes[j].tcp[-1] - at)) for j in left}
+        assert gaps[k] == min(gaps.values())
+        assert back == (np.linalg.norm(strokes[k].tcp[-1] - at) < np.linalg.norm(strokes[k].tcp[0] - at))
+        at = strokes[k].tcp[0] if back else strokes[k].tcp[-1]
+        left.remove(k)
+    assert touch_up_order([], start) == [] and touch_up_order(strokes[:1], None) == [(0, False)]
+
+
 def test_seed_001_table_4_in_one_command(tmp_path):
     """`plan --ruled case1_table4_r5150.toml --robot r5150`: the ten points of seed 001's table 4 with its
     joints theta1..theta4 (theta5, the roll about the vertical tool axis, moves nothing and is free)."""

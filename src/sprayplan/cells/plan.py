@@ -360,10 +360,36 @@ def _append(arrays: dict, track, roll, q, ok) -> None:
     arrays["ok"].append(ok)
 
 
+def touch_up_order(strokes: list, start, labels=None) -> list:
+    """``(label, reversed)`` of ``strokes`` in the order of a greedy nearest-neighbour tour from ``start`` ((3,)
+    mm, or None: from the first stroke's start): each next stroke is the one whose start or end (gun tip) is
+    nearest the end of the last, run backwards when its end is nearer. ``labels`` default to the indices."""
+    labels = list(range(len(strokes))) if labels is None else list(labels)
+    if not strokes:
+        return []
+    ends = np.array([[s.tcp[0], s.tcp[-1]] for s in strokes])  # (n, 2, 3)
+    left = np.ones(len(strokes), bool)
+    at = ends[0, 0] if start is None else np.asarray(start, float)
+    out = []
+    for _ in range(len(strokes)):
+        d = np.linalg.norm(ends - at, axis=2)  # (n, 2)
+        d[~left] = np.inf
+        k, back = np.unravel_index(int(np.argmin(d)), d.shape)
+        left[k] = False
+        out.append((labels[k], bool(back)))
+        at = ends[k, 1 - back]
+    return out
+
+
 def with_touch_ups(cell: Cell, robots: tuple, extra: list):
     """The robots with touch-up strokes (``refine.touchup``) added, each to the robot whose inverse kinematics
     reaches most of its waypoints (at least two), after a spray-off transfer from that robot's last stroke;
-    ``(robots, how many were added)``, or None when no robot reaches any of them."""
+    ``(robots, how many were added)``, or None when no robot reaches any of them.
+
+    A robot's touch-ups are painted in the order of a nearest-neighbour tour from the end of its last stroke
+    (:func:`touch_up_order`), each run whichever way starts nearer: the patches are found all over the body,
+    and in the order found the transfers between them crossed it (on the BMW in ``line3`` most of the
+    transfers left in collision were between two touch-ups)."""
     if not extra:
         return None
     solved = [solve_strokes(cr, extra) for cr in cell.robots]
@@ -374,11 +400,16 @@ def with_touch_ups(cell: Cell, robots: tuple, extra: list):
         {"area": [r.area], "track": [r.track_mm], "roll": [r.roll_deg], "q": [r.q], "ok": [r.reachable]} for r in robots
     ]
     added = 0
-    for k, stroke in enumerate(extra):
-        r = int(best[k])
-        if counts[r, k] < 2:
-            continue
+    tours = []
+    for r in range(len(robots)):
+        mine = [k for k in range(len(extra)) if best[k] == r and counts[r, k] >= 2]
+        start = grown[r][-1].tcp[-1] if grown[r] else None
+        tours += [(r, k, back) for k, back in touch_up_order([extra[k] for k in mine], start, mine)]
+    for r, k, back in tours:
         track, roll, q, ok = solved[r][k]
+        stroke = extra[k]
+        if back:
+            stroke, track, q, ok = stroke.reversed(), track[::-1], q[::-1], ok[::-1]
         pieces = [stroke]
         if grown[r]:
             transfer = transfer_stroke(grown[r][-1], stroke)
