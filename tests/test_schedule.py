@@ -77,9 +77,36 @@ def test_the_timelines_are_the_plans_timing_with_waits_only_before_strokes(box_p
         np.testing.assert_allclose(line.arrive_s, t0 + shifted, atol=1e-9)
         if k == 0:
             assert not line.wait_s.any()  # the first robot never waits
-        # then it parks: a joint move at its axis speeds to the park configuration
+        # then it parks: a joint move at its axis speeds to the park configuration; the first robot at the
+        # first candidate, a later one at the first candidate whose move and hold keep clear of the earlier
+        # robots (every candidate before it not clear)
         ends = None if tracks[k] is None else tuple(plan.cell.robots[k].track.range_mm)
-        park, at = sched.park_joints(arms[k], q[-1], float(track[-1]), _others(plan.robots, arms, k), ends, tracks[k])
+        tries = sched.park_candidates(arms[k], q[-1], float(track[-1]), _others(plan.robots, arms, k), ends, tracks[k])
+        parks = list(itertools.islice(tries, sched.PARK_TRIES))
+        got_park = line.at(np.array([line.end_s + 5.0]))
+        index = next(
+            i for i, (p, t) in enumerate(parks) if np.allclose(p, got_park[0][0]) and t == pytest.approx(got_park[1][0])
+        )
+        park, at = parks[index]
+        if k == 0:
+            assert index == 0
+        else:
+            done = t0[-1] + line.wait_s.sum()
+            earlier = [
+                sched._Sampled.of(arms[i], *got.timelines[i].at(sched._grid(0.0, got.timelines[i].end_s) * sched.DT_S))
+                for i in range(k)
+            ]
+            horizon = max(got.timelines[i].end_s for i in range(k))
+
+            at_end = (arms[k], q[-1], float(track[-1]))
+            clear = [
+                sched._park_clear(
+                    *at_end, p, t, done, sched._move_s(*at_end[:2], p, at_end[2], t, tracks[k]), earlier, horizon, 30.0
+                )
+                for p, t in parks
+            ]
+            assert not any(clear[:index])
+            assert clear[index] or not any(clear)
         moved = float((np.abs(park - q[-1]) / arms[k].params.max_speed).max())
         rail = abs(at - track[-1]) / tracks[k] if tracks[k] else 0.0
         done = t0[-1] + line.wait_s.sum()
@@ -315,3 +342,54 @@ def test_the_strokes_a_wait_is_tried_before_are_every_stroke_back_once_the_neare
     if j - first > sched.BACKTRACK:
         sparse = got[len(near) : got.index(first) + 1]
         assert all(a > b for a, b in itertools.pairwise(sparse)) and len(sparse) < j - first - sched.BACKTRACK
+
+
+def test_a_later_robot_parks_where_its_move_and_hold_keep_clear_of_the_earlier_robots(box_plan):
+    """``park_candidates`` and ``_park_clear``: an earlier robot standing where the later one's first park
+    would put its gun makes that park not clear, and a later candidate is clear, its hold recounted here (no
+    capsule of it within the clearance of the earlier robot's)."""
+    plan, arms = box_plan
+    work, arm = plan.robots[0], arms[0]
+    q, track = sched._held(work.q, work.track_mm, work.reachable)
+    parks = list(sched.park_candidates(arm, q[-1], float(track[-1])))
+    first, at = parks[0]
+    assert len(parks) > 2 and np.allclose(first, sched.park_joints(arm, q[-1], float(track[-1]))[0])
+    done, move = 10.0, sched._move_s(arm, q[-1], first, float(track[-1]), at)
+    # an "earlier robot": a ball of 60 mm standing, to 40 s, over the first park's gun
+    there = arm.segments(first[None], [at])[0, -1].mean(axis=0)
+    g = sched._grid(0.0, 40.0)
+    centre = np.tile(there, (len(g), 1))
+    segments = np.stack([centre, centre], axis=1)[:, None]  # (m, 1, 2, 3)
+    radii = np.array([60.0])
+    other = sched._Sampled(0, segments, radii, sched._moves(segments), centre - 60.0, centre + 60.0)
+    assert not sched._park_clear(arm, q[-1], float(track[-1]), first, at, done, move, [other], 40.0, 30.0)
+    clear = [
+        sched._park_clear(
+            arm,
+            q[-1],
+            float(track[-1]),
+            p,
+            t,
+            done,
+            sched._move_s(arm, q[-1], p, float(track[-1]), t),
+            [other],
+            40.0,
+            30.0,
+        )
+        for p, t in parks[1:]
+    ]
+    assert any(clear)
+    chosen, chosen_at = parks[1 + clear.index(True)]
+    # recounted: the chosen park, and 400 configurations along the move there, keep the clearance from the ball
+    s_ = np.linspace(0.0, 1.0, 400)
+    joints = q[-1] + s_[:, None] * (chosen - q[-1])
+    caps = arm.segments(joints, float(track[-1]) + s_ * (chosen_at - float(track[-1])))  # (400, b, 2, 3)
+    ball = np.broadcast_to(there, caps[:, :, 0].shape)
+    gaps = sched.segment_distances(caps[:, :, 0], caps[:, :, 1], ball, ball) - np.asarray(arm.radii, float) - 60.0
+    assert gaps.min() >= 30.0
+    # and the first park, held, does not
+    caps = arm.segments(first[None], [at])[0]
+    ball = np.broadcast_to(there, caps[:, 0].shape)
+    assert (
+        sched.segment_distances(caps[:, 0], caps[:, 1], ball, ball) - np.asarray(arm.radii, float) - 60.0
+    ).min() < 30.0

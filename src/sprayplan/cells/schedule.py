@@ -43,7 +43,12 @@ keeping them apart in space alone is not proven. :func:`schedule_cell` keeps the
    its last track position or at either end of its track (the track at its speed, with the joints); of parks
    as far away, the one reached soonest. So a robot that has finished stands out of the way of one still
    painting: on the BMW in ``line3`` the roof robot, parked at its last track position, stood over the part
-   of the body the left robot still painted (47 samples too close), and a track end frees it.
+   of the body the left robot still painted (47 samples too close), and a track end frees it. A robot
+   scheduled after others takes the first of its parks (in that order, up to :data:`PARK_TRIES`) whose move
+   and hold, to the end of the earlier robots' work, keep clear of them in time (:func:`_park_clear`): on the
+   BMW with the reach check's tilted tries (session 15) the roof robot's first park stood in the way of a
+   transfer the right robot made 186 s after the roof robot had finished (12 samples too close), the next one
+   is clear.
 3. **The check** samples the common time axis every ``DT_S`` and measures, at every sample, the least distance
    between any capsule of one robot and any capsule of the other (:func:`segment_distances`, exact for segments;
    the arms' own capsules, ``collision.arms``). Two robots may conflict where that distance is below the sum of
@@ -167,7 +172,16 @@ PARK_GAP_STEP_MM = 10.0
 def park_joints(
     arm, q_last: np.ndarray, track_mm: float, away: np.ndarray | None = None, track_range=None, track_speed=None
 ) -> tuple[np.ndarray, float]:
-    """The park of a robot whose last configuration is ``q_last`` at ``track_mm``: joints and track position.
+    """The park of a robot whose last configuration is ``q_last`` at ``track_mm``: joints and track position
+    (the first of :func:`park_candidates`)."""
+    return next(park_candidates(arm, q_last, track_mm, away, track_range, track_speed))
+
+
+def park_candidates(
+    arm, q_last: np.ndarray, track_mm: float, away: np.ndarray | None = None, track_range=None, track_speed=None
+):
+    """The parks of a robot whose last configuration is ``q_last`` at ``track_mm``, ``(joints, track position)``
+    in the order preferred (a generator: each move is checked only when the one before was not taken).
 
     Of the candidates (module docstring, within the joint limits; axes 4-6 as ``q_last`` but the wrist bent 30
     degrees) at ``track_mm``, and with ``track_range`` (lo, hi mm) at both ends of the track too, the one with
@@ -177,7 +191,8 @@ def park_joints(
     radius each (their capsules' ends along their plans, :func:`work_points`): the slack is then the least of
     the slack to the part and the gap to those, so that a robot does not park in another's way. Slacks count
     up to :data:`PARK_GAP_ENOUGH_MM`, in steps of :data:`PARK_GAP_STEP_MM`; of equal ones the park reached
-    soonest (:func:`_move_s`, with ``track_speed`` mm/s) is taken, the last track position first."""
+    soonest (:func:`_move_s`, with ``track_speed`` mm/s) is taken, the last track position first. The parks
+    whose moves are free come in that order; if none is, only the one of the largest slack."""
     lower, upper = np.asarray(arm.params.lower, dtype=float), np.asarray(arm.params.upper, dtype=float)
     q_last = np.asarray(q_last, dtype=float)
     rows = []
@@ -188,7 +203,8 @@ def park_joints(
         if np.all(q >= lower - 1e-12) and np.all(q <= upper + 1e-12):
             rows.append(q)
     if not rows:
-        return q_last, float(track_mm)
+        yield q_last, float(track_mm)
+        return
     tracks = [float(track_mm)]
     if track_range is not None:
         tracks += [float(t) for t in track_range if abs(float(t) - float(track_mm)) > 1e-9]
@@ -208,12 +224,56 @@ def park_joints(
     level = np.floor(np.minimum(slack, PARK_GAP_ENOUGH_MM) / PARK_GAP_STEP_MM)
     seconds = np.array([_move_s(arm, q_last, r, float(track_mm), float(w), track_speed) for r, w in zip(rows, where)])
     order = np.lexsort((seconds, -level))
+    found = False
     for i in order:
         steps = max(PARK_STEPS, math.ceil(abs(where[i] - float(track_mm)) / 25.0) + 1)
         s = np.linspace(0.0, 1.0, steps)[:, None]
         if not arm.collides(q_last + s * (rows[i] - q_last), float(track_mm) + s[:, 0] * (where[i] - track_mm)).any():
-            return rows[i], float(where[i])
-    return rows[order[0]], float(where[order[0]])
+            found = True
+            yield rows[i], float(where[i])
+    if not found:
+        yield rows[order[0]], float(where[order[0]])
+
+
+#: A robot scheduled after others tries at most this many parks (:func:`park_candidates`, in order) for one
+#: whose move and hold are clear of the earlier robots (:func:`_park_clear`), else it takes the first.
+PARK_TRIES = 12
+
+
+def _park_clear(
+    arm,
+    q_last,
+    track_last: float,
+    park,
+    at: float,
+    t_start: float,
+    move_s: float,
+    earlier,
+    horizon_s: float,
+    clearance_mm: float,
+) -> bool:
+    """Whether a robot's move from ``q_last`` at ``track_last`` (at ``t_start``, taking ``move_s``) to its
+    park (``park`` at ``at``) and its hold there up to ``horizon_s`` (when the earlier robots are done) keep
+    clear of every ``earlier`` robot (``_Sampled``) at the grid samples, with the motion bounds."""
+    g = _grid(t_start, t_start + move_s)
+    if len(g):
+        knots = np.array([t_start, t_start + move_s])
+        move = _Sampled.of(
+            arm, *_configs(g * DT_S, knots, np.vstack([q_last, park]), np.array([track_last, at])), first=int(g[0])
+        )
+        rows = np.arange(len(g))
+        if any((_gaps(move, rows, other, other.rows(g), clearance_mm) < 0).any() for other in earlier):
+            return False
+    g = _grid(t_start + move_s, horizon_s)
+    if len(g):
+        hold = _Sampled.of(arm, np.asarray(park, float)[None], np.array([at], float))
+        zero = np.zeros(len(g), dtype=int)
+        for other in earlier:
+            for c in range(0, len(g), 4096):
+                part = g[c : c + 4096]
+                if (_gaps(hold, zero[: len(part)], other, other.rows(part), clearance_mm) < 0).any():
+                    return False
+    return True
 
 
 #: The waypoints of a robot's plan whose capsules' ends :func:`work_points` takes: one in this many.
@@ -516,8 +576,21 @@ def schedule_cell(
                         break
         knots = list(_knots(t0, q, track, starts, chosen))
         if len(t0):
-            park, at = park_joints(arm, q[-1], float(track[-1]), others, track_range, track_speed)
-            knots[0] = np.r_[knots[0], knots[0][-1] + _move_s(arm, q[-1], park, float(track[-1]), at, track_speed)]
+            # the park: the first whose move and hold are clear of the earlier robots (the first at all if none)
+            done = float(knots[0][-1])
+            horizon = max(((o.first + len(o.segments) - 1) * DT_S for o in sampled), default=0.0)
+            tries = park_candidates(arm, q[-1], float(track[-1]), others, track_range, track_speed)
+            park = None
+            for cand, where in itertools.islice(tries, PARK_TRIES):
+                move = _move_s(arm, q[-1], cand, float(track[-1]), where, track_speed)
+                if park is None:
+                    park, at, park_s = cand, where, move
+                if not rank or _park_clear(
+                    arm, q[-1], float(track[-1]), cand, where, done, move, sampled, horizon, clearance_mm
+                ):
+                    park, at, park_s = cand, where, move
+                    break
+            knots[0] = np.r_[knots[0], done + park_s]
             knots[1] = np.vstack([knots[1], park])
             knots[2] = np.r_[knots[2], at]
         if parked:  # the park at the start is not a waypoint; its wait is the first stroke's
