@@ -6,7 +6,7 @@ A cell plan folder written by ``sprayplan plan BODY --cell line3 --collisions`` 
 it; each robot's transfers (the spray-off joint moves between two runs) are checked, those in collision are
 counted by what they join (two touch-ups, a stroke and a touch-up, two planned strokes), and each is given to
 the router (``CellRouter.route``: retract, via, then the seeded RRT-Connect detour) with ``[collision]
-detour_iterations`` at each of ``--iterations``, the seed the plan's. Prints one JSON line per robot and
+cell_detour_iterations`` at each of ``--iterations``, the seed the transfer's place in that list. Prints one JSON line per robot and
 setting: transfers in collision, freed, by route kind, and the seconds the search took.
 
 Usage::
@@ -75,7 +75,7 @@ def main() -> None:
         for _, k in stuck:
             joined[k] = joined.get(k, 0) + 1
         for iterations in [int(x) for x in args.iterations.split(",")]:
-            router.config = dataclasses.replace(config, detour_iterations=iterations)
+            router.config = dataclasses.replace(config, cell_detour_iterations=iterations)
             freed, kinds = 0, {}
             start = time.perf_counter()
             for n, (i, _) in enumerate(stuck):

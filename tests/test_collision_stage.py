@@ -250,6 +250,7 @@ def test_strict_refuses_a_plan_left_in_collision(testdata, tmp_path, capsys):
         ("[collision]\ntilt_deg = nan\n", "collision.tilt_deg"),
         ("[collision]\npiece_tilt_deg = 75\n", "collision.piece_tilt_deg"),
         ("[collision]\npiece_tilt_deg = nan\n", "collision.piece_tilt_deg"),
+        ("[collision]\ncell_detour_iterations = -1\n", "collision.cell_detour_iterations"),
         ("[collision]\nrepair = 1\n", "collision.repair"),
         ("[collision]\nplatform_search_mm = -50\n", "collision.platform_search_mm"),
         ("[collision]\nplatform_search_mm = nan\n", "collision.platform_search_mm"),

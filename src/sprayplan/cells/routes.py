@@ -14,7 +14,8 @@ routes tried, in order, are the gantry job's (``collision.transfers``) for an ar
     highest point of the part within the arm's reach, plus ``clearance_mm`` and ``via_height_mm``.
 ``detour``
     A seeded RRT-Connect search (``collision.transfers.rrt_connect``) in the arm's joints and its track
-    position, between the two ends, its path shortened (``collision.transfers.shortcut``).
+    position, between the two ends, up to ``[collision] cell_detour_iterations`` (1000), its path shortened
+    (``collision.transfers.shortcut``).
 
 A route is *free* when its nodes and every motion of ``A -> nodes -> B`` are (``collision.arms.plan_collides``,
 the check's own answer). What no route frees stays the straight joint move, and the check after flags it.
@@ -178,7 +179,7 @@ class CellRouter:
             self._edges_free,
             weights,
             DETOUR_STEP_MM,
-            self.config.detour_iterations,
+            self.config.cell_detour_iterations,
             np.random.default_rng(seed),
         )
         if path is None:
