@@ -637,3 +637,54 @@ def test_an_unreached_run_solved_on_its_own_is_painted_from_the_joints_before_it
     painted = np.concatenate([s.points for s in pieced.strokes if s.spray_on])
     for p in work.strokes[i].points[lo - a : hi - a]:
         assert np.min(np.linalg.norm(painted - p, axis=1)) < 1e-9
+
+
+def test_touch_ups_no_route_reaches_free_are_dropped_and_their_neighbours_joined(tmp_path):
+    """``unrouted_touch_ups`` names the touch-up a failed transfer leads into (the keys ``routed_work`` keeps);
+    ``without_strokes`` takes it and its transfers out: the spray strokes left are the others in their order,
+    with every waypoint's joints as before, and each transfer joins the end of the stroke before to the start of
+    the one after (the gun's tip and the joints at both ends are its neighbours')."""
+    import dataclasses
+
+    from sprayplan.cells.collide import unrouted_touch_ups
+    from sprayplan.cells.work import without_strokes
+
+    _, plan, _ = _box_cell(tmp_path)
+    work = plan.robots[0]
+    spray = [i for i, s in enumerate(work.strokes) if s.spray_on]
+    assert len(spray) >= 5
+    first = spray[2] - 1  # the "touch-up round" starts at the transfer before the third spray stroke
+    strokes = list(work.strokes)
+    for i in spray[2:]:
+        strokes[i] = dataclasses.replace(strokes[i], kind="touch-up")
+    work = dataclasses.replace(work, strokes=tuple(strokes))
+    starts = np.r_[0, np.cumsum([len(s) for s in work.strokes])]
+    pairs = np.column_stack([work.q, work.track_mm])
+    into = spray[3] - 1  # the transfer into the fourth spray stroke, a touch-up
+    assert not work.strokes[into].spray_on and len(work.strokes[into]) == 2
+    failed = {pairs[starts[into] : starts[into] + 2].tobytes(), b"another transfer"}
+    assert unrouted_touch_ups(work, failed, first) == [spray[3]]
+    assert unrouted_touch_ups(work, set(), first) == []
+    assert unrouted_touch_ups(work, failed, spray[3] + 1) == []  # before the round: not a touch-up to drop
+
+    out = without_strokes(work, [spray[3]])
+    kept = [s for s in out.strokes if s.spray_on]
+    assert [s for s in kept] == [work.strokes[i] for i in spray if i != spray[3]]
+    new_starts = np.r_[0, np.cumsum([len(s) for s in out.strokes])]
+    old_rows = {i: np.arange(starts[i], starts[i + 1]) for i in spray}
+    k = 0
+    for j, s in enumerate(out.strokes):
+        rows = np.arange(new_starts[j], new_starts[j + 1])
+        if s.spray_on:
+            i = [i for i in spray if i != spray[3]][k]
+            np.testing.assert_array_equal(out.q[rows], work.q[old_rows[i]])
+            k += 1
+        else:
+            before, after = out.strokes[j - 1], out.strokes[j + 1]
+            np.testing.assert_array_equal(s.tcp[0], before.tcp[-1])
+            np.testing.assert_array_equal(s.tcp[-1], after.tcp[0])
+            for mine, theirs in ((rows[0], rows[0] - 1), (rows[-1], rows[-1] + 1)):
+                if out.reachable[theirs]:  # (this plan is not cut: some waypoints are unreached)
+                    np.testing.assert_array_equal(out.q[mine], out.q[theirs])
+    assert len(out.q) == len(out.track_mm) == len(out.reachable) == new_starts[-1] and len(out.area) == len(out.strokes)
+    assert without_strokes(work, []) is work

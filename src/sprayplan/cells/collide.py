@@ -77,6 +77,30 @@ def _tail_checked(arm, work, since: int) -> RobotCollisions:
     return RobotCollisions(head, padded(found.motion_collides, False), found.motion_checked)
 
 
+#: How many times a touch-up round drops the touch-ups no route reaches free and routes the new transfers
+#: (:func:`freed_cell`).
+DROP_ROUNDS = 3
+
+
+def unrouted_touch_ups(work, failed: set, first: int) -> list:
+    """The touch-up strokes of ``work`` from stroke ``first`` on that a transfer no route freed leads into (or,
+    for the last transfer of a run of touch-ups into a planned stroke, leads out of): the keys of ``failed``
+    (``cells.routes.routed_work``'s: a transfer's two states as bytes)."""
+    starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
+    pairs = np.column_stack([work.q, work.track_mm])
+    out = []
+    for i in range(max(first - 1, 1), len(work.strokes) - 1):
+        s = work.strokes[i]
+        if s.spray_on or len(s) != 2 or pairs[starts[i] : starts[i] + 2].tobytes() not in failed:
+            continue
+        after, before = work.strokes[i + 1], work.strokes[i - 1]
+        if after.kind == "touch-up" and i + 1 >= first:
+            out.append(i + 1)
+        elif before.kind == "touch-up" and i - 1 >= first:
+            out.append(i - 1)
+    return sorted(set(out))
+
+
 def freed_cell(
     cell, robots, arms, config, repair=None, part=None, standoff_mm: float = 0.0, failed=None, since=None
 ) -> tuple[tuple, dict]:
@@ -91,6 +115,7 @@ def freed_cell(
     and per robot the repairs', the cut's and the routes' counts."""
     from sprayplan.cells.repair import free_work, piece_tilts, resolved_piece
     from sprayplan.cells.routes import routed_work
+    from sprayplan.cells.work import without_strokes
 
     out, counts = [], {}
     tilts = piece_tilts(config.piece_tilt_deg) if standoff_mm > 0 else ()
@@ -114,6 +139,19 @@ def freed_cell(
             mine = None if failed is None else failed.setdefault(work.name, set())
             work, routes = routed_work(cell_robot, work, arm, part, config, standoff_mm, failed=mine, since=first)
             routes.pop("transfers_in_collision")  # the check after the film counts what is left
+            if first:  # a touch-up round: a touch-up no route reaches free is dropped, its neighbours joined
+                dropped = 0
+                for _ in range(DROP_ROUNDS):
+                    drop = unrouted_touch_ups(work, mine if mine is not None else set(), first)
+                    if not drop:
+                        break
+                    dropped += len(drop)
+                    work = without_strokes(work, drop)
+                    work, more = routed_work(cell_robot, work, arm, part, config, standoff_mm, failed=mine, since=first)
+                    for key, value in more.items():
+                        if key != "transfers_in_collision":
+                            routes[key] = routes.get(key, 0) + value
+                routes["touch_ups_dropped"] = dropped
         out.append(work)
         counts[work.name] = {**repairs, **left, **routes}
     return tuple(out), counts

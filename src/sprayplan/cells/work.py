@@ -110,3 +110,43 @@ def joined_transfers(work: RobotWork) -> RobotWork:
             if 0 <= there < len(work.strokes) and reach[theirs]:
                 q[mine], track[mine], roll[mine], reach[mine] = q[theirs], track[theirs], roll[theirs], True
     return dataclasses.replace(work, q=q, track_mm=track, roll_deg=roll, reachable=reach)
+
+
+def without_strokes(work: RobotWork, drop) -> RobotWork:
+    """``work`` without the spray strokes of index ``drop`` and the transfers next to them, the strokes left on
+    either side joined by one new transfer (:func:`transfer_stroke`, its ends their neighbours' joints:
+    :func:`joined_transfers`). Transfers that no longer join two spray strokes (at the start or the end) go
+    too."""
+    drop = {int(i) for i in drop}
+    if not drop:
+        return work
+    starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
+    kept = [i for i, s in enumerate(work.strokes) if s.spray_on and i not in drop]
+    strokes, area, rows = [], [], []
+    for k, i in enumerate(kept):
+        if k:
+            before = kept[k - 1]
+            between = list(range(before + 1, i))
+            if len(between) == 1 and not work.strokes[between[0]].spray_on:  # the transfer as it was
+                j = between[0]
+                strokes.append(work.strokes[j])
+                rows.append(np.arange(starts[j], starts[j + 1]))
+            else:
+                strokes.append(transfer_stroke(work.strokes[before], work.strokes[i]))
+                rows.append(np.array([starts[before + 1] - 1, starts[i]]))
+            area.append(-1)
+        strokes.append(work.strokes[i])
+        area.append(int(work.area[i]))
+        rows.append(np.arange(starts[i], starts[i + 1]))
+    index = np.concatenate(rows) if rows else np.zeros(0, dtype=int)
+    out = dataclasses.replace(
+        work,
+        strokes=tuple(strokes),
+        area=np.array(area, dtype=np.int64),
+        track_mm=work.track_mm[index],
+        roll_deg=work.roll_deg[index],
+        q=work.q[index],
+        reachable=work.reachable[index],
+        collides=None,
+    )
+    return joined_transfers(out)
