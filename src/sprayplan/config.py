@@ -822,7 +822,9 @@ class CollisionConfig(Section):
     cell_detour_iterations : int
         The same for a cell robot's transfers (``--cell ... --collisions``: an arm and its track, seven axes
         searched). Of the 48 transfers a BMW plan in ``line3`` left in collision at 200, 1000 iterations freed 17
-        (420 s of search), 4000 freed 25 (1,522 s) (``bench/bench_detours.py``).
+        (420 s of search), 4000 freed 25 (1,522 s) (``bench/bench_detours.py``); but every transfer no search
+        frees pays the whole search, and the SUV has hundreds (its collision step at 1000 had not ended after
+        35 min, against 28 min at 200), so the default stays 200: raise it for a body with few.
     seed : int
         Random seed of the RRT-Connect search.
     cloud_radius_mm : float or None
@@ -851,7 +853,7 @@ class CollisionConfig(Section):
     via_height_mm: float | None = 100.0
     detour: bool = True
     detour_iterations: int = 200
-    cell_detour_iterations: int = 1000
+    cell_detour_iterations: int = 200
     seed: int = 0
     cloud_radius_mm: float | None = None
 

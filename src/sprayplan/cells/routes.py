@@ -14,7 +14,7 @@ routes tried, in order, are the gantry job's (``collision.transfers``) for an ar
     highest point of the part within the arm's reach, plus ``clearance_mm`` and ``via_height_mm``.
 ``detour``
     A seeded RRT-Connect search (``collision.transfers.rrt_connect``) in the arm's joints and its track
-    position, between the two ends, up to ``[collision] cell_detour_iterations`` (1000), its path shortened
+    position, between the two ends, up to ``[collision] cell_detour_iterations`` (200), its path shortened
     (``collision.transfers.shortcut``).
 
 A route is *free* when its nodes and every motion of ``A -> nodes -> B`` are (``collision.arms.plan_collides``,
