@@ -305,7 +305,6 @@ output.report = false
 def test_a_killed_local_job_is_failed_and_leaves_no_folder_a_rerun_would_skip(testdata, tmp_path):
     import multiprocessing
 
-    # with its film the job takes seconds: killed one second in, it is in the middle of its work
     batch = read_batch(_folder(testdata, tmp_path / "in", ONE + "output.simulate = true\n"))
     out = tmp_path / "out"
     outcome = {}
@@ -318,7 +317,12 @@ def test_a_killed_local_job_is_failed_and_leaves_no_folder_a_rerun_would_skip(te
             break
         time.sleep(0.05)
     assert child is not None
-    time.sleep(1.0)
+    # killed as soon as the job starts writing its folder (in the middle of its work; a fixed delay let a job on a
+    # quiet machine finish first, or killed it before it wrote anything)
+    for _ in range(60000):
+        if not child.is_alive() or any(out.glob(".*.tmp")):
+            break
+        time.sleep(0.001)
     os.kill(child.pid, signal.SIGKILL)
     runner.join(120)
     (row,) = outcome["result"].rows

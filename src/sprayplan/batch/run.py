@@ -67,6 +67,16 @@ def _remove_stale(outdir: Path, job_id: str) -> None:
         shutil.rmtree(stale, ignore_errors=True)
 
 
+def _remove_staging(staging: Path) -> None:
+    """A job's staging folder, and the staging folder its own writer made beside it (``.{staging}.{pid}.tmp``),
+    which a job killed while writing leaves behind."""
+    from sprayplan.batch import engines
+
+    engines.remove_folder(str(staging))
+    for nested in staging.parent.glob(f".{staging.name}.*.tmp"):
+        shutil.rmtree(nested, ignore_errors=True)
+
+
 def _place(staging: Path, final: Path) -> None:
     """Move a complete job folder into place; an older folder of the same id is replaced only then."""
     if final.exists() or final.is_symlink():
@@ -186,7 +196,7 @@ def run_batch(
                     _place(staging, final)
                 except OSError as exc:
                     row = {**row, "status": FAILED, "error": f"{final}: cannot put the job's folder in place ({exc})"}
-            engines.remove_folder(str(staging))
+            _remove_staging(staging)
             rows[task.job_id] = row
             done += 1
             log.info("%d/%d %s: %s %s", done, len(jobs), task.job_id, row["status"], row.get("error", ""))
@@ -197,7 +207,7 @@ def run_batch(
             finished.close()
         for task, staging, _ in items:
             if task.job_id not in rows:
-                engines.remove_folder(staging)
+                _remove_staging(Path(staging))
         ordered = tuple(rows.get(job.job_id) or _not_run(job) for job in jobs)
         write_summary(out, ordered)
         log.info("batch of %d jobs in %.1f s", len(jobs), time.perf_counter() - began)
