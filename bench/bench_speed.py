@@ -105,6 +105,13 @@ def child(name: str, profile: str | None) -> None:
 
         painted = film_report(film, result.job, result.job.output.samples, result.chosen)["painted"]
         film = {k: round(painted[k], 5) for k in ("mean_um", "cv", "share_in_spec")}
+    try:  # the joint solves' helper process (sprayplan.parallel), stopped so that its use is counted
+        from sprayplan.parallel import stop_helper
+
+        stop_helper()
+    except ImportError:
+        pass
+    helper = resource.getrusage(resource.RUSAGE_CHILDREN)
     report = {
         "part": name,
         "wall_s": round(wall, 2),
@@ -112,6 +119,8 @@ def child(name: str, profile: str | None) -> None:
         "stages_cpu_s": {k: round(v, 3) for k, v in cpu.items()},
         "cpu_s": round(sum(resource.getrusage(resource.RUSAGE_SELF)[:2]), 2),
         "maxrss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
+        "helper_cpu_s": round(helper.ru_utime + helper.ru_stime, 2),
+        "helper_maxrss_mb": round(helper.ru_maxrss / 1024, 1),
         "load": round(os.getloadavg()[0], 2),
         "stations": totals["stations"],
         "strokes": totals["strokes"],
@@ -223,12 +232,14 @@ def table(name: str, runs: dict[str, list[dict]]) -> None:
     for key, label in (
         ("wall_s", "wall s (whole run)"),
         ("cpu_s", "CPU s (user + system)"),
+        ("helper_cpu_s", "helper process CPU s"),
         ("maxrss_mb", "peak RSS MB"),
+        ("helper_maxrss_mb", "helper process peak RSS MB"),
     ):
-        vals = {b: statistics.median(r[key] for r in runs[b]) for b in builds}
+        vals = {b: statistics.median(r.get(key, 0.0) for r in runs[b]) for b in builds}
         cells = [f"{vals[b]:.1f} |" for b in builds]
         if "base" in runs:
-            cells.append(f"{vals['new'] / vals['base']:.2f} |")
+            cells.append(f"{vals['new'] / vals['base']:.2f} |" if vals["base"] > 0 else "- |")
         print(f"| {label} | {' | '.join(cells)} |")
     loads = {b: ", ".join(f"{r['load']:.1f}" for r in runs[b]) for b in builds}
     print(f"\nload average (1 min) at the end of each run: {loads}")

@@ -112,6 +112,12 @@ def test_the_tunings_system_and_jacobian_are_scipys_bit_for_bit():
         r = reference @ x - target
         r[:400] = np.sign(r[:400]) * np.maximum(np.abs(r[:400]) - band, 0.0)
         np.testing.assert_array_equal(residual(x), r)
+        again = jacobian(x.copy())  # at the residual's point: its misfit reused
+        assert again.nnz == expected.nnz and abs(again - expected).max() == 0.0
+        other = x + 0.1
+        residual(other)
+        moved = jacobian(x)  # at another point than the last residual's: computed anew
+        assert moved.nnz == expected.nnz and abs(moved - expected).max() == 0.0
 
 
 @settings(max_examples=40, deadline=None)

@@ -413,3 +413,27 @@ def test_a_point_cloud_film_is_drawn_as_coloured_points(testdata, tmp_path):
     for c in np.unique(colours.round(3), axis=0):
         near |= np.abs(pixels - c).max(axis=1) < 0.02
     assert near.mean() > 0.05
+
+
+def test_the_report_drawn_in_two_processes_is_the_same_bytes(planned, tmp_path):
+    """The report's images shared with a helper process (``[kinematics] processes`` = 2, the default on two
+    cores) are the files one process draws, byte for byte, and report.md is the same text."""
+    from sprayplan import parallel
+    from sprayplan.view.report import write_report_files
+
+    if parallel.process_count(2) < 2:
+        pytest.skip("the helper needs POSIX pipes")
+    scene = scene_from_folder(planned)
+    folders = {}
+    for processes in (1, 2):
+        folders[processes] = tmp_path / f"p{processes}"
+        folders[processes].mkdir()
+        counts = []
+        progress = lambda done, total: counts.append((done, total))  # noqa: E731
+        write_report_files(str(folders[processes]), scene, progress=progress, processes=processes)
+        total = counts[-1][1]
+        assert counts[-1] == (total, total) and total == len(list(folders[processes].glob("*.png")))
+    names = sorted(p.name for p in folders[1].iterdir())
+    assert names == sorted(p.name for p in folders[2].iterdir()) and len(names) > 5
+    for name in names:
+        assert (folders[1] / name).read_bytes() == (folders[2] / name).read_bytes(), name

@@ -517,6 +517,12 @@ class KinematicsConfig(Section):
         Allowed errors of the SQP fallback (eqs. 21-22; seed: 5 mm, 5 degrees).
     k_d : float
         Weight of gantry travel in eq. 20, rad^2/mm^2 (0.1: 3.2 mm of travel costs as much as 1 rad).
+    processes : int or None
+        Processes that share the job's work that splits into independent pieces (the joint solves, a station
+        at a time, in the kinematics stage and the touch-ups; the report's pictures): the job's own and up to
+        one helper on the second core (``sprayplan.parallel``). Default: 2 on a machine with 2 or more cores
+        (1 in a batch, which runs jobs side by side); 1 keeps everything in the job's process. The plan and
+        its files are the same either way.
     """
 
     SECTION = "kinematics"
@@ -526,6 +532,7 @@ class KinematicsConfig(Section):
     axis_tol_deg: float = 5.0
     k_d: float = 0.1
     robot_file: str | None = None
+    processes: int | None = None
 
     def _check(self):
         _choice(KinematicsConfig, "robot", self.robot, ROBOTS)
@@ -535,6 +542,7 @@ class KinematicsConfig(Section):
         _at_least(KinematicsConfig, "position_tol_mm", self.position_tol_mm, 0, strict=True)
         _within(KinematicsConfig, "axis_tol_deg", self.axis_tol_deg, 1e-9, 90.0)
         _at_least(KinematicsConfig, "k_d", self.k_d, 0)
+        _within(KinematicsConfig, "processes", self.processes, 1, 2)
 
     @property
     def arm(self) -> str:

@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 from sprayplan.config import JobConfig
 from sprayplan.errors import InputError, StageError
 from sprayplan.heap import release_freed_memory
+from sprayplan.parallel import process_count, start_helper
 from sprayplan.progress import Progress, no_progress, per_stage
 from sprayplan.types import Part, Plan
 
@@ -392,6 +393,9 @@ def run_job(
         raise InputError(f"until must be one of {', '.join(names)}, got {until!r}")
     progress = progress or no_progress
     state = JobState(job=job, source=source)
+    if until is None or names.index(until) >= names.index("kinematics"):
+        # the joint solves' helper process starts on the other core while the part is loaded and sliced
+        start_helper(process_count(job.kinematics.processes))
     start = time.perf_counter()
     for stage in STAGES:
         state = _run_stage(stage, state, progress)

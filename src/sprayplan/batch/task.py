@@ -282,7 +282,10 @@ def run_task(task: Task, folder, placed=None) -> dict:
                 if task.cell is not None:  # a cell plan's job
                     row |= {"status": OK, "error": ""} | _run_cell(task, path, folder)
                 else:
-                    result = run_job(path, job_from_dict(task.settings), progress=_deadline_hook(task.timeout_s))
+                    from sprayplan.parallel import single_process
+
+                    with single_process():  # the batch runs jobs side by side: one process each by default
+                        result = run_job(path, job_from_dict(task.settings), progress=_deadline_hook(task.timeout_s))
                     if path != task.part:  # shipped bytes: named as the batch's file, as `sprayplan plan` names it
                         plan = dataclasses.replace(result.plan, name=task.part)
                         result = dataclasses.replace(result, plan=plan, source=task.part)

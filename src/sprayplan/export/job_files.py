@@ -4,6 +4,7 @@ all or nothing (``export.files.staged_folder``)."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 
 from sprayplan.view.files import VIEW_FILES
@@ -73,15 +74,28 @@ def write_job_files(
     job = result.job
     if result.film is not None and report is None:
         report = film_report(result.film, job, job.output.samples, result.chosen)
-    written = write_plan(folder, result.plan, job, result.totals, part_file, report, getattr(result, "timing", None))
-    if report is not None:
-        written += write_coating(folder, result.film, job, report)
+    pictures = None
     if job.output.viewer or job.output.report:
-        from sprayplan.view.files import write_view_files
+        from sprayplan.parallel import process_count
+        from sprayplan.view.files import begin_view_files
         from sprayplan.view.scene import scene_from_result
 
+        # the report's pictures begin first: a helper process draws them while the plan's files are written
         scene = scene_from_result(result, report)
-        written += write_view_files(
-            folder, scene, viewer=job.output.viewer, report=job.output.report, progress=progress
+        processes = process_count(job.kinematics.processes)
+        view = dict(viewer=job.output.viewer, report=job.output.report, progress=progress, processes=processes)
+        pictures = begin_view_files(folder, scene, **view)
+    try:
+        written = write_plan(
+            folder, result.plan, job, result.totals, part_file, report, getattr(result, "timing", None)
         )
+        if report is not None:
+            written += write_coating(folder, result.film, job, report)
+    except BaseException:
+        if pictures is not None:  # the helper's work waited for before the error goes on
+            with contextlib.suppress(Exception):
+                pictures()
+        raise
+    if pictures is not None:
+        written += pictures()
     return written

@@ -10,6 +10,7 @@ import logging
 import numpy as np
 
 from sprayplan.config import JobConfig
+from sprayplan.parallel import process_count, shared_map
 from sprayplan.paths.planner import with_transfers
 from sprayplan.robots.stage import gantry_for, solve_strokes, station_plan
 from sprayplan.surface.poses import stroke_poses
@@ -50,9 +51,9 @@ def with_added_strokes(plan_: Plan, strokes: list[Stroke], job: JobConfig, new_s
                     offers.setdefault(int(k), []).append((stroke, tried | {int(k)}))
                     break
         pending = []
-        for k, offered in offers.items():
-            candidates = accepted.get(k, []) + offered
-            kept, missed, new, result = _fit_to_station(gantry, stations[k], candidates, job)
+        asked = [(gantry, stations[k], accepted.get(k, []) + offered, job) for k, offered in offers.items()]
+        fitted = shared_map(_fitted, asked, process_count(job.kinematics.processes))
+        for k, (kept, missed, new, result) in zip(offers, fitted):
             accepted[k] = kept
             if kept:
                 solved[k] = (new, result)
@@ -81,11 +82,15 @@ def _new_stations(gantry, plan_: Plan, strokes: list[Stroke], job: JobConfig, mo
     height = float(np.median([st.platform_mm[2] for st in plan_.stations]))
     placed = stations_for_strokes(gantry, [stroke_poses(s) for s in strokes], height, max_stations=most)
     index = max(st.index for st in plan_.stations) + 1
-    out = []
+    asked = []
     for place in placed:
-        empty = StationPlan(index, place.platform_mm, (), *_PATH_EMPTY)
+        empty = StationPlan(index, place.platform_mm, (), *_PATH_EMPTY)  # its index set below
         taken = _nearest_first([strokes[i] for i in place.strokes])
-        kept, _, new, result = _fit_to_station(gantry, empty, [(s, frozenset()) for s in taken], job)
+        asked.append((gantry, empty, [(s, frozenset()) for s in taken], job))
+    out = []
+    for place, (kept, _, new, result) in zip(
+        placed, shared_map(_fitted, asked, process_count(job.kinematics.processes))
+    ):
         if kept:
             out.append(station_plan(index, place.platform_mm, new, result))
             index += 1
@@ -105,6 +110,11 @@ def _insert_in_tour(stations: list[StationPlan], station: StationPlan, home: np.
         for a, b in itertools.pairwise(stops)
     ]
     stations.insert(int(np.argmin(extra)), station)
+
+
+def _fitted(item):
+    """:func:`_fit_to_station` of one ``(gantry, station, candidates, job)`` (for ``parallel.shared_map``)."""
+    return _fit_to_station(*item)
 
 
 def _fit_to_station(gantry, st: StationPlan, candidates: list[tuple[Stroke, frozenset]], job: JobConfig):

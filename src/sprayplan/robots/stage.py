@@ -13,7 +13,8 @@ import numpy as np
 
 from sprayplan.config import JobConfig, KinematicsConfig
 from sprayplan.ordering.stage import OrderedStations
-from sprayplan.progress import Progress, counted
+from sprayplan.parallel import process_count, shared_map
+from sprayplan.progress import Progress
 from sprayplan.robots.gantry import Gantry, GantryPath, build_gantry, load_gun, solve_gantry_path
 from sprayplan.surface.poses import stroke_poses
 from sprayplan.types import Plan, StationPlan
@@ -60,10 +61,21 @@ def kinematics_stage(
 ) -> Plan:
     """The plan: every station of ``ordered`` with the nine axes at each of its waypoints, solved from home."""
     layout = ordered.layout
-    step = counted(progress, "kinematics", len(layout.index))
-    stations = []
-    for k, platform, strokes in zip(layout.index, layout.platform_mm, ordered.strokes):
-        path = solve_strokes(gantry, strokes, platform, job.kinematics)
-        stations.append(station_plan(k, platform, strokes, path))
-        step()
+    report = progress or (lambda *_: None)
+    items = [
+        (gantry, strokes, platform, job.kinematics) for platform, strokes in zip(layout.platform_mm, ordered.strokes)
+    ]
+    processes = process_count(job.kinematics.processes)
+    paths = shared_map(_solved_station, items, processes, done=lambda count: report("kinematics", count, len(items)))
+    stations = [
+        station_plan(k, platform, strokes, path)
+        for k, platform, strokes, path in zip(layout.index, layout.platform_mm, ordered.strokes, paths)
+    ]
     return Plan(tuple(stations), layout.home_mm, layout.unassigned, name)
+
+
+def _solved_station(item) -> GantryPath:
+    """``solve_strokes`` of one station's ``(gantry, strokes, platform_mm, config)``, from home (for
+    ``parallel.shared_map``)."""
+    gantry, strokes, platform, config = item
+    return solve_strokes(gantry, strokes, platform, config)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 
@@ -13,26 +14,49 @@ log = logging.getLogger(__name__)
 VIEW_FILES = ("plan.html", "report")
 
 
-def write_view_files(folder, scene: Scene, viewer: bool = True, report: bool = True, progress=None) -> list[str]:
+def write_view_files(
+    folder, scene: Scene, viewer: bool = True, report: bool = True, progress=None, processes: int = 1
+) -> list[str]:
     """Write ``folder/plan.html`` and ``folder/report/`` (an existing folder: a staging folder, whose
     ``report`` must not exist yet); returns the paths written (the report's folder once).
-    ``progress(done, total)``: after each of the report's images."""
-    from sprayplan.view.html import write_viewer
-    from sprayplan.view.report import write_report_files
+    ``progress(done, total)``: as the report's images are done; ``processes``: 2 shares them with a helper
+    process (``parallel.shared_map``)."""
+    return begin_view_files(folder, scene, viewer, report, progress, processes)()
+
+
+def begin_view_files(folder, scene: Scene, viewer=True, report=True, progress=None, processes: int = 1):
+    """:func:`write_view_files` begun: with ``processes`` = 2 the helper starts on the report's pictures now,
+    while this process writes other files; the function returned writes plan.html, takes part in the rest of
+    the pictures and returns the paths (it must be called)."""
+    from sprayplan.view.report import begin_report_files
 
     folder = os.fspath(folder)
-    written = []
-    if viewer:
-        path = os.path.join(folder, "plan.html")
-        drawn = write_viewer(path, scene)
-        log.info("%s: viewer written (%s)", path, drawn)
-        written.append(path)
+    pictures = None
     if report:
-        path = os.path.join(folder, "report")
-        os.mkdir(path)
-        write_report_files(path, scene, progress=progress)
-        written.append(path)
-    return written
+        os.mkdir(os.path.join(folder, "report"))
+        pictures = begin_report_files(os.path.join(folder, "report"), scene, progress=progress, processes=processes)
+
+    def finish() -> list[str]:
+        from sprayplan.view.html import write_viewer
+
+        written = []
+        try:
+            if viewer:
+                path = os.path.join(folder, "plan.html")
+                drawn = write_viewer(path, scene)
+                log.info("%s: viewer written (%s)", path, drawn)
+                written.append(path)
+        except BaseException:
+            if pictures is not None:  # the helper's pictures waited for before the error goes on
+                with contextlib.suppress(Exception):
+                    pictures()
+            raise
+        if pictures is not None:
+            pictures()
+            written.append(os.path.join(folder, "report"))
+        return written
+
+    return finish
 
 
 def write_views(outdir, scene: Scene, viewer: bool = True, report: bool = True, progress=None) -> list[str]:

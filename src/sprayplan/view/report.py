@@ -562,56 +562,78 @@ def measuring_picture(path: str, scene: Scene, settings: ReportSettings) -> None
     _save(fig, path)
 
 
-def write_report_files(folder: str, scene: Scene, settings: ReportSettings | None = None, progress=None) -> list[str]:
+def write_report_files(
+    folder: str, scene: Scene, settings: ReportSettings | None = None, progress=None, processes: int = 1
+) -> list[str]:
     """Draw every image and write report.md into ``folder`` (an existing, empty folder); returns the paths.
 
     The images are drawn headless (matplotlib's Agg canvas, never pyplot), so no display is needed.
-    ``progress(done, total)`` is called after each image.
+    ``progress(done, total)`` is called as images are done. With ``processes`` = 2 the images are shared
+    with a helper process (``parallel.shared_map``; each image is drawn by the same code either way).
     """
+    return begin_report_files(folder, scene, settings, progress, processes)()
+
+
+def begin_report_files(
+    folder: str, scene: Scene, settings: ReportSettings | None = None, progress=None, processes: int = 1
+):
+    """:func:`write_report_files` begun: with ``processes`` = 2 the helper process starts drawing now, while
+    this process writes other files; the function returned takes part in the rest, writes report.md and
+    returns the paths (it must be called)."""
+    from sprayplan.parallel import shared_start
+
     settings = settings or ReportSettings()
-    images: list[tuple[str, str]] = []
     surface = scene.surface
     film = surface is not None and scene.painted is not None and bool(scene.painted.any())
     measured = scene.measuring_points is not None and len(scene.measuring_points) > 0
-    total = (
-        (3 if surface is not None else 0)
-        + film
-        + measured
-        + (len(scene.plan.stations) + 1 if scene.plan.stations else 0)
-    )
-
-    def out(name: str) -> str:
-        if progress is not None and name.endswith(".png"):
-            progress(len(images), total)
-        return os.path.join(folder, name)
-
+    pictures: list[tuple[str, str, str, object]] = []  # (file, caption, kind, argument)
     if surface is not None:
-        drawn = thin_surface(surface, settings.max_faces).surface
         for name in film_views(scene):
-            file = f"film_{_FILE[name]}.png"
-            film_picture(out(file), scene, drawn, name, settings)
-            images.append((file, f"The {'film' if surface.thickness_um is not None else 'part'}, {name}"))
+            what = "film" if surface.thickness_um is not None else "part"
+            pictures.append((f"film_{_FILE[name]}.png", f"The {what}, {name}", "film", name))
         if film:
-            histogram_picture(out("film_histogram.png"), scene, settings)
-            images.append(("film_histogram.png", "The film over the painted area"))
+            pictures.append(("film_histogram.png", "The film over the painted area", "histogram", None))
         if measured:
-            measuring_picture(out("measuring_points.png"), scene, settings)
-            images.append(("measuring_points.png", "The film at the measuring points"))
-    backdrop = _Backdrop(surface)
+            pictures.append(("measuring_points.png", "The film at the measuring points", "measuring", None))
     if scene.plan.stations:
-        tour_picture(out("gantry_tour.png"), scene, settings, backdrop)
-        images.append(("gantry_tour.png", "The gantry tour"))
+        pictures.append(("gantry_tour.png", "The gantry tour", "tour", None))
     for place, st in enumerate(scene.plan.stations):
-        file = f"strokes_stop{place + 1:02d}.png"
-        station_picture(out(file), scene, place, settings, backdrop)
-        images.append((file, f"Stop {place + 1} (station {st.index}): its strokes in order"))
-    from sprayplan.export.files import atomic_output
-
+        caption = f"Stop {place + 1} (station {st.index}): its strokes in order"
+        pictures.append((f"strokes_stop{place + 1:02d}.png", caption, "station", place))
+    drawn = thin_surface(surface, settings.max_faces).surface if surface is not None else None
+    common = (folder, scene, drawn, _Backdrop(surface), settings)
     if progress is not None:
-        progress(len(images), total)
-    with atomic_output(os.path.join(folder, "report.md"), "w", encoding="utf-8") as handle:
-        handle.write(report_markdown(scene, images))
-    return [os.path.join(folder, f) for f, _ in images] + [os.path.join(folder, "report.md")]
+        progress(0, len(pictures))
+    done = None if progress is None else (lambda count: progress(count, len(pictures)))
+    drawing = shared_start(_draw_picture, pictures, processes, done=done, common=common)
+
+    def finish() -> list[str]:
+        from sprayplan.export.files import atomic_output
+
+        drawing.finish()
+        images = [(file, caption) for file, caption, _, _ in pictures]
+        with atomic_output(os.path.join(folder, "report.md"), "w", encoding="utf-8") as handle:
+            handle.write(report_markdown(scene, images))
+        return [os.path.join(folder, f) for f, _ in images] + [os.path.join(folder, "report.md")]
+
+    return finish
+
+
+def _draw_picture(common, picture) -> None:
+    """One image of the report (``write_report_files``'s ``(file, caption, kind, argument)``) into its folder."""
+    folder, scene, drawn, backdrop, settings = common
+    file, _, kind, argument = picture
+    path = os.path.join(folder, file)
+    if kind == "film":
+        film_picture(path, scene, drawn, argument, settings)
+    elif kind == "histogram":
+        histogram_picture(path, scene, settings)
+    elif kind == "measuring":
+        measuring_picture(path, scene, settings)
+    elif kind == "tour":
+        tour_picture(path, scene, settings, backdrop)
+    else:
+        station_picture(path, scene, argument, settings, backdrop)
 
 
 def report_markdown(scene: Scene, images: list[tuple[str, str]]) -> str:

@@ -1,0 +1,177 @@
+"""Work shared with a helper process (``sprayplan.parallel``, issue 17): the same results as one process.
+
+- ``shared_map`` gives ``[f(x) for x in items]`` in order, raises the first item's error, reports progress, and
+  finishes the work in the job's process when the helper dies;
+- the helper imports nothing of the caller's main module, and its log records reach the job's logging;
+- on a real part, the kinematics stage and the touch-ups fitted to the stations give the same plan, bit for
+  bit, with one process and with two.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from sprayplan import parallel
+from sprayplan.parallel import shared_map
+
+pytestmark = pytest.mark.skipif(parallel.process_count(2) < 2, reason="the helper needs POSIX pipes")
+
+
+def _square(x):
+    return x * x
+
+
+def _pid(_):
+    return os.getpid()
+
+
+def _fails_on_three(x):
+    if x == 3:
+        raise ValueError(f"item {x} is bad")
+    return x
+
+
+def _logs(x):
+    logging.getLogger("sprayplan.test_parallel").warning("item %d seen in process %d", x, os.getpid())
+    return x
+
+
+def _slow_pid(x):
+    import time
+
+    time.sleep(0.05)
+    return x, os.getpid()
+
+
+def _kills_helper(x):
+    """Kills its own process when run in the helper (whose parent is the test's process)."""
+    import time
+
+    if os.getppid() == int(os.environ.get("SPRAYPLAN_TEST_PARENT", "-1")):
+        os.kill(os.getpid(), signal.SIGKILL)
+    time.sleep(0.05)
+    return x + 100
+
+
+def test_shared_map_is_the_list_in_order_and_uses_the_helper():
+    items = list(range(40))
+    assert shared_map(_square, items, processes=2) == [x * x for x in items]
+    seen = shared_map(_slow_pid, range(12), processes=2)
+    assert [x for x, _ in seen] == list(range(12))
+    pids = {pid for _, pid in seen}
+    assert os.getpid() in pids and len(pids) == 2  # both processes took items
+    assert shared_map(_pid, range(5), processes=1) == [os.getpid()] * 5  # one process: all here
+    assert shared_map(_square, [], processes=2) == []
+
+
+def test_shared_map_raises_the_items_error_and_reports_progress():
+    counts = []
+    with pytest.raises(ValueError, match="item 3 is bad"):
+        shared_map(_fails_on_three, range(8), processes=2)
+    assert shared_map(_square, range(6), processes=2, done=counts.append) == [0, 1, 4, 9, 16, 25]
+    assert counts == [1, 2, 3, 4, 5, 6]  # each count once, in turn
+
+
+def test_the_helpers_log_records_reach_the_jobs_logging(caplog):
+    parallel.stop_helper()
+    with caplog.at_level(logging.WARNING, logger="sprayplan"):
+        shared_map(_logs, range(6), processes=2)
+    texts = [r.getMessage() for r in caplog.records if r.name == "sprayplan.test_parallel"]
+    assert len(texts) == 6
+    assert any(f"in process {os.getpid()}" not in t for t in texts)  # some were logged in the helper
+
+
+def test_a_dead_helper_leaves_its_items_to_the_job(monkeypatch, caplog):
+    parallel.stop_helper()
+    monkeypatch.setenv("SPRAYPLAN_TEST_PARENT", str(os.getpid()))
+    with caplog.at_level(logging.WARNING, logger="sprayplan.parallel"):
+        got = shared_map(_kills_helper, range(6), processes=2)
+    assert got == [x + 100 for x in range(6)]
+    assert any("helper process stopped" in r.getMessage() for r in caplog.records)
+    assert shared_map(_square, range(4), processes=2) == [0, 1, 4, 9]  # a new helper is started
+
+
+def test_a_script_without_a_main_guard_runs_once(tmp_path):
+    """The helper does not import the caller's main module (multiprocessing's spawn would run it again)."""
+    marks = tmp_path / "marks.txt"
+    script = tmp_path / "script.py"
+    script.write_text(
+        textwrap.dedent(
+            f"""
+            from sprayplan.parallel import shared_map
+            from tests.test_parallel import _square
+            with open({str(marks)!r}, "a") as handle:
+                handle.write("run\\n")
+            print(shared_map(_square, range(5), processes=2))
+            """
+        )
+    )
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, env=env, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[0, 1, 4, 9, 16]"
+    assert marks.read_text() == "run\n"
+
+
+def _same_plan(a, b):
+    assert [st.index for st in a.stations] == [st.index for st in b.stations]
+    for sa, sb in zip(a.stations, b.stations):
+        np.testing.assert_array_equal(sa.platform_mm, sb.platform_mm)
+        np.testing.assert_array_equal(sa.q9, sb.q9)
+        np.testing.assert_array_equal(sa.reachable, sb.reachable)
+        np.testing.assert_array_equal(sa.position_error_mm, sb.position_error_mm)
+        assert list(sa.method) == list(sb.method)
+        assert len(sa.strokes) == len(sb.strokes)
+        for ka, kb in zip(sa.strokes, sb.strokes):
+            np.testing.assert_array_equal(ka.tcp, kb.tcp)
+            assert ka.kind == kb.kind
+
+
+def test_the_plan_and_its_touch_ups_are_the_same_with_one_process_and_two(testdata):
+    """The real curved panel: the kinematics stage (every station from home) and touch-ups aimed at its lip's
+    underside, fitted to the stations and to new ones, with the solves in one process and shared with the
+    helper: the same stations, strokes and joints bit for bit."""
+    from sprayplan.coating.sampling import surface_samples
+    from sprayplan.config import JobConfig
+    from sprayplan.io.load import load_part
+    from sprayplan.refine.extend import with_added_strokes
+    from sprayplan.refine.touchup import touch_up_strokes
+    from tests.helpers import planned
+
+    part = load_part(testdata / "meshes" / "reach_curved_part.ply", units="m")
+    plans = {}
+    for processes in (1, 2):
+        job = JobConfig().replace(coating={"thickness_um": 50.0}, kinematics={"processes": processes})
+        plans[processes] = planned(part, job)
+    assert len(plans[1].stations) >= 2
+    _same_plan(plans[1], plans[2])
+    samples = surface_samples(part)
+    lip = (samples.normals[:, 0] > 0.6) & (samples.normals[:, 2] < -0.2)
+    film = np.where(lip, 20.0, 50.0)
+    kw = dict(standoff_mm=113.0, step_mm=10.0, lead_mm=50.0, min_area_mm2=625.0)
+    strokes = touch_up_strokes(samples, film, np.ones(len(film), bool), 50.0, 5.0, **kw)
+    extended = {}
+    for processes in (1, 2):
+        job = JobConfig().replace(coating={"thickness_um": 50.0}, kinematics={"processes": processes})
+        extended[processes] = with_added_strokes(plans[1], strokes, job, new_stations=2)
+    assert len(extended[1].stations) > len(plans[1].stations)  # new stations were placed
+    _same_plan(extended[1], extended[2])
+
+
+def test_a_batch_job_runs_in_one_process_unless_told_otherwise():
+    from sprayplan.parallel import process_count, single_process
+
+    assert process_count(None) == (2 if (os.cpu_count() or 1) >= 2 else 1)
+    with single_process():
+        assert process_count(None) == 1
+        assert process_count(2) == 2  # an explicit setting still counts
+    assert process_count(1) == 1
