@@ -165,6 +165,19 @@ def test_the_plan_and_its_touch_ups_are_the_same_with_one_process_and_two(testda
         extended[processes] = with_added_strokes(plans[1], strokes, job, new_stations=2)
     assert len(extended[1].stations) > len(plans[1].stations)  # new stations were placed
     _same_plan(extended[1], extended[2])
+    # the timing: the stretches timed in parts, some in the helper, give the same time stamps and figures
+    from sprayplan.robots.gantry import Gantry
+    from sprayplan.timing.stage import time_plan
+
+    timed = {}
+    for processes in (1, 2):
+        job = JobConfig().replace(kinematics={"processes": processes})
+        timed[processes] = time_plan(extended[1], job, Gantry())
+    assert timed[1].cycle_time_s > 0 and timed[1].cycle_time_s == timed[2].cycle_time_s
+    for field in ("t_s", "speed_mm_s"):
+        for a, b in zip(getattr(timed[1], field), getattr(timed[2], field)):
+            np.testing.assert_array_equal(a, b)
+    assert timed[1].worst == timed[2].worst
 
 
 def test_a_batch_job_runs_in_one_process_unless_told_otherwise():
@@ -175,3 +188,28 @@ def test_a_batch_job_runs_in_one_process_unless_told_otherwise():
         assert process_count(None) == 1
         assert process_count(2) == 2  # an explicit setting still counts
     assert process_count(1) == 1
+
+
+def test_the_helper_runs_blas_with_the_jobs_thread_count(monkeypatch):
+    """A library that changes the environment after the job's BLAS started (dask's LocalCluster sets
+    OPENBLAS_NUM_THREADS=1 in its parent's environment) does not change the helper's BLAS: it runs with the
+    thread count the job's libraries run with, so that its solves give the job's numbers."""
+    import scipy.linalg  # noqa: F401  (both BLAS libraries loaded here)
+    from threadpoolctl import threadpool_info
+
+    parallel.stop_helper()
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "1")
+    here = sorted((lib["internal_api"], lib["num_threads"]) for lib in threadpool_info() if lib["user_api"] == "blas")
+    try:
+        seen = shared_map(_blas_threads, range(4), processes=2)
+    finally:
+        parallel.stop_helper()  # the next test's helper starts with the environment restored
+    assert all(threads == here for threads in seen), (here, seen)
+
+
+def _blas_threads(_):
+    import numpy  # noqa: F401  (its BLAS loaded)
+    import scipy.linalg  # noqa: F401
+    from threadpoolctl import threadpool_info
+
+    return sorted((lib["internal_api"], lib["num_threads"]) for lib in threadpool_info() if lib["user_api"] == "blas")

@@ -34,7 +34,12 @@ from multiprocessing.connection import Connection
 log = logging.getLogger(__name__)
 
 #: Modules imported in the helper as it starts, so that its first item does not pay for them.
-HELPER_IMPORTS = ("sprayplan.robots.stage", "sprayplan.refine.extend", "sprayplan.view.report")
+HELPER_IMPORTS = (
+    "sprayplan.robots.stage",
+    "sprayplan.refine.extend",
+    "sprayplan.timing.stage",
+    "sprayplan.view.report",
+)
 
 _lock = threading.Lock()
 _MISSING = object()
@@ -84,6 +89,15 @@ class Helper:
         to_parent, from_child = os.pipe()
         root = os.path.dirname(os.path.dirname(os.path.abspath(sprayplan.__file__)))
         env = dict(os.environ)
+        # the helper's BLAS runs with the thread count this process's runs with now, whatever the environment
+        # says: the joint solves' last digits depend on it, and a library may have changed the environment
+        # after this process's BLAS started (dask's LocalCluster sets OPENBLAS_NUM_THREADS=1 in its parent's
+        # environment: a helper started after it solved differently)
+        threads = _blas_threads()
+        for name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS"):
+            env.pop(name, None)
+        if threads is not None:
+            env["SPRAYPLAN_HELPER_BLAS_THREADS"] = str(threads)
         env["PYTHONPATH"] = os.pathsep.join([root, *filter(None, [env.get("PYTHONPATH")])])
         code = f"from sprayplan.parallel import _serve; _serve({to_child}, {from_child})"
         try:
@@ -128,6 +142,18 @@ class Helper:
             self.process.wait()
 
 
+def _blas_threads() -> int | None:
+    """The thread count this process's BLAS libraries run with now (``threadpoolctl``; the smallest when they
+    differ), or None when it cannot be told."""
+    try:
+        from threadpoolctl import threadpool_info
+
+        counts = [lib["num_threads"] for lib in threadpool_info() if lib.get("user_api") == "blas"]
+    except Exception:  # no answer: the helper keeps what its environment gives it
+        return None
+    return min(counts) if counts else None
+
+
 class _Records(logging.Handler):
     def __init__(self):
         super().__init__(logging.INFO)
@@ -151,6 +177,12 @@ def _serve(read_fd: int, write_fd: int) -> None:
     root.setLevel(logging.INFO)
     for name in HELPER_IMPORTS:
         importlib.import_module(name)
+    limits = None  # kept: the limits hold while the object lives
+    if os.environ.get("SPRAYPLAN_HELPER_BLAS_THREADS"):
+        import scipy.linalg  # noqa: F401  (both BLAS libraries loaded, so that both are set)
+        from threadpoolctl import threadpool_limits
+
+        limits = threadpool_limits(limits=int(os.environ["SPRAYPLAN_HELPER_BLAS_THREADS"]), user_api="blas")
     while True:
         try:
             function, item = pickle.loads(receive.recv_bytes())
@@ -166,6 +198,7 @@ def _serve(read_fd: int, write_fd: int) -> None:
         except Exception as exc:  # an error or result that does not pickle: its text
             data = pickle.dumps((False, RuntimeError(f"{type(exc).__name__}: {exc}"), []))
         send.send_bytes(data)
+    del limits
 
 
 def _get_helper() -> Helper:

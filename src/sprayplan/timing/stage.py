@@ -25,12 +25,14 @@ with factors 1, so the film model's time along every stroke is the timed one (:f
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import logging
 from dataclasses import dataclass
 
 import numpy as np
 
 from sprayplan.collision.transfers import is_route
+from sprayplan.parallel import process_count, shared_map
 from sprayplan.paths.speed import segment_speeds
 from sprayplan.progress import Progress, counted
 from sprayplan.robots.stage import HOME_JOINTS
@@ -142,16 +144,12 @@ def time_plan(plan: Plan, job, gantry, progress: Progress | None = None) -> Plan
     # order the loop below takes them
     jump = np.radians(config.joint_jump_deg)
     stretches = [(st.q9[idx[run]], cap[run[:-1]]) for st, idx, cap, run in _spray_runs(plan, motion, jump)]
-    timings = iter(
-        time_paths(
-            stretches,
-            limits,
-            gantry.gun_tip,
-            check_steps=config.check_steps,
-            max_rounds=config.max_rounds,
-            tip_rate=gantry.gun_tip,
-        )
-    )
+    # each stretch is timed on its own (time_paths: the same answer in any company), so the stretches are
+    # shared with the helper process in a few consecutive parts
+    processes = process_count(job.kinematics.processes)
+    parts = _parts(stretches, 2 * TIMING_PARTS_PER_PROCESS if processes > 1 else 1)
+    options = (limits, gantry, config.check_steps, config.max_rounds)
+    timings = iter([t for part in shared_map(_timed_part, parts, processes, common=options) for t in part])
     step = counted(progress, "timing", len(plan.stations))
     current = np.concatenate([HOME_JOINTS, plan.home_mm])
     clock = 0.0
@@ -247,6 +245,28 @@ def time_plan(plan: Plan, job, gantry, progress: Progress | None = None) -> Plan
         float(totals["station"]),
         float(clock),
         worst,
+    )
+
+
+#: How many parts of the stretches each process takes on average (more: better balance, more round trips).
+TIMING_PARTS_PER_PROCESS = 2
+
+
+def _parts(items: list, count: int) -> list[list]:
+    """``items`` in ``count`` consecutive parts of about the same number of waypoints (none empty)."""
+    if count <= 1 or len(items) <= 1:
+        return [items]
+    sizes = np.cumsum([len(q) for q, _ in items])
+    cuts = np.searchsorted(sizes, sizes[-1] * np.arange(1, count) / count, side="right")
+    bounds = np.unique(np.r_[0, np.clip(cuts, 1, len(items) - 1), len(items)])
+    return [items[a:b] for a, b in itertools.pairwise(bounds)]
+
+
+def _timed_part(options, stretches) -> list:
+    """``time_paths`` of some of a plan's stretches (for ``parallel.shared_map``)."""
+    limits, gantry, check_steps, max_rounds = options
+    return time_paths(
+        stretches, limits, gantry.gun_tip, check_steps=check_steps, max_rounds=max_rounds, tip_rate=gantry.gun_tip
     )
 
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 import itertools
 import logging
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from matplotlib.artist import Artist, allow_rasterization
@@ -601,16 +601,32 @@ def begin_report_files(
         caption = f"Stop {place + 1} (station {st.index}): its strokes in order"
         pictures.append((f"strokes_stop{place + 1:02d}.png", caption, "station", place))
     drawn = thin_surface(surface, settings.max_faces).surface if surface is not None else None
-    common = (folder, scene, drawn, _Backdrop(surface), settings)
+    # the histogram and the measuring points read the whole film: drawn here; the others need only the thinned
+    # surface, the backdrop and the plan, which is all the helper is sent (the scene without its surface)
+    here = [p for p in pictures if p[2] in ("histogram", "measuring")]
+    shared = [p for p in pictures if p[2] not in ("histogram", "measuring")]
+    light = replace(scene, surface=None)
+    common = (folder, light, drawn, _Backdrop(surface), settings)
     if progress is not None:
         progress(0, len(pictures))
-    done = None if progress is None else (lambda count: progress(count, len(pictures)))
-    drawing = shared_start(_draw_picture, pictures, processes, done=done, common=common)
+    count = {"here": 0, "shared": 0}
+
+    def report(key, value):
+        count[key] = value
+        if progress is not None:
+            progress(count["here"] + count["shared"], len(pictures))
+
+    drawing = shared_start(_draw_picture, shared, processes, done=lambda done: report("shared", done), common=common)
 
     def finish() -> list[str]:
         from sprayplan.export.files import atomic_output
 
-        drawing.finish()
+        try:
+            for k, picture in enumerate(here):
+                _draw_picture((folder, scene, drawn, None, settings), picture)
+                report("here", k + 1)
+        finally:
+            drawing.finish()
         images = [(file, caption) for file, caption, _, _ in pictures]
         with atomic_output(os.path.join(folder, "report.md"), "w", encoding="utf-8") as handle:
             handle.write(report_markdown(scene, images))
