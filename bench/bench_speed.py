@@ -86,6 +86,8 @@ def child(name: str, profile: str | None) -> None:
                 cpu[last[0]] = cpu.get(last[0], 0.0) + now - last[1]
             last[:] = [stage, now]
 
+    together = _TogetherPeak()
+    together.start()
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
         if profile:
@@ -97,6 +99,7 @@ def child(name: str, profile: str | None) -> None:
         else:
             result = run_job(source, job, outdir=tmp, progress=progress)
         wall = time.perf_counter() - start
+    together.stop()
     progress(None, 0, 0)
     film = result.film
     totals = result.totals
@@ -121,6 +124,7 @@ def child(name: str, profile: str | None) -> None:
         "maxrss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
         "helper_cpu_s": round(helper.ru_utime + helper.ru_stime, 2),
         "helper_maxrss_mb": round(helper.ru_maxrss / 1024, 1),
+        "together_peak_mb": round(together.peak_mb, 1),
         "load": round(os.getloadavg()[0], 2),
         "stations": totals["stations"],
         "strokes": totals["strokes"],
@@ -130,6 +134,49 @@ def child(name: str, profile: str | None) -> None:
         "digest": plan_digest(result.plan),
     }
     print(json.dumps(report))
+
+
+class _TogetherPeak:
+    """The largest resident size of this process and its helper process (``sprayplan.parallel``) at the same
+    moment, sampled every 50 ms from /proc (Linux; 0 elsewhere)."""
+
+    def __init__(self):
+        import threading
+
+        self.peak_mb = 0.0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    @staticmethod
+    def _rss_mb(pid) -> float:
+        try:
+            with open(f"/proc/{pid}/status") as handle:
+                for line in handle:
+                    if line.startswith("VmRSS:"):
+                        return int(line.split()[1]) / 1024
+        except OSError:
+            pass
+        return 0.0
+
+    def _run(self):
+        while not self._stop.wait(0.05):
+            total = self._rss_mb("self")
+            try:
+                from sprayplan import parallel
+
+                helper = parallel._helper
+                if helper is not None:
+                    total += self._rss_mb(helper.process.pid)
+            except (ImportError, AttributeError):
+                pass
+            self.peak_mb = max(self.peak_mb, total)
+
+    def start(self):
+        self._thread.start()
+
+    def stop(self):
+        self._stop.set()
+        self._thread.join()
 
 
 def plan_digest(plan) -> dict:
@@ -235,6 +282,7 @@ def table(name: str, runs: dict[str, list[dict]]) -> None:
         ("helper_cpu_s", "helper process CPU s"),
         ("maxrss_mb", "peak RSS MB"),
         ("helper_maxrss_mb", "helper process peak RSS MB"),
+        ("together_peak_mb", "both processes at once, peak RSS MB (sampled every 50 ms)"),
     ):
         vals = {b: statistics.median(r.get(key, 0.0) for r in runs[b]) for b in builds}
         cells = [f"{vals[b]:.1f} |" for b in builds]

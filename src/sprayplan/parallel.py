@@ -40,6 +40,9 @@ HELPER_IMPORTS = (
     "sprayplan.timing.stage",
     "sprayplan.view.report",
 )
+#: Functions the helper runs after its imports, while it waits for work: the compiled kernels and the
+#: drawing set up, so that the job's first pieces given to it do not pay for them.
+HELPER_WARM_UPS = (("sprayplan.timing.stage", "warm_up"), ("sprayplan.view.report", "warm_up"))
 
 _lock = threading.Lock()
 _MISSING = object()
@@ -183,6 +186,11 @@ def _serve(read_fd: int, write_fd: int) -> None:
         from threadpoolctl import threadpool_limits
 
         limits = threadpool_limits(limits=int(os.environ["SPRAYPLAN_HELPER_BLAS_THREADS"]), user_api="blas")
+    for module, name in HELPER_WARM_UPS:
+        try:
+            getattr(importlib.import_module(module), name)()
+        except Exception:  # only a head start: the real work sets it up if this did not
+            logging.getLogger(__name__).debug("helper warm-up %s.%s failed", module, name, exc_info=True)
     while True:
         try:
             function, item = pickle.loads(receive.recv_bytes())

@@ -33,7 +33,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 from scipy import sparse
 from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
@@ -413,11 +413,10 @@ class System:
         return self.kept(np.ones(self.shape[0], bool))
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True)
 def _system_matvec(indptr, indices, data, rows, position, factor, inv_tol, x):
-    # rows on both cores: each row is summed in order by one thread, so the sums are the serial loop's
     out = np.empty(len(rows))
-    for i in prange(len(rows)):
+    for i in range(len(rows)):
         r = rows[i]
         total = 0.0
         for k in range(indptr[r], indptr[r + 1]):
@@ -429,34 +428,20 @@ def _system_matvec(indptr, indices, data, rows, position, factor, inv_tol, x):
     return out
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True)
 def _system_kept(indptr, indices, data, rows, position, factor, inv_tol, pair_first, scale, keep):
-    # two passes over the rows on both cores: each kept row's entries counted, then written at its offset
     n_fit = len(rows)
-    n_rows = n_fit + len(pair_first)
-    counts = np.zeros(n_rows, np.int64)
-    for i in prange(n_fit):
+    most = 2 * len(pair_first)  # room for every kept entry, allocated once (pages past the end stay untouched)
+    for i in range(n_fit):
+        if keep[i]:
+            most += indptr[rows[i] + 1] - indptr[rows[i]]
+    out_indptr = np.zeros(n_fit + len(pair_first) + 1, indices.dtype)
+    out_indices = np.empty(most, indices.dtype)
+    out_data = np.empty(most, np.float64)
+    at = 0
+    for i in range(n_fit):
         if keep[i]:
             r = rows[i]
-            count = 0
-            for k in range(indptr[r], indptr[r + 1]):
-                if position[indices[k]] >= 0 and (data[k] * factor) * inv_tol != 0.0:
-                    count += 1
-            counts[i] = count
-    for j in range(len(pair_first)):
-        if scale != 0.0 and keep[n_fit + j]:
-            counts[n_fit + j] = 2
-    out_indptr = np.zeros(n_rows + 1, indices.dtype)
-    total = 0
-    for i in range(n_rows):
-        total += counts[i]
-        out_indptr[i + 1] = total
-    out_indices = np.empty(total, indices.dtype)
-    out_data = np.empty(total, np.float64)
-    for i in prange(n_fit):
-        if keep[i]:
-            r = rows[i]
-            at = out_indptr[i]
             for k in range(indptr[r], indptr[r + 1]):
                 column = position[indices[k]]
                 value = (data[k] * factor) * inv_tol
@@ -464,14 +449,16 @@ def _system_kept(indptr, indices, data, rows, position, factor, inv_tol, pair_fi
                     out_indices[at] = column
                     out_data[at] = value
                     at += 1
+        out_indptr[i + 1] = at
     for j in range(len(pair_first)):
-        if counts[n_fit + j]:
-            at = out_indptr[n_fit + j]
+        if scale != 0.0 and keep[n_fit + j]:
             out_indices[at] = pair_first[j]
             out_data[at] = -scale
             out_indices[at + 1] = pair_first[j] + 1
             out_data[at + 1] = scale
-    return out_data, out_indices, out_indptr
+            at += 2
+        out_indptr[n_fit + j + 1] = at
+    return out_data[:at], out_indices[:at], out_indptr
 
 
 def _residuals(system: System, target_vec: np.ndarray, band: float):
@@ -480,15 +467,16 @@ def _residuals(system: System, target_vec: np.ndarray, band: float):
     the band and 0 inside: the Jacobian is ``diags(slope) @ system``, the system's rows inside the band
     emptied (``System.kept``)."""
     n_fit = system.n_fit
-    # the film rows' misfit at the last residual's point: the solver asks for the Jacobian at the point whose
-    # residual it has just computed, so the Jacobian's dead band reuses it (the same numbers bit for bit)
-    last: dict = {"x": None, "misfit": None}
+    # which film rows are outside the dead band at the last residual's point: the solver asks for the
+    # Jacobian at the point whose residual it has just computed, so the Jacobian reuses them (the same rows as
+    # computing the misfit again; kept as flags, a byte a row)
+    last: dict = {"x": None, "outside": None}
 
     def residual(x):
         r = system.matvec(x) - target_vec
         if band > 0:
-            last["x"], last["misfit"] = np.array(x, dtype=float), r[:n_fit].copy()
             f = r[:n_fit]
+            last["x"], last["outside"] = np.array(x, dtype=float), np.abs(f) > band
             r[:n_fit] = np.sign(f) * np.maximum(np.abs(f) - band, 0.0)
         return r
 
@@ -499,10 +487,10 @@ def _residuals(system: System, target_vec: np.ndarray, band: float):
 
     def jacobian(x):
         if last["x"] is not None and np.array_equal(last["x"], x):
-            f = last["misfit"]
+            outside[:n_fit] = last["outside"]
         else:
             f = system.fit_matvec(x) - target_vec[:n_fit]
-        np.greater(np.abs(f), band, out=outside[:n_fit])
+            np.greater(np.abs(f), band, out=outside[:n_fit])
         return system.kept(outside)
 
     return residual, jacobian

@@ -270,6 +270,20 @@ def _timed_part(options, stretches) -> list:
     )
 
 
+def warm_up() -> None:
+    """Time a short made-up stretch, so that the timing's compiled kernels are loaded (the helper process
+    does this while it waits for work: ``parallel.HELPER_WARM_UPS``)."""
+    from sprayplan.config import JobConfig
+    from sprayplan.robots.gantry import Gantry
+
+    gantry, job = Gantry(), JobConfig()
+    q = np.tile(np.r_[HOME_JOINTS, 0.0, 0.0, 1500.0], (5, 1))
+    q[:, 0] += np.linspace(0.0, 0.2, 5)
+    _timed_part(
+        (plan_limits(gantry, job), gantry, job.timing.check_steps, job.timing.max_rounds), [(q, np.full(4, 400.0))]
+    )
+
+
 def _planned_speeds(s, motion) -> np.ndarray:
     """A spray stroke's planned tip speed on each segment (its time factors included), mm/s."""
     return segment_speeds(s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio, s.dwell)

@@ -99,6 +99,21 @@ def _figure(settings: ReportSettings):
     return Figure(figsize=(w / dpi, h / dpi), dpi=dpi)
 
 
+def warm_up() -> None:
+    """Draw a small picture with text into memory, so that matplotlib's fonts and canvas are set up (the
+    helper process does this while it waits for work: ``parallel.HELPER_WARM_UPS``)."""
+    import io
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    fig = _figure(ReportSettings())
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    ax.plot([0, 1], [0, 1])
+    ax.set_title("warm-up")
+    fig.savefig(io.BytesIO(), format="png")
+
+
 def _save(fig, path: str) -> None:
     """Draw ``fig`` on its Agg canvas (the one ``_wrapped_title`` measured on, when it did) and write it as a PNG
     (zlib level 3), without its alpha channel when it is opaque throughout, as the report's images are: a
