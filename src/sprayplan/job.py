@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 from sprayplan.config import JobConfig
 from sprayplan.errors import InputError, StageError
 from sprayplan.heap import release_freed_memory
-from sprayplan.parallel import process_count, start_helper
+from sprayplan.parallel import process_count, start_helper, warm_helper
 from sprayplan.progress import Progress, no_progress, per_stage
 from sprayplan.types import Part, Plan
 
@@ -401,6 +401,8 @@ def run_job(
         state = _run_stage(stage, state, progress)
         if stage.name == until:
             return state
+        if stage.name == "refine":  # past the job's peak of memory: the helper sets up the timing and drawing
+            warm_helper()
     totals = {**state.totals, "planning_time_s": round(time.perf_counter() - start, 3)}
     state = dataclasses.replace(state, totals=totals)
     if outdir is not None:

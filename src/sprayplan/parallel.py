@@ -40,8 +40,9 @@ HELPER_IMPORTS = (
     "sprayplan.timing.stage",
     "sprayplan.view.report",
 )
-#: Functions the helper runs after its imports, while it waits for work: the compiled kernels and the
-#: drawing set up, so that the job's first pieces given to it do not pay for them.
+#: Functions the helper runs when the job calls :func:`warm_helper` (after the refine stage, whose tuning
+#: is the job's peak of memory: the timing's compiled kernels take about 80 MB), so that the pieces of the
+#: later stages given to it do not pay for setting them up.
 HELPER_WARM_UPS = (("sprayplan.timing.stage", "warm_up"), ("sprayplan.view.report", "warm_up"))
 
 _lock = threading.Lock()
@@ -186,11 +187,6 @@ def _serve(read_fd: int, write_fd: int) -> None:
         from threadpoolctl import threadpool_limits
 
         limits = threadpool_limits(limits=int(os.environ["SPRAYPLAN_HELPER_BLAS_THREADS"]), user_api="blas")
-    for module, name in HELPER_WARM_UPS:
-        try:
-            getattr(importlib.import_module(module), name)()
-        except Exception:  # only a head start: the real work sets it up if this did not
-            logging.getLogger(__name__).debug("helper warm-up %s.%s failed", module, name, exc_info=True)
     while True:
         try:
             function, item = pickle.loads(receive.recv_bytes())
@@ -228,6 +224,32 @@ def start_helper(processes: int) -> None:
             _get_helper()
         except HelperLost as exc:
             log.info("no helper process (%s): the work stays in this process", exc)
+
+
+def _warm_up(_) -> None:
+    import importlib
+
+    for module, name in HELPER_WARM_UPS:
+        try:
+            getattr(importlib.import_module(module), name)()
+        except Exception:  # only a head start: the real work sets it up if this did not
+            log.debug("helper warm-up %s.%s failed", module, name, exc_info=True)
+
+
+def warm_helper() -> None:
+    """Have the helper (when running) set up the later stages' kernels and drawing now, in the background
+    (:data:`HELPER_WARM_UPS`); work sent to it meanwhile waits its turn."""
+    helper = _helper
+    if helper is None:
+        return
+
+    def run():
+        try:
+            helper.call(_warm_up, None)
+        except HelperLost:
+            pass
+
+    threading.Thread(target=run, name="sprayplan-helper-warm-up", daemon=True).start()
 
 
 def stop_helper() -> None:
