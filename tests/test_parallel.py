@@ -213,3 +213,21 @@ def _blas_threads(_):
     from threadpoolctl import threadpool_info
 
     return sorted((lib["internal_api"], lib["num_threads"]) for lib in threadpool_info() if lib["user_api"] == "blas")
+
+
+def test_work_that_fails_beside_a_started_map_waits_for_it_and_raises_its_own_error():
+    """``finished_on_error``: a file that fails to write while the helper draws pictures waits for the map
+    to end (no helper work left running) and the file's error is the one raised, not the map's."""
+    from sprayplan.parallel import finished_on_error, shared_start
+
+    started = shared_start(_slow_pid, range(8), processes=2)
+    with pytest.raises(OSError, match="disk full"):
+        with finished_on_error(started.finish):
+            raise OSError("disk full")
+    assert all(started.finished) and not started.feeder.is_alive()
+    failing = shared_start(_fails_on_three, range(6), processes=2)
+    with pytest.raises(OSError, match="disk full"):  # the map's own error is dropped
+        with finished_on_error(failing.finish):
+            raise OSError("disk full")
+    with finished_on_error(None):  # nothing started: nothing to wait for
+        pass

@@ -282,6 +282,20 @@ def _with_common(args):
     return function(_COMMON[key], item)
 
 
+@contextlib.contextmanager
+def finished_on_error(finish):
+    """Around work done while a :func:`shared_start` map (or what wraps one) runs: if the work raises,
+    ``finish()`` is called first (its own errors dropped), so that the helper's pieces are waited for before
+    the error goes on. ``finish`` may be None."""
+    try:
+        yield
+    except BaseException:
+        if finish is not None:
+            with contextlib.suppress(Exception):
+                finish()
+        raise
+
+
 def shared_map(function, items, processes: int = 1, done=None, common=_MISSING) -> list:
     """``[function(item) for item in items]`` (``function(common, item)`` when ``common`` is given: data all
     items need, sent to the helper once), computed by this process and (when ``processes`` > 1 and there

@@ -4,7 +4,6 @@ all or nothing (``export.files.staged_folder``)."""
 
 from __future__ import annotations
 
-import contextlib
 import os
 
 from sprayplan.view.files import VIEW_FILES
@@ -85,17 +84,14 @@ def write_job_files(
         processes = process_count(job.kinematics.processes)
         view = dict(viewer=job.output.viewer, report=job.output.report, progress=progress, processes=processes)
         pictures = begin_view_files(folder, scene, **view)
-    try:
+    from sprayplan.parallel import finished_on_error
+
+    with finished_on_error(pictures):
         written = write_plan(
             folder, result.plan, job, result.totals, part_file, report, getattr(result, "timing", None)
         )
         if report is not None:
             written += write_coating(folder, result.film, job, report)
-    except BaseException:
-        if pictures is not None:  # the helper's work waited for before the error goes on
-            with contextlib.suppress(Exception):
-                pictures()
-        raise
     if pictures is not None:
         written += pictures()
     return written

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import os
 
@@ -37,20 +36,16 @@ def begin_view_files(folder, scene: Scene, viewer=True, report=True, progress=No
         pictures = begin_report_files(os.path.join(folder, "report"), scene, progress=progress, processes=processes)
 
     def finish() -> list[str]:
+        from sprayplan.parallel import finished_on_error
         from sprayplan.view.html import write_viewer
 
         written = []
-        try:
+        with finished_on_error(pictures):
             if viewer:
                 path = os.path.join(folder, "plan.html")
                 drawn = write_viewer(path, scene)
                 log.info("%s: viewer written (%s)", path, drawn)
                 written.append(path)
-        except BaseException:
-            if pictures is not None:  # the helper's pictures waited for before the error goes on
-                with contextlib.suppress(Exception):
-                    pictures()
-            raise
         if pictures is not None:
             pictures()
             written.append(os.path.join(folder, "report"))
