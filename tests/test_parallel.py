@@ -40,6 +40,9 @@ def _fails_on_three(x):
 
 
 def _logs(x):
+    import time
+
+    time.sleep(0.05)
     logging.getLogger("sprayplan.test_parallel").warning("item %d seen in process %d", x, os.getpid())
     return x
 
@@ -61,7 +64,14 @@ def _kills_helper(x):
     return x + 100
 
 
+def _ready_helper():
+    """A helper started and done with its imports (until then the job's process keeps every piece)."""
+    parallel.start_helper(2)
+    assert parallel._helper.ready.wait(60)
+
+
 def test_shared_map_is_the_list_in_order_and_uses_the_helper():
+    _ready_helper()
     items = list(range(40))
     assert shared_map(_square, items, processes=2) == [x * x for x in items]
     seen = shared_map(_slow_pid, range(12), processes=2)
@@ -82,6 +92,7 @@ def test_shared_map_raises_the_items_error_and_reports_progress():
 
 def test_the_helpers_log_records_reach_the_jobs_logging(caplog):
     parallel.stop_helper()
+    _ready_helper()
     with caplog.at_level(logging.WARNING, logger="sprayplan"):
         shared_map(_logs, range(6), processes=2)
     texts = [r.getMessage() for r in caplog.records if r.name == "sprayplan.test_parallel"]
@@ -92,6 +103,7 @@ def test_the_helpers_log_records_reach_the_jobs_logging(caplog):
 def test_a_dead_helper_leaves_its_items_to_the_job(monkeypatch, caplog):
     parallel.stop_helper()
     monkeypatch.setenv("SPRAYPLAN_TEST_PARENT", str(os.getpid()))
+    _ready_helper()
     with caplog.at_level(logging.WARNING, logger="sprayplan.parallel"):
         got = shared_map(_kills_helper, range(6), processes=2)
     assert got == [x + 100 for x in range(6)]
@@ -147,6 +159,7 @@ def test_the_plan_and_its_touch_ups_are_the_same_with_one_process_and_two(testda
     from sprayplan.refine.touchup import touch_up_strokes
     from tests.helpers import planned
 
+    _ready_helper()  # so that the helper takes pieces from the start
     part = load_part(testdata / "meshes" / "reach_curved_part.ply", units="m")
     plans = {}
     for processes in (1, 2):
@@ -199,6 +212,7 @@ def test_the_helper_runs_blas_with_the_jobs_thread_count(monkeypatch):
 
     parallel.stop_helper()
     monkeypatch.setenv("OPENBLAS_NUM_THREADS", "1")
+    _ready_helper()
     here = sorted((lib["internal_api"], lib["num_threads"]) for lib in threadpool_info() if lib["user_api"] == "blas")
     try:
         seen = shared_map(_blas_threads, range(4), processes=2)
@@ -220,6 +234,7 @@ def test_work_that_fails_beside_a_started_map_waits_for_it_and_raises_its_own_er
     to end (no helper work left running) and the file's error is the one raised, not the map's."""
     from sprayplan.parallel import finished_on_error, shared_start
 
+    _ready_helper()
     started = shared_start(_slow_pid, range(8), processes=2)
     with pytest.raises(OSError, match="disk full"):
         with finished_on_error(started.finish):

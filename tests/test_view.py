@@ -415,6 +415,10 @@ def test_a_point_cloud_film_is_drawn_as_coloured_points(testdata, tmp_path):
     assert near.mean() > 0.05
 
 
+def _recorder(calls: list):
+    return lambda *call: calls.append(call)
+
+
 def test_the_report_drawn_in_two_processes_is_the_same_bytes(planned, tmp_path):
     """The report's images shared with a helper process (``[kinematics] processes`` = 2, the default on two
     cores) are the files one process draws, byte for byte, and report.md is the same text."""
@@ -423,14 +427,15 @@ def test_the_report_drawn_in_two_processes_is_the_same_bytes(planned, tmp_path):
 
     if parallel.process_count(2) < 2:
         pytest.skip("the helper needs POSIX pipes")
+    parallel.start_helper(2)
+    assert parallel._helper.ready.wait(60)  # ready, so that it takes pictures from the start
     scene = scene_from_folder(planned)
     folders = {}
     for processes in (1, 2):
         folders[processes] = tmp_path / f"p{processes}"
         folders[processes].mkdir()
-        counts = []
-        progress = lambda done, total: counts.append((done, total))  # noqa: E731
-        write_report_files(str(folders[processes]), scene, progress=progress, processes=processes)
+        counts: list = []
+        write_report_files(str(folders[processes]), scene, progress=_recorder(counts), processes=processes)
         total = counts[-1][1]
         assert counts[-1] == (total, total) and total == len(list(folders[processes].glob("*.png")))
     names = sorted(p.name for p in folders[1].iterdir())

@@ -114,6 +114,18 @@ class Helper:
         self.send = Connection(from_parent, readable=False)
         self.receive = Connection(to_parent, writable=False)
         self.busy = threading.Lock()
+        # the helper says when its imports are done; until then the job keeps its pieces (a piece sent to a
+        # helper still starting would wait for it, and a small job would end up waiting too)
+        self.ready = threading.Event()
+        threading.Thread(target=self._wait_ready, name="sprayplan-helper-ready", daemon=True).start()
+
+    def _wait_ready(self) -> None:
+        with self.busy:
+            try:
+                self.receive.recv_bytes()
+            except (OSError, EOFError):
+                pass  # a helper that died starting: the first call finds out
+            self.ready.set()
 
     def call(self, function, item):
         """``function(item)`` in the helper. Raises what the function raised, or :class:`HelperLost`."""
@@ -139,8 +151,8 @@ class Helper:
                 end.close()
             except OSError:
                 pass
-        try:
-            self.process.wait(timeout=5)
+        try:  # it ends when it reads the closed pipe; one still busy (a warm-up) holds no work of the job's
+            self.process.wait(timeout=0.1)
         except subprocess.TimeoutExpired:
             self.process.kill()
             self.process.wait()
@@ -173,7 +185,11 @@ def _serve(read_fd: int, write_fd: int) -> None:
     """The helper's loop: read a pickled ``(function, item)``, send back ``(ok, result or error, log
     records)``, until the job's process closes its end."""
     import importlib
+    import signal
 
+    # Ctrl-C reaches the whole process group: the job's process handles it (one line) and ends the helper by
+    # closing its pipes, so the helper itself ignores it rather than print a traceback
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     receive, send = Connection(read_fd, writable=False), Connection(write_fd, readable=False)
     records = _Records()
     root = logging.getLogger()
@@ -187,6 +203,7 @@ def _serve(read_fd: int, write_fd: int) -> None:
         from threadpoolctl import threadpool_limits
 
         limits = threadpool_limits(limits=int(os.environ["SPRAYPLAN_HELPER_BLAS_THREADS"]), user_api="blas")
+    send.send_bytes(b"ready")
     while True:
         try:
             function, item = pickle.loads(receive.recv_bytes())
@@ -377,6 +394,14 @@ class SharedMap:
     def _feed_items(self):
         sent = self.common is _MISSING
         key = id(self)
+        try:
+            helper = _get_helper()
+        except HelperLost:
+            return  # no helper: this process does every piece
+        while not helper.ready.wait(0.01):  # the pieces go to this process until the helper is ready
+            with self.guard:
+                if self.next >= len(self.items):
+                    return
         while (i := self._take()) is not None:
             try:
                 helper = _get_helper()
