@@ -246,3 +246,17 @@ def test_work_that_fails_beside_a_started_map_waits_for_it_and_raises_its_own_er
             raise OSError("disk full")
     with finished_on_error(None):  # nothing started: nothing to wait for
         pass
+
+
+def _pid_with(common, _):
+    return common, os.getpid()
+
+
+def test_a_small_map_does_not_wait_for_a_helper_still_starting():
+    """Until the helper says its imports are done the job keeps every piece, and a map with common data does
+    not wait for the helper to let go of data it was never sent."""
+    parallel.stop_helper()
+    parallel.start_helper(2)
+    got = shared_map(_pid_with, range(3), processes=2, common="shared")
+    assert got == [("shared", os.getpid())] * 3
+    assert not parallel._helper.ready.is_set()  # done before the helper finished its imports

@@ -347,6 +347,7 @@ class SharedMap:
         self.reported = 0
         self.guard = threading.Lock()
         self.feeder = None
+        self.sent_common = False
         self.shared = processes > 1 and len(self.items) >= 2
 
     def _call_here(self, item):
@@ -385,7 +386,7 @@ class SharedMap:
         try:
             self._feed_items()
         finally:
-            if self.common is not _MISSING and _helper is not None:
+            if self.sent_common and _helper is not None:
                 try:  # the helper lets go of the common data
                     _helper.call(_drop_common, None)
                 except HelperLost:
@@ -406,6 +407,7 @@ class SharedMap:
             try:
                 helper = _get_helper()
                 if not sent:  # the common data, once
+                    self.sent_common = True
                     helper.call(_keep_common, (key, self.common))
                     sent = True
                 if self.common is _MISSING:
