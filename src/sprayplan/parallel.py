@@ -47,6 +47,8 @@ HELPER_WARM_UPS = (("sprayplan.timing.stage", "warm_up"), ("sprayplan.view.repor
 
 _lock = threading.Lock()
 _MISSING = object()
+#: In the helper: its BLAS thread limits (they hold while this object lives).
+_helper_limits = None
 _helper: Helper | None = None
 
 
@@ -197,12 +199,12 @@ def _serve(read_fd: int, write_fd: int) -> None:
     root.setLevel(logging.INFO)
     for name in HELPER_IMPORTS:
         importlib.import_module(name)
-    limits = None  # kept: the limits hold while the object lives
+    global _helper_limits
     if os.environ.get("SPRAYPLAN_HELPER_BLAS_THREADS"):
         import scipy.linalg  # noqa: F401  (both BLAS libraries loaded, so that both are set)
         from threadpoolctl import threadpool_limits
 
-        limits = threadpool_limits(limits=int(os.environ["SPRAYPLAN_HELPER_BLAS_THREADS"]), user_api="blas")
+        _helper_limits = threadpool_limits(limits=int(os.environ["SPRAYPLAN_HELPER_BLAS_THREADS"]), user_api="blas")
     send.send_bytes(b"ready")
     while True:
         try:
@@ -219,7 +221,6 @@ def _serve(read_fd: int, write_fd: int) -> None:
         except Exception as exc:  # an error or result that does not pickle: its text
             data = pickle.dumps((False, RuntimeError(f"{type(exc).__name__}: {exc}"), []))
         send.send_bytes(data)
-    del limits
 
 
 def _get_helper() -> Helper:
