@@ -485,6 +485,43 @@ def test_transfers_in_collision_are_routed_free_and_the_gun_is_where_the_waypoin
     np.testing.assert_allclose(np.stack([m.joints for m in moves]), inner, atol=1e-12)
 
 
+def test_a_transfer_nothing_shorter_frees_goes_out_to_a_park_and_back(tmp_path):
+    """The ``home`` route (``CellRouter.home``): with no retract, via or search, the transfers in collision on
+    the box are all routed out to a park and back; the nodes are parks the schedule offers from the two ends
+    (or those ends backed off), the ends are kept, and every motion of the routed work is free."""
+    import dataclasses
+
+    from sprayplan.cells.repair import free_work
+    from sprayplan.cells.routes import CellRouter, routed_work
+    from sprayplan.config import JobConfig
+
+    cell, plan, arms = _box_cell(tmp_path)
+    config = dataclasses.replace(JobConfig().collision, retract_mm=[], via_height_mm=None, cell_detour_iterations=0)
+    work, arm, robot = plan.robots[0], arms[0], cell.robots[0]
+    freed, _ = free_work(work, check_robot(arm, work.q, work.track_mm, work.reachable))
+    routed, counts = routed_work(robot, freed, arm, plan.part, config, 200.0)
+    assert counts["transfers_in_collision"] >= 2
+    assert counts["routed_home"] == counts["transfers_routed"] == counts["transfers_in_collision"]
+    after = check_robot(arm, routed.q, routed.track_mm, routed.reachable)
+    assert not after.motion_collides.any() and not after.waypoint.collides.any()
+    router = CellRouter(robot, arm, plan.part, config)
+    starts = np.r_[0, np.cumsum([len(s) for s in routed.strokes])]
+    old_starts = np.r_[0, np.cumsum([len(s) for s in freed.strokes])]
+    for i, (old, new) in enumerate(zip(freed.strokes, routed.strokes)):
+        if len(new) == len(old):
+            continue
+        a, b = starts[i], starts[i + 1]
+        np.testing.assert_array_equal(routed.q[[a, b - 1]], freed.q[[old_starts[i], old_starts[i + 1] - 1]])
+        parks = [
+            *router._parks(routed.q[a], routed.track_mm[a]),
+            *router._parks(routed.q[b - 1], routed.track_mm[b - 1]),
+        ]
+        inner = routed.q[a + 1 : b - 1]
+        assert len(inner) in (1, 2)  # no retract lengths: the parks alone
+        for q in inner:
+            assert any(np.array_equal(q, p) for p, _ in parks)
+
+
 def test_a_touch_up_round_checks_only_the_strokes_it_added(tmp_path):
     """``_tail_checked`` (a touch-up round's check of the strokes appended): the flags from the last waypoint
     before the new strokes on are the whole check's; the rows before it are returned free."""

@@ -822,7 +822,8 @@ class CollisionConfig(Section):
         Then through two via poses with the gun tip this high above the part's top near the station, plus
         ``clearance_mm``; None: no via routes.
     detour : bool
-        Then a joint-space detour: the straight joint move, then a seeded RRT-Connect search.
+        Then a joint-space detour: the straight joint move, then a seeded RRT-Connect search; for a cell
+        robot, then out to a park and back (``cells.routes``, ``home``).
     detour_iterations : int
         The RRT-Connect search's iterations per transfer (each grows one tree once and tries to join the other):
         the cap on its cost, about 30 ms an iteration on the reach part under load (docs/benchmarks.md, "Transfers

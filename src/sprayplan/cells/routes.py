@@ -16,6 +16,13 @@ routes tried, in order, are the gantry job's (``collision.transfers``) for an ar
     A seeded RRT-Connect search (``collision.transfers.rrt_connect``) in the arm's joints and its track
     position, between the two ends, up to ``[collision] cell_detour_iterations`` (200), its path shortened
     (``collision.transfers.shortcut``).
+``home``
+    Out to a park and back in from one, what a programmer does when nothing shorter is free: the first
+    :data:`HOME_TRIES` parks the schedule would take after ``A`` (``cells.schedule.park_candidates``: the arm
+    drawn back, with the most room around it, whose move from ``A`` is free) and after ``B`` (whose move from
+    ``B``, so also into it, is free), at the two ends' track positions; nodes ``[park of A, park of B]`` (one
+    node when they are the same). Then the same from both ends backed off by the first retract length: nodes
+    ``[A backed off, its park, B's park, B backed off]``.
 
 A route is *free* when its nodes and every motion of ``A -> nodes -> B`` are (``collision.arms.plan_collides``,
 the check's own answer). What no route frees stays the straight joint move, and the check after flags it.
@@ -26,6 +33,7 @@ the normal, the roll about it), so the plans' files, the timing and the programs
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 
 import numpy as np
@@ -33,7 +41,9 @@ import numpy as np
 from sprayplan.types import Stroke
 
 #: The routes tried, in order (module docstring).
-ROUTES = ("retract", "via", "detour")
+ROUTES = ("retract", "via", "detour", "home")
+#: The parks tried at each end of a transfer for a ``home`` route (module docstring).
+HOME_TRIES = 3
 #: The joints a detour samples reach this far beyond the span of its two ends (within the limits), rad.
 DETOUR_MARGIN_RAD = math.pi / 2
 #: The longest leg a detour grows at once, as a bound on any body point's displacement, mm.
@@ -187,6 +197,39 @@ class CellRouter:
         path = shortcut(path, self._edges_free)[1:-1]
         return path[:, :-1], path[:, -1]
 
+    def _parks(self, q, t: float) -> list:
+        """The first :data:`HOME_TRIES` parks from ``q`` at track position ``t`` (``(joints, track)``, those
+        whose move from ``q`` is free first: ``cells.schedule.park_candidates``)."""
+        from sprayplan.cells.schedule import park_candidates
+
+        return list(itertools.islice(park_candidates(self.arm, np.asarray(q, float), float(t)), HOME_TRIES))
+
+    def home(self, q_a, t_a: float, q_b, t_b: float):
+        """``(nodes, tracks)`` of the first free ``home`` route (module docstring), or None."""
+        back = self.config.retract_mm[0] if self.config.retract_mm else 0.0
+        ends = [(np.zeros((0, len(q_a))), np.zeros((0, len(q_b))))]
+        if back > 0:
+            pose_a, pose_b = self.pose(q_a, t_a), self.pose(q_b, t_b)
+            out = pose_a.copy()
+            out[:3, 3] -= back * pose_a[:3, 2]
+            into = pose_b.copy()
+            into[:3, 3] -= back * pose_b[:3, 2]
+            first, last = self._chain([out], t_a, q_a), self._chain([into], t_b, q_b)
+            if first is not None and last is not None:
+                ends.append((first, last))
+        for first, last in ends:
+            start = first[-1] if len(first) else q_a
+            end = last[-1] if len(last) else q_b
+            for park_a, at_a in self._parks(start, t_a):
+                for park_b, at_b in self._parks(end, t_b):
+                    same = at_a == at_b and np.array_equal(park_a, park_b)
+                    parks = [park_a] if same else [park_a, park_b]
+                    nodes = np.vstack([first, *parks, last])
+                    tracks = np.r_[np.full(len(first), t_a), at_a, [] if same else [at_b], np.full(len(last), t_b)]
+                    if self.free(q_a, t_a, nodes, tracks, q_b, t_b):
+                        return nodes, tracks
+        return None
+
     def route(self, q_a, t_a: float, q_b, t_b: float, seed: int = 0):
         """``(kind, nodes, tracks)`` of the first free route (module docstring), or None."""
         for kind, nodes, tracks in self.candidates(q_a, t_a, q_b, t_b):
@@ -195,9 +238,10 @@ class CellRouter:
         if not self.config.detour:
             return None
         found = self.detour(q_a, t_a, q_b, t_b, seed)
-        if found is None or not self.free(q_a, t_a, *found, q_b, t_b):
-            return None
-        return ("detour", *found)
+        if found is not None and self.free(q_a, t_a, *found, q_b, t_b):
+            return ("detour", *found)
+        found = self.home(q_a, t_a, q_b, t_b)
+        return None if found is None else ("home", *found)
 
 
 def _rolls_deg(poses: np.ndarray, tcp: np.ndarray, normals: np.ndarray) -> np.ndarray:
@@ -215,7 +259,8 @@ def routed_work(
 ) -> tuple:
     """A robot's work (``cells.work.RobotWork``, its transfers joined: ``cells.repair.free_work``) with each
     transfer whose joint move is in collision re-routed (module docstring). Returns the work and
-    ``{"transfers_in_collision", "transfers_routed", "routed_retract", "routed_via", "routed_detour"}``; the
+    ``{"transfers_in_collision", "transfers_routed", "routed_retract", "routed_via", "routed_detour",
+    "routed_home"}``; the
     search of the ``k``-th transfer is seeded ``seed + k``. ``failed``: a set of the transfers no route freed
     (their ends' joints and track positions), added to here, and not tried again (a touch-up round cuts and
     routes the plan again). Only the transfers from stroke ``since - 1`` on are looked at (the strokes before
