@@ -522,6 +522,59 @@ def test_a_transfer_nothing_shorter_frees_goes_out_to_a_park_and_back(tmp_path):
             assert any(np.array_equal(q, p) for p, _ in parks)
 
 
+def test_transfers_are_routed_the_way_the_programs_make_them(tmp_path, monkeypatch):
+    """With ``approach_mm`` (the programs' retract and approach), a transfer is checked as the program makes it:
+    one whose joint move is free but whose way through the backed-off poses is not (the leg between them
+    blocked here, the rest the real model) is routed between the backed-off poses (its first and last nodes),
+    so that every leg the program makes is free; without ``approach_mm`` it is left as it was."""
+    from sprayplan.cells.repair import free_work
+    from sprayplan.cells.routes import CellRouter, routed_work
+    from sprayplan.config import JobConfig
+
+    cell, plan, arms = _box_cell(tmp_path)
+    config = JobConfig().collision
+    work, arm, robot = plan.robots[0], arms[0], cell.robots[0]
+    freed, _ = free_work(work, check_robot(arm, work.q, work.track_mm, work.reachable))
+    router = CellRouter(robot, arm, plan.part, config)
+    starts = np.r_[0, np.cumsum([len(s) for s in freed.strokes])]
+    pairs = np.column_stack([freed.q, freed.track_mm])
+    transfers = [i for i, s in enumerate(freed.strokes) if not s.spray_on and 0 < i < len(freed.strokes) - 1]
+    edges = router._edges_free(pairs[starts[transfers]], pairs[starts[transfers] + 1])
+    backs = router.backed_off(pairs, starts[transfers], edges, 50.0)
+    k = min(backs)  # a transfer whose joint move is free and whose ends back off
+    i, back_a, back_b = transfers[k], *backs[k]
+
+    def blocked(x, y):
+        return (np.allclose(x, back_a) and np.allclose(y, back_b)) or (
+            np.allclose(x, back_b) and np.allclose(y, back_a)
+        )
+
+    real_edges, real_free = CellRouter._edges_free, CellRouter.free
+
+    def edges_free(self, a, b):
+        out = real_edges(self, a, b)
+        return out & ~np.array([blocked(x, y) for x, y in zip(a, b)], bool)
+
+    def free(self, q_a, t_a, nodes, tracks, q_b, t_b):
+        chain = np.column_stack([np.vstack([q_a, nodes, q_b]), np.r_[t_a, tracks, t_b]])
+        return real_free(self, q_a, t_a, nodes, tracks, q_b, t_b) and not any(map(blocked, chain[:-1], chain[1:]))
+
+    monkeypatch.setattr(CellRouter, "_edges_free", edges_free)
+    monkeypatch.setattr(CellRouter, "free", free)
+    without, _ = routed_work(robot, freed, arm, plan.part, config, 200.0, approach_mm=0.0)
+    assert len(without.strokes[i]) == 2  # its joint move is free: left alone
+    routed, counts = routed_work(robot, freed, arm, plan.part, config, 200.0, approach_mm=50.0)
+    new_starts = np.r_[0, np.cumsum([len(s) for s in routed.strokes])]
+    a, b = new_starts[i], new_starts[i + 1]
+    way = np.column_stack([routed.q[a:b], routed.track_mm[a:b]])
+    assert len(way) >= 4 and counts["transfers_routed"] >= 1
+    np.testing.assert_allclose(way[[0, -1]], pairs[[starts[i], starts[i] + 1]])
+    np.testing.assert_allclose(way[1], back_a)
+    np.testing.assert_allclose(way[-2], back_b)
+    assert real_free(router, way[0, :-1], way[0, -1], way[1:-1, :-1], way[1:-1, -1], way[-1, :-1], way[-1, -1])
+    assert not any(map(blocked, way[:-1], way[1:]))
+
+
 def test_a_touch_up_round_checks_only_the_strokes_it_added(tmp_path):
     """``_tail_checked`` (a touch-up round's check of the strokes appended): the flags from the last waypoint
     before the new strokes on are the whole check's; the rows before it are returned free."""

@@ -102,7 +102,16 @@ def unrouted_touch_ups(work, failed: set, first: int) -> list:
 
 
 def freed_cell(
-    cell, robots, arms, config, repair=None, part=None, standoff_mm: float = 0.0, failed=None, since=None
+    cell,
+    robots,
+    arms,
+    config,
+    repair=None,
+    part=None,
+    standoff_mm: float = 0.0,
+    failed=None,
+    since=None,
+    approach_mm: float = 0.0,
 ) -> tuple[tuple, dict]:
     """Every robot's work repaired (``repair(cell_robot, work, arm)``, ``cells.repair.repaired_work``, when given
     and ``config.repair`` is on), checked, cut to what it paints free (``cells.repair.free_work``, its runs in
@@ -111,8 +120,10 @@ def freed_cell(
     the cell frame; ``standoff_mm`` the plan's; ``failed``: per robot name, the transfers no route freed
     before, not tried again); the film is then made from what the robots can paint
     (``cells.plan.plan_cell``). ``since``: per robot name, the strokes before this index were freed already
-    (a touch-up round appends strokes): only the later ones are checked, cut and routed. Returns the robots
-    and per robot the repairs', the cut's and the routes' counts."""
+    (a touch-up round appends strokes): only the later ones are checked, cut and routed. ``approach_mm``: the
+    programs' approach and retract (``[export] approach_mm``), the way a transfer is checked and routed as the
+    program makes it (``cells.routes.routed_work``). Returns the robots and per robot the repairs', the cut's
+    and the routes' counts."""
     from sprayplan.cells.repair import free_work, piece_tilts, resolved_piece
     from sprayplan.cells.routes import routed_work
     from sprayplan.cells.work import without_strokes
@@ -137,7 +148,9 @@ def freed_cell(
         work, left = free_work(work, found, resolve)
         if config.repair and part is not None:
             mine = None if failed is None else failed.setdefault(work.name, set())
-            work, routes = routed_work(cell_robot, work, arm, part, config, standoff_mm, failed=mine, since=first)
+            work, routes = routed_work(
+                cell_robot, work, arm, part, config, standoff_mm, failed=mine, since=first, approach_mm=approach_mm
+            )
             routes.pop("transfers_in_collision")  # the check after the film counts what is left
             if first:  # a touch-up round: a touch-up no route reaches free is dropped, its neighbours joined
                 dropped = 0
@@ -147,7 +160,17 @@ def freed_cell(
                         break
                     dropped += len(drop)
                     work = without_strokes(work, drop)
-                    work, more = routed_work(cell_robot, work, arm, part, config, standoff_mm, failed=mine, since=first)
+                    work, more = routed_work(
+                        cell_robot,
+                        work,
+                        arm,
+                        part,
+                        config,
+                        standoff_mm,
+                        failed=mine,
+                        since=first,
+                        approach_mm=approach_mm,
+                    )
                     for key, value in more.items():
                         if key != "transfers_in_collision":
                             routes[key] = routes.get(key, 0) + value

@@ -542,7 +542,16 @@ def plan_cell(
         from sprayplan.cells.collide import freed_cell
 
         robots_, counts = freed_cell(
-            cell, robots_, arms, job.collision, repair, painted, job.paths.standoff_mm, unrouted, since
+            cell,
+            robots_,
+            arms,
+            job.collision,
+            repair,
+            painted,
+            job.paths.standoff_mm,
+            unrouted,
+            since,
+            approach_mm=job.export.approach_mm,
         )
         for name, entry in counts.items():
             mine = freed.setdefault(name, {})

@@ -199,6 +199,35 @@ class CellRouter:
         path = shortcut(path, self._edges_free)[1:-1]
         return path[:, :-1], path[:, -1]
 
+    def backed_off(self, pairs: np.ndarray, a: np.ndarray, ok: np.ndarray, distance_mm: float) -> dict:
+        """``{k: (A backed off, B backed off)}`` for the transfers ``k`` from row ``a[k]`` to ``a[k] + 1`` of
+        ``pairs`` (joints and track position a row) with ``ok[k]``: each end's gun moved ``distance_mm`` back
+        along its axis (or the shorter shares of it the programs try, ``programs.build.APPROACH_TRIES``), solved
+        on the branch nearest the end (a row each, the track as the end's); the transfers with an end that
+        cannot back off are left out. Empty when ``distance_mm`` is 0."""
+        from sprayplan.programs.build import APPROACH_TRIES
+
+        out = {}
+        if distance_mm <= 0:
+            return out
+        for k in np.flatnonzero(ok):
+            ends = []
+            for row in (pairs[a[k]], pairs[a[k] + 1]):
+                q, t = row[:-1], float(row[-1])
+                start = self.pose(q, t)
+                for share in APPROACH_TRIES:
+                    pose = start.copy()
+                    pose[:3, 3] -= share * distance_mm * start[:3, 2]
+                    back = self.solve(pose, t, q)
+                    if back is not None:
+                        ends.append(np.r_[back, t])
+                        break
+                else:
+                    break
+            if len(ends) == 2:
+                out[int(k)] = tuple(ends)
+        return out
+
     def _parks(self, q, t: float) -> list:
         """The first :data:`HOME_TRIES` parks from ``q`` at track position ``t`` (``(joints, track)``, those
         whose move from ``q`` is free first: ``cells.schedule.park_candidates``)."""
@@ -236,12 +265,13 @@ class CellRouter:
                         return nodes, tracks
         return None
 
-    def route(self, q_a, t_a: float, q_b, t_b: float, seed: int = 0):
-        """``(kind, nodes, tracks)`` of the first free route (module docstring), or None."""
+    def route(self, q_a, t_a: float, q_b, t_b: float, seed: int = 0, search: bool = True):
+        """``(kind, nodes, tracks)`` of the first free route (module docstring), or None; without ``search``
+        only the retract and via routes are tried."""
         for kind, nodes, tracks in self.candidates(q_a, t_a, q_b, t_b):
             if self.free(q_a, t_a, nodes, tracks, q_b, t_b):
                 return kind, nodes, tracks
-        if not self.config.detour:
+        if not self.config.detour or not search:
             return None
         found = self.detour(q_a, t_a, q_b, t_b, seed)
         if found is not None and self.free(q_a, t_a, *found, q_b, t_b):
@@ -261,7 +291,16 @@ def _rolls_deg(poses: np.ndarray, tcp: np.ndarray, normals: np.ndarray) -> np.nd
 
 
 def routed_work(
-    cell_robot, work, arm, part, config, standoff_mm: float, seed: int = 0, failed=None, since: int = 0
+    cell_robot,
+    work,
+    arm,
+    part,
+    config,
+    standoff_mm: float,
+    seed: int = 0,
+    failed=None,
+    since: int = 0,
+    approach_mm: float = 0.0,
 ) -> tuple:
     """A robot's work (``cells.work.RobotWork``, its transfers joined: ``cells.repair.free_work``) with each
     transfer whose joint move is in collision re-routed (module docstring). Returns the work and
@@ -270,7 +309,15 @@ def routed_work(
     search of the ``k``-th transfer is seeded ``seed + k``. ``failed``: a set of the transfers no route freed
     (their ends' joints and track positions), added to here, and not tried again (a touch-up round cuts and
     routes the plan again). Only the transfers from stroke ``since - 1`` on are looked at (the strokes before
-    were routed already)."""
+    were routed already).
+
+    ``approach_mm`` (``[export] approach_mm``; 0: not): the robot's programs leave a run backed off along the gun
+    axis by this much and come to the next one the same way (``programs.build``), so a transfer is checked as
+    the program makes it: ``A -> A backed off -> B backed off -> B`` as well as the joint move ``A -> B``. Where
+    the backed-off way is free and the joint move is not, the two backed-off poses become the route (counted as
+    ``retract``); where it is not free, the routes are searched between the two backed-off poses and join
+    them: nodes ``[A backed off, route..., B backed off]``, so that the program's retract, route and approach
+    are the moves checked. An end that cannot back off is routed from itself, as without ``approach_mm``."""
     starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
     moves = [i for i, s in enumerate(work.strokes) if not s.spray_on and len(s) == 2 and i >= since - 1]
     counts = {"transfers_in_collision": 0, "transfers_routed": 0, **{f"routed_{kind}": 0 for kind in ROUTES}}
@@ -283,19 +330,47 @@ def routed_work(
     free = np.ones(len(moves), bool)
     free[ok] = router._edges_free(pairs[a[ok]], pairs[a[ok] + 1]) & router._states_free(pairs[a[ok]])
     free[ok] &= router._states_free(pairs[a[ok] + 1])
+    backs = router.backed_off(pairs, a, ok, approach_mm)  # k -> (A backed off, B backed off), states
+    way_free = np.ones(len(moves), bool)  # the program's way, through the backed-off poses
+    if backs:
+        keys = sorted(backs)
+        chains = np.stack([np.vstack([pairs[a[k]], *backs[k], pairs[a[k] + 1]]) for k in keys])  # (b, 4, dof+1)
+        legs = router._edges_free(
+            chains[:, :-1].reshape(-1, chains.shape[2]), chains[:, 1:].reshape(-1, chains.shape[2])
+        )
+        nodes_ok = router._states_free(chains[:, 1:3].reshape(-1, chains.shape[2]))
+        way_free[keys] = legs.reshape(len(keys), 3).all(axis=1) & nodes_ok.reshape(len(keys), 2).all(axis=1)
     strokes = list(work.strokes)
     q, track, roll, reach = list(work.q), list(work.track_mm), list(work.roll_deg), list(work.reachable)
     inserted = {}  # transfer index -> (nodes, tracks, rolls, stroke)
     failed = set() if failed is None else failed
     for k, i in enumerate(moves):
-        if free[k] or not ok[k]:
+        if (free[k] and way_free[k]) or not ok[k]:
             continue
         counts["transfers_in_collision"] += 1
         s = starts[i]
         key = pairs[s : s + 2].tobytes()
         if key in failed:
             continue
-        found = router.route(work.q[s], work.track_mm[s], work.q[s + 1], work.track_mm[s + 1], seed + k)
+        found = None
+        if k in backs and way_free[k]:  # the program's way is free: it becomes the plan's
+            found = (
+                "retract",
+                np.array([backs[k][0][:-1], backs[k][1][:-1]]),
+                np.array([backs[k][0][-1], backs[k][1][-1]]),
+            )
+        elif k in backs:
+            (*q_a, t_a), (*q_b, t_b) = backs[k]
+            inner = router.route(np.array(q_a), t_a, np.array(q_b), t_b, seed + k)
+            if inner is not None:
+                nodes = np.vstack([q_a, inner[1], q_b])
+                tracks = np.r_[t_a, inner[2], t_b]
+                if router.free(work.q[s], work.track_mm[s], nodes, tracks, work.q[s + 1], work.track_mm[s + 1]):
+                    found = inner[0], nodes, tracks
+        if found is None:  # from the ends themselves (searched only when they could not back off)
+            found = router.route(
+                work.q[s], work.track_mm[s], work.q[s + 1], work.track_mm[s + 1], seed + k, search=k not in backs
+            )
         if found is None:
             failed.add(key)
             continue
