@@ -315,9 +315,11 @@ def routed_work(
     axis by this much and come to the next one the same way (``programs.build``), so a transfer is checked as
     the program makes it: ``A -> A backed off -> B backed off -> B`` as well as the joint move ``A -> B``. Where
     the backed-off way is free and the joint move is not, the two backed-off poses become the route (counted as
-    ``retract``); where it is not free, the routes are searched between the two backed-off poses and join
-    them: nodes ``[A backed off, route..., B backed off]``, so that the program's retract, route and approach
-    are the moves checked. An end that cannot back off is routed from itself, as without ``approach_mm``."""
+    ``retract``); where it is not free, the retract and via routes are tried between the two backed-off poses,
+    joined to them (nodes ``[A backed off, route..., B backed off]``), so that the program's retract, route and
+    approach are the moves checked; where none of those is free, every route is tried from the ends
+    themselves, as without ``approach_mm`` (the search and home routes between the backed-off poses alone
+    left 23 transfers in collision on the BMW against 12, for 6 fewer program motions in collision)."""
     starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
     moves = [i for i, s in enumerate(work.strokes) if not s.spray_on and len(s) == 2 and i >= since - 1]
     counts = {"transfers_in_collision": 0, "transfers_routed": 0, **{f"routed_{kind}": 0 for kind in ROUTES}}
@@ -361,16 +363,14 @@ def routed_work(
             )
         elif k in backs:
             (*q_a, t_a), (*q_b, t_b) = backs[k]
-            inner = router.route(np.array(q_a), t_a, np.array(q_b), t_b, seed + k)
+            inner = router.route(np.array(q_a), t_a, np.array(q_b), t_b, seed + k, search=False)
             if inner is not None:
                 nodes = np.vstack([q_a, inner[1], q_b])
                 tracks = np.r_[t_a, inner[2], t_b]
                 if router.free(work.q[s], work.track_mm[s], nodes, tracks, work.q[s + 1], work.track_mm[s + 1]):
                     found = inner[0], nodes, tracks
-        if found is None:  # from the ends themselves (searched only when they could not back off)
-            found = router.route(
-                work.q[s], work.track_mm[s], work.q[s + 1], work.track_mm[s + 1], seed + k, search=k not in backs
-            )
+        if found is None:  # from the ends themselves: retract, via, the search, home
+            found = router.route(work.q[s], work.track_mm[s], work.q[s + 1], work.track_mm[s + 1], seed + k)
         if found is None:
             failed.add(key)
             continue
