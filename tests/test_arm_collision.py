@@ -527,6 +527,8 @@ def test_transfers_are_routed_the_way_the_programs_make_them(tmp_path, monkeypat
     one whose joint move is free but whose way through the backed-off poses is not (the leg between them
     blocked here, the rest the real model) is routed between the backed-off poses (its first and last nodes),
     so that every leg the program makes is free; without ``approach_mm`` it is left as it was."""
+    import dataclasses
+
     from sprayplan.cells.repair import free_work
     from sprayplan.cells.routes import CellRouter, routed_work
     from sprayplan.config import JobConfig
@@ -573,6 +575,13 @@ def test_transfers_are_routed_the_way_the_programs_make_them(tmp_path, monkeypat
     np.testing.assert_allclose(way[-2], back_b)
     assert real_free(router, way[0, :-1], way[0, -1], way[1:-1, :-1], way[1:-1, -1], way[-1, :-1], way[-1, -1])
     assert not any(map(blocked, way[:-1], way[1:]))
+    # a route always has a node: between two ends whose joint move is free, the search's shortened path has
+    # none, and no route is given (the programs' way there is what stays in collision)
+    bare = dataclasses.replace(config, retract_mm=(), via_height_mm=None)
+    q_a, q_b = freed.q[starts[i]], freed.q[starts[i] + 1]
+    t_a, t_b = freed.track_mm[starts[i]], freed.track_mm[starts[i] + 1]
+    found = CellRouter(robot, arm, plan.part, bare).route(q_a, t_a, q_b, t_b)
+    assert found is None or (found[0] == "home" and len(found[1]) >= 1)
 
 
 def test_a_touch_up_round_checks_only_the_strokes_it_added(tmp_path):

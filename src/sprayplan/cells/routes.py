@@ -266,15 +266,17 @@ class CellRouter:
         return None
 
     def route(self, q_a, t_a: float, q_b, t_b: float, seed: int = 0, search: bool = True):
-        """``(kind, nodes, tracks)`` of the first free route (module docstring), or None; without ``search``
-        only the retract and via routes are tried."""
+        """``(kind, nodes, tracks)`` of the first free route (module docstring), at least one node, or None;
+        without ``search`` only the retract and via routes are tried."""
         for kind, nodes, tracks in self.candidates(q_a, t_a, q_b, t_b):
             if self.free(q_a, t_a, nodes, tracks, q_b, t_b):
                 return kind, nodes, tracks
         if not self.config.detour or not search:
             return None
         found = self.detour(q_a, t_a, q_b, t_b, seed)
-        if found is not None and self.free(q_a, t_a, *found, q_b, t_b):
+        # (a search between two ends the joint move joins free is shortened to no node: no route, that move is
+        # what is there already)
+        if found is not None and len(found[0]) and self.free(q_a, t_a, *found, q_b, t_b):
             return ("detour", *found)
         found = self.home(q_a, t_a, q_b, t_b)
         return None if found is None else ("home", *found)
