@@ -199,6 +199,13 @@ class CellRouter:
         path = shortcut(path, self._edges_free)[1:-1]
         return path[:, :-1], path[:, -1]
 
+    def _back(self, q, t: float, distance_mm: float) -> np.ndarray | None:
+        """The joints of the gun at joints ``q`` (track ``t``) moved ``distance_mm`` back along its axis, on the
+        branch nearest ``q`` (:meth:`solve`); None when no branch reaches it."""
+        pose = self.pose(q, t)
+        pose[:3, 3] -= distance_mm * pose[:3, 2]
+        return self.solve(pose, t, q)
+
     def backed_off(self, pairs: np.ndarray, a: np.ndarray, ok: np.ndarray, distance_mm: float) -> dict:
         """``{k: (A backed off, B backed off)}`` for the transfers ``k`` from row ``a[k]`` to ``a[k] + 1`` of
         ``pairs`` (joints and track position a row) with ``ok[k]``: each end's gun moved ``distance_mm`` back
@@ -214,11 +221,8 @@ class CellRouter:
             ends = []
             for row in (pairs[a[k]], pairs[a[k] + 1]):
                 q, t = row[:-1], float(row[-1])
-                start = self.pose(q, t)
                 for share in APPROACH_TRIES:
-                    pose = start.copy()
-                    pose[:3, 3] -= share * distance_mm * start[:3, 2]
-                    back = self.solve(pose, t, q)
+                    back = self._back(q, t, share * distance_mm)
                     if back is not None:
                         ends.append(np.r_[back, t])
                         break
@@ -240,14 +244,9 @@ class CellRouter:
         back = self.config.retract_mm[0] if self.config.retract_mm else 0.0
         ends = [(np.zeros((0, len(q_a))), np.zeros((0, len(q_b))))]
         if back > 0:
-            pose_a, pose_b = self.pose(q_a, t_a), self.pose(q_b, t_b)
-            out = pose_a.copy()
-            out[:3, 3] -= back * pose_a[:3, 2]
-            into = pose_b.copy()
-            into[:3, 3] -= back * pose_b[:3, 2]
-            first, last = self._chain([out], t_a, q_a), self._chain([into], t_b, q_b)
+            first, last = self._back(q_a, t_a, back), self._back(q_b, t_b, back)
             if first is not None and last is not None:
-                ends.append((first, last))
+                ends.append((first[None], last[None]))
         none = np.zeros((0, len(q_a)))
         for first, last in ends:
             start = first[-1] if len(first) else q_a
