@@ -149,9 +149,13 @@ def freed_cell(
         work, left = free_work(work, found, resolve)
         if config.repair and part is not None:
             mine = None if failed is None else failed.setdefault(work.name, set())
-            work, routes = routed_work(
-                cell_robot, work, arm, part, config, standoff_mm, failed=mine, since=first, approach_mm=approach_mm
-            )
+
+            def route(work_, cell_robot=cell_robot, arm=arm, mine=mine, first=first):
+                return routed_work(
+                    cell_robot, work_, arm, part, config, standoff_mm, failed=mine, since=first, approach_mm=approach_mm
+                )
+
+            work, routes = route(work)
             routes.pop("transfers_in_collision")  # the check after the film counts what is left
             if first:  # a touch-up round: a touch-up no route reaches free is dropped, its neighbours joined
                 dropped = 0
@@ -161,17 +165,7 @@ def freed_cell(
                         break
                     dropped += len(drop)
                     work = without_strokes(work, drop)
-                    work, more = routed_work(
-                        cell_robot,
-                        work,
-                        arm,
-                        part,
-                        config,
-                        standoff_mm,
-                        failed=mine,
-                        since=first,
-                        approach_mm=approach_mm,
-                    )
+                    work, more = route(work)
                     for key, value in more.items():
                         if key != "transfers_in_collision":
                             routes[key] = routes.get(key, 0) + value
