@@ -320,6 +320,18 @@ POE = {
         ],
         _home(1270, 1570),
     ),
+    # IRB 4600-40/2.55: as the 60/2.05 with a lower arm of 1095 and a forearm of 1270
+    "abb-irb4600-40-255": (
+        [
+            ((0, 0, 1), (0, 0, 0)),
+            ((0, 1, 0), (175, 0, 495)),
+            ((0, 1, 0), (175, 0, 1590)),
+            ((1, 0, 0), (0, 0, 1765)),
+            ((0, 1, 0), (1445, 0, 1765)),
+            ((1, 0, 0), (0, 0, 1765)),
+        ],
+        _home(1580, 1765),
+    ),
     # KR 6 R700 sixx: A2 25 forward, 400 up; link arm 315 forward (horizontal at zero); arm 35 above A3 and
     # 365 long; flange 80
     "kuka-kr6-r700-sixx": (

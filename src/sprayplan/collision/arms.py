@@ -62,6 +62,7 @@ ARM_BODIES = ("base", "shoulder", "upper_arm", "elbow", "forearm", "wrist", "gun
 #: Capsule radii (mm) of the OPW presets' bodies ``base`` .. ``wrist``: envelope estimates (module docstring).
 OPW_LINK_RADII = {
     "abb-irb4600-60-205": (300.0, 250.0, 160.0, 180.0, 130.0, 100.0),
+    "abb-irb4600-40-255": (300.0, 250.0, 160.0, 180.0, 130.0, 100.0),
     "abb-irb2400-10": (220.0, 180.0, 110.0, 130.0, 90.0, 70.0),
     "kuka-kr6-r700-sixx": (110.0, 100.0, 60.0, 70.0, 50.0, 45.0),
 }

@@ -24,7 +24,7 @@ Implementations (use :func:`robot_from_name`):
     ``axis_tol_rad`` (default 1e-6 rad; the roll about the axis is then exact too). The solver does not reach
     back over the base axis (see :mod:`sprayplan.robots.r5150`): poses that only such a configuration reaches
     are ``"out of reach"``. Its TCP is the D-H frame 5 (the seed's tool tip, d5 = 115 mm): no gun is added.
-``OPWArm`` (``abb-irb2400-10``, ``abb-irb4600-60-205``, ``kuka-kr6-r700-sixx``)
+``OPWArm`` (``abb-irb2400-10``, ``abb-irb4600-60-205``, ``abb-irb4600-40-255``, ``kuka-kr6-r700-sixx``)
     Six-axis industrial arms with a spherical wrist, :func:`sprayplan.robots.opw.opw_ik`: 8 branches per pose
     (labels :data:`~sprayplan.robots.opw.BRANCH_LABELS`), joints in the maker's values, moved by whole turns into
     the limits; ``max_speed`` gives the maker's axis speeds. Not yet usable in ``sprayplan plan``.
@@ -598,7 +598,7 @@ ROBOT_NAMES = ("ur5", "ur5e", "ur5-seed", "r5150", "gantry-ur5", "gantry-ur5e", 
 def robot_from_name(name: str, tool: str | None = None) -> Robot:
     """The robot called ``name`` (one of :data:`ROBOT_NAMES`) with the gun preset ``tool`` as its TCP.
 
-    The industrial arms (``abb-irb2400-10``, ``abb-irb4600-60-205``, ``kuka-kr6-r700-sixx``) are
+    The industrial arms (``abb-irb2400-10``, ``abb-irb4600-60-205``, ``abb-irb4600-40-255``, ``kuka-kr6-r700-sixx``) are
     :class:`OPWArm` of the presets in :data:`sprayplan.robots.opw.PRESETS`. A ``.toml`` path is an OPW arm
     when the file says ``kind = "opw"`` (:func:`sprayplan.robots.opw.load_opw`), else a UR-type D-H table
     (:func:`sprayplan.robots.model.load_robot`).

@@ -79,7 +79,7 @@ Presets (:data:`PRESETS`, by name)
 Each preset lists the makers' published figures: the dimension drawing's lengths (mm), the axes' working
 ranges (degrees) and maximum axis speeds (degrees/s), with the joint directions and zero positions of the
 maker's controller. Where each number comes from is in the preset's ``source``; where a figure is not published
-it is NaN (none are missing for the three presets). The figures were read from the makers' product
+it is NaN (none are missing for the four presets). The figures were read from the makers' product
 specifications as transcribed in ROS-Industrial's robot support packages (``abb_irb2400_support``,
 ``abb_irb4600_support``, ``kuka_kr6_support``), whose joint origins, axis directions, limits and velocities
 restate them; the makers' PDFs themselves were not at hand to re-read.
@@ -501,6 +501,27 @@ PRESETS: dict[str, dict] = {
             "axis 2 +150/-90, axis 3 +75/-180, axis 4 +-400, axis 5 +120/-125, axis 6 +-400 deg) and axis speeds "
             "(175, 175, 175, 250, 250, 360 deg/s); as restated in ROS-Industrial abb_irb4600_support "
             "(irb4600_60_205_macro.xacro)"
+        ),
+    ),
+    "abb-irb4600-40-255": dict(
+        a1=175.0,
+        a2=-175.0,
+        b=0.0,
+        c1=495.0,
+        c2=1095.0,
+        c3=1270.0,
+        c4=135.0,
+        offsets=_ABB_OFFSETS,
+        signs=_ABB_SIGNS,
+        lower=_deg([-180, -90, -180, -400, -125, -400]),
+        upper=_deg([180, 150, 75, 400, 120, 400]),
+        max_speed=_deg([175, 175, 175, 250, 250, 360]),
+        source=(
+            "ABB Product specification IRB 4600, IRB 4600-40/2.55: dimension drawing (axis 2 "
+            "495 mm above the base and 175 mm forward of axis 1, lower arm 1095 mm, axis 4 175 mm above axis 3, "
+            "axis 3 to the wrist centre 1270 mm, wrist centre to the flange 135 mm), working range and axis "
+            "speeds as the 60/2.05's; as restated in ROS-Industrial abb_irb4600_support "
+            "(irb4600_40_255_macro.xacro)"
         ),
     ),
     "kuka-kr6-r700-sixx": dict(
