@@ -434,6 +434,59 @@ def test_a_plan_cut_to_its_free_runs_paints_only_where_the_arm_is_free(tmp_path)
     assert int(spray.sum()) + sum(counts.values()) == int(was_spray.sum())
 
 
+def test_runs_start_and_end_where_the_programs_back_off_free(tmp_path):
+    """``free_work`` with ``backs`` (``CellRouter.backs_free``): every kept run starts and ends at a waypoint
+    from which the gun's back-off along its axis (the programs' approach and retract, ``approach_mm`` or the
+    first shorter share the arm reaches) and the move there are free by the full check; a run is only cut at
+    its ends (what is kept of it is the run without ``backs`` less waypoints at either end whose back-off is
+    not free), and kept and left out add up."""
+    from sprayplan.cells.repair import free_work
+    from sprayplan.cells.routes import CellRouter
+    from sprayplan.config import JobConfig
+    from sprayplan.programs.build import APPROACH_TRIES
+
+    cell, plan, arms = _box_cell(tmp_path)
+    work, arm, robot = plan.robots[0], arms[0], cell.robots[0]
+    router = CellRouter(robot, arm, plan.part, JobConfig().collision)
+    found = check_robot(arm, work.q, work.track_mm, work.reachable)
+    plain, _ = free_work(work, found)
+    freed, counts = free_work(work, found, None, lambda q, t: router.backs_free(q, t, 50.0))
+    assert counts["left_out_unapproachable"] > 0
+    was_spray = np.concatenate([np.full(len(s), s.spray_on) for s in work.strokes])
+    spray = np.concatenate([np.full(len(s), s.spray_on) for s in freed.strokes])
+    assert int(spray.sum()) + sum(counts.values()) == int(was_spray.sum())
+
+    def back_free(q, t):
+        pose = router.pose(q, t)
+        for share in APPROACH_TRIES:
+            moved = pose.copy()
+            moved[:3, 3] -= 50.0 * share * pose[:3, 2]
+            back = router.solve(moved, t, q)
+            if back is not None:
+                np.testing.assert_allclose(router.pose(back, t), moved, atol=1e-6)
+                checked = check_robot(arm, np.vstack([q, back]), np.full(2, t), np.ones(2, bool))
+                return not (checked.waypoint.collides.any() or checked.motion_collides.any())
+        return False
+
+    starts = np.r_[0, np.cumsum([len(s) for s in freed.strokes])]
+    ends = [k for i, s in enumerate(freed.strokes) if s.spray_on for k in (starts[i], starts[i + 1] - 1)]
+    assert all(back_free(freed.q[k], freed.track_mm[k]) for k in ends)
+    # each kept run lies inside a run of the plain cut, and no waypoint cut from its ends backs off free
+    plain_starts = np.r_[0, np.cumsum([len(s) for s in plain.strokes])]
+    plain_runs = [(plain_starts[i], s) for i, s in enumerate(plain.strokes) if s.spray_on]
+    cut_free = 0
+    for s in freed.strokes:
+        if not s.spray_on:
+            continue
+        at, whole = next(
+            (a, r) for a, r in plain_runs for k in range(len(r)) if np.array_equal(r.tcp[k : k + len(s)], s.tcp)
+        )
+        k = next(k for k in range(len(whole)) if np.array_equal(whole.tcp[k : k + len(s)], s.tcp))
+        cut = [*range(k), *range(k + len(s), len(whole))]
+        cut_free += sum(back_free(plain.q[at + j], plain.track_mm[at + j]) for j in cut)
+    assert cut_free == 0
+
+
 def test_transfers_in_collision_are_routed_free_and_the_gun_is_where_the_waypoints_say(tmp_path):
     """``routed_work``: a transfer in collision that gets a route has nodes and motions free (the check's own
     answer), its ends unchanged, every node's gun pose the one its waypoint (tip, normal, roll) gives, and

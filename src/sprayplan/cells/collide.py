@@ -123,10 +123,11 @@ def freed_cell(
     (``cells.plan.plan_cell``). ``since``: per robot name, the strokes before this index were freed already
     (a touch-up round appends strokes): only the later ones are checked, cut and routed. ``approach_mm``: the
     programs' approach and retract (``[export] approach_mm``), the way a transfer is checked and routed as the
-    program makes it (``cells.routes.routed_work``). Returns the robots and per robot the repairs', the cut's
+    program makes it (``cells.routes.routed_work``), and, with ``config.repair``, each run cut to start and end
+    where those lines are free (``free_work``'s ``backs``). Returns the robots and per robot the repairs', the cut's
     and the routes' counts."""
     from sprayplan.cells.repair import free_work, piece_tilts, resolved_piece
-    from sprayplan.cells.routes import routed_work
+    from sprayplan.cells.routes import CellRouter, routed_work
     from sprayplan.cells.work import without_strokes
 
     out, counts = [], {}
@@ -146,7 +147,14 @@ def freed_cell(
             def resolve(piece, seed, cell_robot=cell_robot, arm=arm):
                 return resolved_piece(cell_robot, arm, piece, seed, standoff_mm, tilts)
 
-        work, left = free_work(work, found, resolve)
+        backs = None
+        if config.repair and part is not None and approach_mm > 0:
+            router = CellRouter(cell_robot, arm, part, config)
+
+            def backs(q, t, router=router):
+                return router.backs_free(q, t, approach_mm)
+
+        work, left = free_work(work, found, resolve, backs, since=first)
         if config.repair and part is not None:
             mine = None if failed is None else failed.setdefault(work.name, set())
 

@@ -675,7 +675,7 @@ def plan_cell(
             report["collisions"]["robots"][name].update(entry)
         report["collisions"]["left_out_waypoints"] = {
             key: int(sum(entry.get(key, 0) for entry in freed.values()))
-            for key in ("left_out_in_collision", "left_out_unreached", "left_out_alone")
+            for key in ("left_out_in_collision", "left_out_unreached", "left_out_alone", "left_out_unapproachable")
         }
         plan = dataclasses.replace(plan, robots=robots)
     if job.timing.enabled:

@@ -181,7 +181,44 @@ def repaired_work(cell_robot, work, arm) -> tuple:
     return work, {"strokes_in_collision": flagged, "strokes_repaired": repaired}
 
 
-def free_work(work, found, resolve=None) -> tuple:
+#: The waypoints at each end of a run whose back-off is checked first (:func:`free_work`'s ``backs``); the rest
+#: only when none of those is free.
+END_PROBE = 4
+
+
+def _approachable(runs: list, backs, work, a: int) -> tuple[list, int]:
+    """The runs ``(s, e, solved)`` of a stroke (waypoints ``a + s .. a + e - 1`` of ``work``, or ``solved``'s
+    joints and piece) each cut to run from its first to its last waypoint at which ``backs(q, track)`` holds
+    (the programs' approach and retract there free), runs of fewer than two left out; and how many waypoints
+    were cut. The :data:`END_PROBE` waypoints at each end are checked first, the rest only when needed."""
+    out, cut = [], 0
+    for s, e, solved in runs:
+        n = e - s
+        q, t = (work.q[a + s : a + e], work.track_mm[a + s : a + e]) if solved is None else solved[:2]
+        k = min(END_PROBE, n)
+        head, tail = np.arange(k), np.arange(n - k, n)
+        rows = np.unique(np.r_[head, tail])
+        ok = np.zeros(n, bool)
+        ok[rows] = backs(q[rows], t[rows])
+        if not (ok[head].any() and ok[tail].any()):
+            rest = np.setdiff1d(np.arange(n), rows)
+            if len(rest):
+                ok[rest] = backs(q[rest], t[rest])
+        hits = np.flatnonzero(ok)
+        if len(hits) < 2:
+            cut += n
+            continue
+        lo, hi = int(hits[0]), int(hits[-1]) + 1
+        cut += n - (hi - lo)
+        if solved is not None and (lo, hi) != (0, n):
+            from sprayplan.cells.seams import cut_stroke
+
+            solved = (solved[0][lo:hi], solved[1][lo:hi], solved[2], cut_stroke(solved[3], lo, hi))
+        out.append((s + lo, s + hi, solved))
+    return out, cut
+
+
+def free_work(work, found, resolve=None, backs=None, since: int = 0) -> tuple:
     """A robot's plan cut to what it can paint free of the part and the floor (``--collisions``): every spray
     stroke cut to its runs of waypoints that are reached, free (``found``: the robot's
     :class:`~sprayplan.collision.arms.RobotCollisions`) and joined by free motions, runs of one waypoint left
@@ -200,7 +237,14 @@ def free_work(work, found, resolve=None) -> tuple:
     A waypoint in collision or unreached is not painted through, as a programmer leaves out what the arm cannot
     reach or cannot reach without touching the body: the robot's programs leave such waypoints out with the gun
     off, so the film is predicted without them, and the move over them (which a program makes as one motion)
-    is a transfer of the plan, checked like any other. Returns the work (``collides`` None: not checked yet)
+    is a transfer of the plan, checked like any other.
+
+    With ``backs(q (m, dof), track (m,)) -> (m,) bool`` (``cells.routes.CellRouter.backs_free``: the programs'
+    approach or retract line there free), each run of the strokes from ``since`` on is then cut to start and
+    end where the gun backs off free, as the programs start and end a run with an approach and a retract line:
+    a run end whose retract would meet the body is not painted (counted as ``"left_out_unapproachable"``).
+
+    Returns the work (``collides`` None: not checked yet)
     and the counts of the spray waypoints left out: ``{"left_out_in_collision", "left_out_unreached",
     "left_out_alone"}`` (the last: free and reached, but alone between others left out), and with ``resolve``
     ``"pieces_resolved"``, ``"waypoints_resolved"`` and ``"pieces_tilted"``.
@@ -213,6 +257,8 @@ def free_work(work, found, resolve=None) -> tuple:
     # the last reached waypoint at or before each one (-1: none), the joints an unreached run is solved from
     last_reached = np.maximum.accumulate(np.where(work.reachable, np.arange(len(free)), -1)) if len(free) else free
     counts = {"left_out_in_collision": 0, "left_out_unreached": 0, "left_out_alone": 0}
+    if backs is not None:
+        counts["left_out_unapproachable"] = 0
     if resolve is not None:
         counts.update(pieces_resolved=0, waypoints_resolved=0, pieces_tilted=0)
     strokes, area, arrays = [], [], []  # arrays: (joints, track, roll) of each stroke's waypoints
@@ -249,6 +295,9 @@ def free_work(work, found, resolve=None) -> tuple:
         counts["left_out_in_collision"] += int((work.reachable[a:b] & ~ok & ~covered).sum())
         counts["left_out_unreached"] += int((~work.reachable[a:b] & ~covered).sum())
         counts["left_out_alone"] += int((ok & ~covered).sum())
+        if backs is not None and i >= since:
+            runs, cut = _approachable(runs, backs, work, a)
+            counts["left_out_unapproachable"] += cut
         for s, e, solved in runs:
             as_was = solved is None and (s, e) == (0, n)  # the whole stroke, as it was solved
             if solved is None:

@@ -232,6 +232,33 @@ class CellRouter:
                 out[int(k)] = tuple(ends)
         return out
 
+    def backs_free(self, q: np.ndarray, tracks: np.ndarray, distance_mm: float) -> np.ndarray:
+        """(m,) bool: at each row (joints ``q`` (m, dof), track ``tracks`` (m,)) the gun can back off along its
+        axis as the programs do at a run's end, by ``distance_mm`` or the first of the shorter shares they try
+        that the arm reaches (``programs.build.APPROACH_TRIES``), and that move (the joint move to the backed-off
+        pose, checked like a transfer: the program's approach or retract line) and the pose are free. False
+        where no share is reached (the programs leave such an end out); all True when ``distance_mm`` is 0."""
+        from sprayplan.programs.build import APPROACH_TRIES
+
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        tracks = np.asarray(tracks, dtype=float).reshape(-1)
+        out = np.zeros(len(q), bool)
+        if distance_mm <= 0:
+            return ~out
+        rows, backs = [], []
+        for i, (qi, t) in enumerate(zip(q, tracks)):
+            for share in APPROACH_TRIES:
+                back = self._back(qi, float(t), share * distance_mm)
+                if back is not None:
+                    rows.append(i)
+                    backs.append(np.r_[back, t])
+                    break
+        if rows:
+            ends = np.column_stack([q[rows], tracks[rows]])
+            backs = np.array(backs)
+            out[rows] = self._edges_free(ends, backs) & self._states_free(backs)
+        return out
+
     def _parks(self, q, t: float) -> list:
         """The first :data:`HOME_TRIES` parks from ``q`` at track position ``t`` (``(joints, track)``, those
         whose move from ``q`` is free first: ``cells.schedule.park_candidates``)."""
