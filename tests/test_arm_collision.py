@@ -687,6 +687,46 @@ def test_runs_in_collision_solved_on_their_own_are_free_and_painted(tmp_path):
     np.testing.assert_allclose(got[:, :3, :3], want[:, :3, :3], atol=1e-9)
 
 
+def test_a_piece_no_try_frees_whole_is_painted_in_halves(tmp_path, monkeypatch):
+    """A piece ``resolve`` cannot free whole (here: any longer than 4 waypoints, the rest the real solve) is
+    tried in halves sharing their middle waypoint, down to ``SPLIT_DEPTH`` levels: more waypoints are painted
+    than without halves, by exactly the count resolved, and every spray waypoint and motion is still free."""
+    import sprayplan.cells.repair as repair
+    from sprayplan.cells.repair import free_work, resolved_piece
+    from tests.test_cell_plan import SIZE
+
+    cell, plan, arms = _box_cell(tmp_path, SIZE)
+    work, arm, robot = plan.robots[0], arms[0], cell.robots[0]
+    found = check_robot(arm, work.q, work.track_mm, work.reachable)
+    asked = []
+
+    def short_only(piece, seed):
+        asked.append(len(piece))
+        return resolved_piece(robot, arm, piece, seed) if len(piece) <= 4 else None
+
+    monkeypatch.setattr(repair, "SPLIT_DEPTH", 0)
+    _, whole = free_work(work, found, short_only)
+    first = list(asked)
+    monkeypatch.setattr(repair, "SPLIT_DEPTH", 2)
+    asked.clear()
+    halved, counts = free_work(work, found, short_only)
+    assert max(first) >= 6 and len(asked) > len(first)
+    # the halves of a piece of n waypoints have n + 1 between them (the middle one shared)
+    long = [n for n in first if n >= 6]
+    assert all(any(asked[i : i + 2] == [(n + 2) // 2, n - n // 2] for i in range(len(asked))) for n in long[:1])
+    assert counts["waypoints_resolved"] > whole["waypoints_resolved"]
+    assert (
+        counts["left_out_in_collision"] + counts["left_out_unreached"] + counts["waypoints_resolved"]
+        == whole["left_out_in_collision"] + whole["left_out_unreached"] + whole["waypoints_resolved"]
+    )
+    again = check_robot(arm, halved.q, halved.track_mm, halved.reachable)
+    starts = np.r_[0, np.cumsum([len(s) for s in halved.strokes])]
+    for i, s in enumerate(halved.strokes):
+        if s.spray_on:
+            a, b = starts[i], starts[i + 1]
+            assert not again.waypoint.collides[a:b].any() and not again.motion_collides[a : b - 1].any()
+
+
 def test_a_piece_no_untilted_try_frees_is_painted_with_the_gun_tilted_round_its_targets(tmp_path):
     """``resolved_piece`` with the standoff: the runs no (track, roll, branch) try frees get the gun tilted
     (``piece_tilts`` of the default ``piece_tilt_deg``), so more waypoints are painted than without; a tilted

@@ -181,6 +181,12 @@ def repaired_work(cell_robot, work, arm) -> tuple:
     return work, {"strokes_in_collision": flagged, "strokes_repaired": repaired}
 
 
+#: A piece in collision that no try frees whole is tried again in halves (sharing their middle waypoint), and
+#: those in halves, down to this many levels (:func:`free_work`)...
+SPLIT_DEPTH = 2
+#: ... and halves of at least this many waypoints.
+SPLIT_MIN = 3
+
 #: The waypoints at each end of a run whose back-off is checked first (:func:`free_work`'s ``backs``); the rest
 #: only when none of those is free.
 END_PROBE = 4
@@ -231,7 +237,8 @@ def free_work(work, found, resolve=None, backs=None, since: int = 0) -> tuple:
     where there is one (so that the spray goes on without a gap), from the joints of the last reached waypoint
     before it: the stroke is then painted in pieces, each with its
     own track position, roll and branch (and the piece as returned: its gun tilted, if it had to be), joined
-    by transfers. A stroke's one try must suit all of it; a run near a mirror or in a recess often has a try of
+    by transfers. A piece no try frees whole is tried in halves (sharing their middle waypoint), down to
+    :data:`SPLIT_DEPTH` levels: one try seldom suits a long piece round a mirror, a shorter one may. A stroke's one try must suit all of it; a run near a mirror or in a recess often has a try of
     its own that is free.
 
     A waypoint in collision or unreached is not painted through, as a programmer leaves out what the arm cannot
@@ -281,16 +288,23 @@ def free_work(work, found, resolve=None, backs=None, since: int = 0) -> tuple:
                 lo, hi = max(int(s) - 1, 0), min(int(e) + 1, n)
                 if hi - lo < 2:
                     continue
-                k = a + lo - 1 if lo > 0 and work.reachable[a + lo - 1] else last_reached[a + lo]
-                seed = work.q[k] if k >= 0 else start_joints(work.q.shape[1])
-                cut = cut_stroke(stroke, lo, hi)
-                solved = resolve(cut, seed)
-                if solved is not None:
+                pending = [(lo, hi, SPLIT_DEPTH)]
+                while pending:
+                    lo, hi, depth = pending.pop(0)
+                    k = a + lo - 1 if lo > 0 and work.reachable[a + lo - 1] else last_reached[a + lo]
+                    seed = work.q[k] if k >= 0 else start_joints(work.q.shape[1])
+                    cut = cut_stroke(stroke, lo, hi)
+                    solved = resolve(cut, seed)
+                    if solved is None:
+                        if depth > 0 and hi - lo >= 2 * SPLIT_MIN:  # halves sharing their middle waypoint
+                            mid = (lo + hi) // 2
+                            pending += [(lo, mid + 1, depth - 1), (mid, hi, depth - 1)]
+                        continue
                     runs.append((lo, hi, solved))
-                    covered[lo:hi] = True
                     counts["pieces_resolved"] += 1
                     counts["pieces_tilted"] += int(solved[3] is not cut)
-                    counts["waypoints_resolved"] += int(e - s)
+                    counts["waypoints_resolved"] += int((~ok[lo:hi] & ~covered[lo:hi]).sum())
+                    covered[lo:hi] = True
             runs.sort(key=lambda run: (run[0], run[1]))
         counts["left_out_in_collision"] += int((work.reachable[a:b] & ~ok & ~covered).sum())
         counts["left_out_unreached"] += int((~work.reachable[a:b] & ~covered).sum())
