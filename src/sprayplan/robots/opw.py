@@ -459,6 +459,13 @@ def _deg(values) -> list[float]:
 _ABB_SIGNS = [1, 1, 1, 1, 1, 1]
 _ABB_OFFSETS = [0.0, 0.0, math.pi / 2, 0.0, 0.0, 0.0]  # ABB's zero: upper arm vertical, forearm horizontal
 
+# IRB 4600 (every variant): working range and axis speeds
+_IRB4600_AXES = dict(
+    lower=_deg([-180, -90, -180, -400, -125, -400]),
+    upper=_deg([180, 150, 75, 400, 120, 400]),
+    max_speed=_deg([175, 175, 175, 250, 250, 360]),
+)
+
 PRESETS: dict[str, dict] = {
     "abb-irb2400-10": dict(
         a1=100.0,
@@ -491,9 +498,7 @@ PRESETS: dict[str, dict] = {
         c4=135.0,
         offsets=_ABB_OFFSETS,
         signs=_ABB_SIGNS,
-        lower=_deg([-180, -90, -180, -400, -125, -400]),
-        upper=_deg([180, 150, 75, 400, 120, 400]),
-        max_speed=_deg([175, 175, 175, 250, 250, 360]),
+        **_IRB4600_AXES,
         source=(
             "ABB Product specification IRB 4600, IRB 4600-60/2.05: dimension drawing (axis 2 "
             "495 mm above the base and 175 mm forward of axis 1, lower arm 900 mm, axis 4 175 mm above axis 3, "
@@ -513,9 +518,7 @@ PRESETS: dict[str, dict] = {
         c4=135.0,
         offsets=_ABB_OFFSETS,
         signs=_ABB_SIGNS,
-        lower=_deg([-180, -90, -180, -400, -125, -400]),
-        upper=_deg([180, 150, 75, 400, 120, 400]),
-        max_speed=_deg([175, 175, 175, 250, 250, 360]),
+        **_IRB4600_AXES,
         source=(
             "ABB Product specification IRB 4600, IRB 4600-40/2.55: dimension drawing (axis 2 "
             "495 mm above the base and 175 mm forward of axis 1, lower arm 1095 mm, axis 4 175 mm above axis 3, "
