@@ -237,9 +237,9 @@ def free_work(work, found, resolve=None, backs=None, since: int = 0) -> tuple:
     where there is one (so that the spray goes on without a gap), from the joints of the last reached waypoint
     before it: the stroke is then painted in pieces, each with its
     own track position, roll and branch (and the piece as returned: its gun tilted, if it had to be), joined
-    by transfers. A piece no try frees whole is tried in halves (sharing their middle waypoint), down to
-    :data:`SPLIT_DEPTH` levels: one try seldom suits a long piece round a mirror, a shorter one may. A stroke's one try must suit all of it; a run near a mirror or in a recess often has a try of
-    its own that is free.
+    by transfers. A stroke's one try must suit all of it; a run near a mirror or in a recess often has a try of
+    its own that is free. A piece no try frees whole is tried in halves (sharing their middle waypoint), down
+    to :data:`SPLIT_DEPTH` levels: one try seldom suits a long piece round a mirror, a shorter one may.
 
     A waypoint in collision or unreached is not painted through, as a programmer leaves out what the arm cannot
     reach or cannot reach without touching the body: the robot's programs leave such waypoints out with the gun

@@ -206,40 +206,44 @@ class CellRouter:
         pose[:3, 3] -= distance_mm * pose[:3, 2]
         return self.solve(pose, t, q)
 
+    def _programs_back(self, q, t: float, distance_mm: float) -> np.ndarray | None:
+        """The state (joints and track ``t``) of the gun at joints ``q`` backed off as the programs back it off
+        at a run's end: by ``distance_mm`` or the first shorter share of it the arm reaches
+        (``programs.build.APPROACH_TRIES``, :meth:`_back`); None when none is reached."""
+        from sprayplan.programs.build import APPROACH_TRIES
+
+        for share in APPROACH_TRIES:
+            back = self._back(q, t, share * distance_mm)
+            if back is not None:
+                return np.r_[back, t]
+        return None
+
     def backed_off(self, pairs: np.ndarray, a: np.ndarray, ok: np.ndarray, distance_mm: float) -> dict:
         """``{k: (A backed off, B backed off)}`` for the transfers ``k`` from row ``a[k]`` to ``a[k] + 1`` of
         ``pairs`` (joints and track position a row) with ``ok[k]``: each end's gun moved ``distance_mm`` back
         along its axis (or the shorter shares of it the programs try, ``programs.build.APPROACH_TRIES``), solved
         on the branch nearest the end (a row each, the track as the end's); the transfers with an end that
         cannot back off are left out. Empty when ``distance_mm`` is 0."""
-        from sprayplan.programs.build import APPROACH_TRIES
-
         out = {}
         if distance_mm <= 0:
             return out
         for k in np.flatnonzero(ok):
             ends = []
             for row in (pairs[a[k]], pairs[a[k] + 1]):
-                q, t = row[:-1], float(row[-1])
-                for share in APPROACH_TRIES:
-                    back = self._back(q, t, share * distance_mm)
-                    if back is not None:
-                        ends.append(np.r_[back, t])
-                        break
-                else:
+                back = self._programs_back(row[:-1], float(row[-1]), distance_mm)
+                if back is None:
                     break
+                ends.append(back)
             if len(ends) == 2:
                 out[int(k)] = tuple(ends)
         return out
 
     def backs_free(self, q: np.ndarray, tracks: np.ndarray, distance_mm: float) -> np.ndarray:
         """(m,) bool: at each row (joints ``q`` (m, dof), track ``tracks`` (m,)) the gun can back off along its
-        axis as the programs do at a run's end, by ``distance_mm`` or the first of the shorter shares they try
-        that the arm reaches (``programs.build.APPROACH_TRIES``), and that move (the joint move to the backed-off
-        pose, checked like a transfer: the program's approach or retract line) and the pose are free. False
-        where no share is reached (the programs leave such an end out); all True when ``distance_mm`` is 0."""
-        from sprayplan.programs.build import APPROACH_TRIES
-
+        axis as the programs do at a run's end (:meth:`_programs_back`), and that move (the joint move to the
+        backed-off pose, checked like a transfer: the program's approach or retract line) and the pose are free.
+        False where no share is reached (the programs leave such an end out); all True when ``distance_mm`` is
+        0."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         tracks = np.asarray(tracks, dtype=float).reshape(-1)
         out = np.zeros(len(q), bool)
@@ -247,12 +251,10 @@ class CellRouter:
             return ~out
         rows, backs = [], []
         for i, (qi, t) in enumerate(zip(q, tracks)):
-            for share in APPROACH_TRIES:
-                back = self._back(qi, float(t), share * distance_mm)
-                if back is not None:
-                    rows.append(i)
-                    backs.append(np.r_[back, t])
-                    break
+            back = self._programs_back(qi, float(t), distance_mm)
+            if back is not None:
+                rows.append(i)
+                backs.append(back)
         if rows:
             ends = np.column_stack([q[rows], tracks[rows]])
             backs = np.array(backs)
