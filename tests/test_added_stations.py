@@ -306,7 +306,7 @@ def test_the_dead_bands_jacobian_is_the_derivative_of_its_residuals():
             )
             # the kinks at |u| = band: compare rows away from them
             away = np.r_[np.abs(np.abs((whole @ x - target)[:30]) - band) > 1e-4, np.ones(10, bool)]
-            np.testing.assert_allclose(jacobian(x).toarray()[away], numeric[away], atol=1e-6)
+            np.testing.assert_allclose((jacobian(x) @ np.eye(12))[away], numeric[away], atol=1e-6)
 
 
 def test_tune_plan_keeps_to_its_budget_of_new_stations(testdata):

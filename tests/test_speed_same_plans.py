@@ -1,7 +1,8 @@
 """The speed work keeps the same plans (issue 17): each faster computation against the one it replaced.
 
 - the deposit matrix of the compiled kernel equals the sparse product of the pairs' film and the time shares;
-- the tuning's Jacobian (rows kept or dropped, sliced once) equals ``diags(slope) @ system``;
+- the tuning's system equals scipy's, and its Jacobian (rows kept or dropped) gives the products of
+  ``diags(slope) @ system``;
 - edges made unique through one int64 key equal ``np.unique(edges, axis=0)``;
 - a remembered SQP solve is the solve itself, and a path solved again after a cut (as the touch-ups do) is
   the same with the memory as without it;
@@ -78,9 +79,24 @@ def _scipy_system(deposit_mm, rows, cols, tol, pair_first, scale):
     return sparse.vstack([fit, smooth]).tocsr()
 
 
-def test_the_tunings_system_and_jacobian_are_scipys_bit_for_bit():
-    """``tuning.System`` reads the deposit matrix in place: its products, its rows and the dead band's
-    Jacobian (rows inside the band emptied) are those of the system scipy built, ``diags(slope) @ system``."""
+def _same_operator(got, expected, rng):
+    """A LinearOperator and a sparse matrix of the same shape give the same products, both ways (the
+    operator's transposed product adds its row pieces' sums: equal up to rounding)."""
+    assert got.shape == expected.shape
+    for _ in range(3):
+        v = rng.uniform(-1.0, 1.0, expected.shape[1])
+        u = rng.uniform(-1.0, 1.0, expected.shape[0])
+        np.testing.assert_allclose(got @ v, expected @ v, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(got.T @ u, expected.T @ u, rtol=1e-12, atol=1e-12)
+        two = rng.uniform(-1.0, 1.0, (expected.shape[1], 2))
+        np.testing.assert_allclose(got @ two, expected @ two, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_the_tunings_system_and_jacobian_are_scipys(workers):
+    """``tuning.System`` holds the film rows scipy's scaling, slicing and stacking built (bit for bit), its
+    product is scipy's bit for bit, and the dead band's Jacobian (rows inside the band emptied, a
+    ``LinearOperator``) gives the products of ``diags(slope) @ system``, on one thread or two."""
     rng = np.random.default_rng(5)
     deposit = sparse.random(500, 80, density=0.1, random_state=2, format="csr") * 0.00025  # mm
     rows = np.sort(rng.choice(500, 400, replace=False))
@@ -89,7 +105,7 @@ def test_the_tunings_system_and_jacobian_are_scipys_bit_for_bit():
     position[cols] = np.arange(60)
     pair_first = np.flatnonzero(np.diff(cols) == 1)  # neighbouring free columns
     tol, scale = 5.0, 0.8
-    system = System(deposit, rows, position, 60, 1.0 / tol, pair_first, scale)
+    system = System(deposit, rows, position, 60, 1.0 / tol, pair_first, scale, workers)
     reference = _scipy_system(deposit, rows, cols, tol, pair_first, scale)
     got = system.csr()
     for name in ("indptr", "indices", "data"):
@@ -97,27 +113,41 @@ def test_the_tunings_system_and_jacobian_are_scipys_bit_for_bit():
     target = np.r_[rng.uniform(0.0, 0.8, 400), np.zeros(len(pair_first))]
     band = 0.3
     residual, jacobian = _residuals(system, target, band)
-    for _ in range(3):
-        x = rng.uniform(0.5, 2.0, 60)
-        np.testing.assert_array_equal(system.matvec(x), reference @ x)
-        f = reference[:400] @ x - target[:400]
-        inside = np.abs(f) <= band
-        assert 0 < inside.sum() < 400  # some rows dropped, some kept
-        slope = np.r_[(~inside).astype(float), np.ones(len(pair_first))]
-        expected = sparse.diags(slope) @ reference
-        expected.eliminate_zeros()
-        got = jacobian(x)
-        assert got.nnz == expected.nnz
-        assert abs(got - expected).max() == 0.0
-        r = reference @ x - target
-        r[:400] = np.sign(r[:400]) * np.maximum(np.abs(r[:400]) - band, 0.0)
-        np.testing.assert_array_equal(residual(x), r)
-        again = jacobian(x.copy())  # at the residual's point: its misfit reused
-        assert again.nnz == expected.nnz and abs(again - expected).max() == 0.0
-        other = x + 0.1
-        residual(other)
-        moved = jacobian(x)  # at another point than the last residual's: computed anew
-        assert moved.nnz == expected.nnz and abs(moved - expected).max() == 0.0
+    with system.threads():
+        for _ in range(3):
+            x = rng.uniform(0.5, 2.0, 60)
+            np.testing.assert_array_equal(system.matvec(x), reference @ x)
+            f = reference[:400] @ x - target[:400]
+            inside = np.abs(f) <= band
+            assert 0 < inside.sum() < 400  # some rows dropped, some kept
+            slope = np.r_[(~inside).astype(float), np.ones(len(pair_first))]
+            expected = sparse.diags(slope) @ reference
+            _same_operator(jacobian(x), expected, rng)
+            r = reference @ x - target
+            r[:400] = np.sign(r[:400]) * np.maximum(np.abs(r[:400]) - band, 0.0)
+            np.testing.assert_array_equal(residual(x), r)
+            _same_operator(jacobian(x.copy()), expected, rng)  # at the residual's point: its misfit reused
+            residual(x + 0.1)
+            _same_operator(jacobian(x), expected, rng)  # at another point than the last residual's: anew
+
+
+def test_the_tunings_products_do_not_depend_on_the_threads():
+    """The transposed product adds fixed pieces of the rows in order: one thread and three give the same
+    numbers bit for bit (a seeded tuning repeats on any machine's core count)."""
+    deposit = sparse.random(3000, 200, density=0.05, random_state=3, format="csr") * 0.00025
+    rows = np.arange(0, 3000, 2)
+    position = np.arange(200)
+    answers = []
+    for workers in (1, 3):
+        system = System(deposit, rows, position, 200, 0.2, np.arange(0, 199, 3), 0.5, workers)
+        u = np.random.default_rng(1).uniform(-1, 1, system.shape[0])
+        keep = np.random.default_rng(2).random(system.shape[0]) < 0.6
+        with system.threads():
+            op = system.operator(keep)
+            answers.append((op.rmatvec(u), op.matvec(np.linspace(0.5, 2.0, 200))))
+    assert len(system.pieces) > 3  # the rows were cut into pieces
+    for a, b in zip(*answers):
+        np.testing.assert_array_equal(a, b)
 
 
 @settings(max_examples=40, deadline=None)

@@ -30,12 +30,15 @@ from __future__ import annotations
 
 import logging
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 from scipy import sparse
 from scipy.optimize import least_squares
+from scipy.sparse.linalg import LinearOperator
 from threadpoolctl import threadpool_limits
 
 from sprayplan.checks import check_dwell_bounds
@@ -226,7 +229,7 @@ def tune_speeds(
     if tuned.any() and free.any():
         dwell[free] = _solve(
             deposit_mm, samples.area_mm2, tuned, free, starts, target_um, tolerance_um, config, low, high, first,
-            progress,
+            progress, product_workers(coating),
         )  # fmt: skip
     after = _film_um(deposit_mm, dwell)
     release_freed_memory()  # the solver's copies of the Jacobian (sprayplan.heap)
@@ -277,8 +280,15 @@ def tuned_film(tuning: Tuning, process: Process, coating: CoatingConfig | None =
     )
 
 
+def product_workers(coating: CoatingConfig | None) -> int:
+    """The threads of the tuning's products: the film's own (``CoatingConfig.workers``; by default the cores,
+    at most 4)."""
+    workers = None if coating is None else coating.workers
+    return int(workers) if workers is not None else min(os.cpu_count() or 1, 4)
+
+
 def _solve(
-    deposit_mm, area, tuned, free, starts, target, tol, config: TuningConfig, low, high, first, progress=None
+    deposit_mm, area, tuned, free, starts, target, tol, config: TuningConfig, low, high, first, progress=None, workers=1
 ) -> np.ndarray:
     rows = np.flatnonzero(tuned)
     cols = np.flatnonzero(free)
@@ -290,7 +300,7 @@ def _solve(
     same_stroke[starts[1:-1][(starts[1:-1] > 0) & (starts[1:-1] < len(free))] - 1] = False
     pairs = np.flatnonzero(free[:-1] & free[1:] & same_stroke)
     scale = config.smoothing * math.sqrt(len(rows) / len(cols)) * target / tol
-    system = System(deposit_mm, rows, position, len(cols), 1.0 / tol, position[pairs], scale)
+    system = System(deposit_mm, rows, position, len(cols), 1.0 / tol, position[pairs], scale, workers)
     target_vec = np.r_[np.full(len(rows), target / tol), np.zeros(len(pairs))]
     low, high = low[cols], high[cols]
     if (high - low < 1e-12).all():
@@ -327,8 +337,9 @@ def _solve(
             progress(min(evaluations, int(config.iterations)), int(config.iterations))
             return plain(x)
 
-    # LSMR's dot products are short and many: one BLAS thread (two stall each other on a busy machine)
-    with threadpool_limits(limits=1, user_api="blas"):
+    # LSMR's dot products are short and many: one BLAS thread (two stall each other on a busy machine); the
+    # system's products run on ``workers`` threads of their own (System.pool)
+    with threadpool_limits(limits=1, user_api="blas"), system.threads():
         result = least_squares(
             residual,
             np.clip(first[cols], low_solver, high),
@@ -363,19 +374,25 @@ def _scaled_matvec(indptr, indices, data, factor, x):
     return out
 
 
+#: The film rows of the tuning's products are cut into this many pieces of about equal entries, whatever the
+#: number of threads: the transposed product adds the pieces' sums in their order, so the answer is the same
+#: on one thread as on several.
+PRODUCT_PIECES = 8
+
+
 class System:
-    """The tuning's sparse system in tolerances, read from the deposit matrix in place: the film rows
-    ``(deposit_mm * 1000)[rows][:, cols] / tol`` (``cols`` where ``position >= 0``, in that order), then a
-    smoothness row ``(-scale, scale)`` on the columns ``pair_first + (0, 1)`` of each pair of neighbouring
-    waypoints; entries that are 0 left out.
+    """The tuning's sparse system in tolerances: the film rows ``(deposit_mm * 1000)[rows][:, cols] / tol``
+    (``cols`` where ``position >= 0``, in that order), then a smoothness row ``(-scale, scale)`` on the
+    columns ``pair_first + (0, 1)`` of each pair of neighbouring waypoints; entries that are 0 left out.
 
-    Nothing of it is copied: its products with a vector (``matvec``, ``fit_matvec``) and its rows outside the
-    dead band (``kept``) are computed from the deposit matrix's own arrays, every entry ``(a * 1000) * (1 /
-    tol)`` as scipy's scaling, slicing and ``/ tol`` made it, each row summed in order as scipy's CSR product
-    sums it, so that the tuning is the same bit for bit as with the system built by scipy (``csr``, which
-    builds it, for the tests)."""
+    The film rows are copied once into a CSR matrix of their own (``fit``, every entry ``(a * 1000) * (1 /
+    tol)``, as scipy's scaling, slicing and ``/ tol`` made it); the smoothness rows are never stored. Its
+    products with a vector, and the dead band's Jacobian (:meth:`operator`: the system with some film rows
+    emptied, as a ``LinearOperator``), run on ``workers`` threads (within :meth:`threads`) over
+    ``PRODUCT_PIECES`` pieces of the film rows; ``csr`` and ``kept`` give the system as a CSR matrix (for the
+    tests)."""
 
-    def __init__(self, deposit_mm, rows, position, n_cols, inv_tol, pair_first, scale):
+    def __init__(self, deposit_mm, rows, position, n_cols, inv_tol, pair_first, scale, workers: int = 1):
         self.deposit = deposit_mm.tocsr()
         self.rows = np.asarray(rows, np.int64)
         self.position = np.asarray(position, np.int64)
@@ -383,25 +400,111 @@ class System:
         self.pair_first = np.asarray(pair_first, np.int64)
         self.n_fit = len(self.rows)
         self.shape = (self.n_fit + len(self.pair_first), int(n_cols))
+        self.workers = max(int(workers), 1)
+        self.pool = None
+        d = self.deposit
+        data, indices, indptr = _system_kept(
+            d.indptr, d.indices, d.data, self.rows, self.position, UM_PER_MM, self.inv_tol,
+            np.zeros(0, np.int64), 0.0, np.ones(self.n_fit, np.bool_),
+        )  # fmt: skip
+        self.fit = sparse.csr_matrix((data, indices, indptr), shape=(self.n_fit, self.shape[1]))
+        # the kernels read the indices as unsigned: numba then does not check them for negative values, which
+        # halves a product's time
+        unsigned = np.uint32 if self.fit.indices.dtype == np.int32 else np.uint64
+        self._fit_arrays = (
+            self.fit.indptr.astype(self.fit.indices.dtype, copy=False).view(unsigned),
+            self.fit.indices.view(unsigned),
+            self.fit.data,
+        )
+        entries = indptr[1:]
+        total = entries[-1] if len(entries) else 0
+        cuts = np.searchsorted(entries, np.arange(1, PRODUCT_PIECES) * (total / PRODUCT_PIECES))
+        self.pieces = np.unique(np.r_[0, cuts, self.n_fit]).astype(np.int64)
+        self.all_rows = np.ones(self.n_fit, np.bool_)
+
+    def threads(self):
+        """A context in which the products run on ``workers`` threads (one pool for all of them)."""
+        from contextlib import contextmanager
+
+        @contextmanager
+        def pool():
+            if self.workers < 2 or len(self.pieces) < 3:
+                yield
+                return
+            with ThreadPoolExecutor(max_workers=self.workers) as executor:
+                self.pool = executor
+                try:
+                    yield
+                finally:
+                    self.pool = None
+
+        return pool()
+
+    def _each_piece(self, work) -> list:
+        spans = list(zip(self.pieces[:-1], self.pieces[1:]))
+        if self.pool is None:
+            return [work(lo, hi) for lo, hi in spans]
+        return list(self.pool.map(lambda span: work(*span), spans))
 
     def _arrays(self):
         d = self.deposit
         return d.indptr, d.indices, d.data, self.rows, self.position, UM_PER_MM, self.inv_tol
 
-    def matvec(self, x) -> np.ndarray:
-        """The system times ``x``: the film rows, then the smoothness rows."""
-        out = np.empty(self.shape[0])
-        out[: self.n_fit] = _system_matvec(*self._arrays(), np.asarray(x, float))
-        first = self.pair_first
-        if self.scale != 0.0:
-            out[self.n_fit :] = (0.0 + (-self.scale) * x[first]) + self.scale * x[first + 1]
-        else:
-            out[self.n_fit :] = 0.0
+    def fit_matvec(self, x, keep=None) -> np.ndarray:
+        """The film rows times ``x``; with ``keep``, the rows where it is False are 0."""
+        x = np.asarray(x, float)
+        keep = self.all_rows if keep is None else keep
+        out = np.empty(self.n_fit)
+        arrays = self._fit_arrays
+        self._each_piece(lambda lo, hi: _rows_matvec(*arrays, keep, x, lo, hi, out))
         return out
 
-    def fit_matvec(self, x) -> np.ndarray:
-        """The film rows times ``x``."""
-        return _system_matvec(*self._arrays(), np.asarray(x, float))
+    def fit_rmatvec(self, u, keep=None) -> np.ndarray:
+        """The film rows' transpose times ``u`` (one value per film row); with ``keep``, only the rows where it
+        is True. Each piece is summed into a vector of its own, the pieces then added in order."""
+        u = np.asarray(u, float)
+        keep = self.all_rows if keep is None else keep
+        arrays, n_cols = self._fit_arrays, self.shape[1]
+        parts = self._each_piece(lambda lo, hi: _rows_rmatvec(*arrays, keep, u, lo, hi, n_cols))
+        out = np.zeros(self.shape[1])
+        for part in parts:
+            out += part
+        return out
+
+    def _smooth_matvec(self, x) -> np.ndarray:
+        first = self.pair_first
+        if self.scale == 0.0:
+            return np.zeros(len(first))
+        return (0.0 + (-self.scale) * x[first]) + self.scale * x[first + 1]
+
+    def matvec(self, x) -> np.ndarray:
+        """The system times ``x``: the film rows, then the smoothness rows."""
+        x = np.asarray(x, float)
+        return np.concatenate([self.fit_matvec(x), self._smooth_matvec(x)])
+
+    def operator(self, keep) -> LinearOperator:
+        """The system with the film rows where ``keep`` is False emptied, as a ``LinearOperator`` (the flags
+        are copied: the caller may change its array)."""
+        keep = np.array(keep[: self.n_fit], dtype=np.bool_)
+        n_fit, first, scale = self.n_fit, self.pair_first, self.scale
+
+        def matvec(x):
+            x = np.ravel(x)
+            return np.concatenate([self.fit_matvec(x, keep), self._smooth_matvec(x)])
+
+        def rmatvec(u):
+            u = np.ravel(u)
+            out = self.fit_rmatvec(u[:n_fit], keep)
+            if scale != 0.0:
+                smooth = u[n_fit:]
+                out[first] -= scale * smooth
+                out[first + 1] += scale * smooth
+            return out
+
+        def matmat(xs):
+            return np.column_stack([matvec(xs[:, j]) for j in range(xs.shape[1])])
+
+        return LinearOperator(self.shape, matvec=matvec, rmatvec=rmatvec, matmat=matmat, dtype=float)
 
     def kept(self, outside: np.ndarray) -> sparse.csr_matrix:
         """The system with the rows where ``outside`` is False emptied, as a CSR matrix of its own."""
@@ -414,17 +517,26 @@ class System:
 
 
 @njit(cache=True, nogil=True)
-def _system_matvec(indptr, indices, data, rows, position, factor, inv_tol, x):
-    out = np.empty(len(rows))
-    for i in range(len(rows)):
-        r = rows[i]
+def _rows_matvec(indptr, indices, data, keep, x, lo, hi, out):
+    """``out[lo:hi]``: the rows ``lo..hi`` of a CSR matrix times ``x``, 0 where ``keep`` is False."""
+    for i in range(lo, hi):
         total = 0.0
-        for k in range(indptr[r], indptr[r + 1]):
-            column = position[indices[k]]
-            value = (data[k] * factor) * inv_tol
-            if column >= 0 and value != 0.0:
-                total += value * x[column]
+        if keep[i]:
+            for k in range(indptr[i], indptr[i + 1]):
+                total += data[k] * x[indices[k]]
         out[i] = total
+
+
+@njit(cache=True, nogil=True)
+def _rows_rmatvec(indptr, indices, data, keep, u, lo, hi, n_cols):
+    """The rows ``lo..hi`` of a CSR matrix (where ``keep``) transposed, times ``u[lo:hi]``: a vector of
+    ``n_cols``."""
+    out = np.zeros(n_cols)
+    for i in range(lo, hi):
+        weight = u[i]
+        if keep[i] and weight != 0.0:
+            for k in range(indptr[i], indptr[i + 1]):
+                out[indices[k]] += data[k] * weight
     return out
 
 
@@ -464,8 +576,8 @@ def _system_kept(indptr, indices, data, rows, position, factor, inv_tol, pair_fi
 def _residuals(system: System, target_vec: np.ndarray, band: float):
     """The tuning's residual function and its Jacobian: ``system @ x - target_vec``, the film rows (in
     tolerances) through the dead band ``d(u) = sign(u) max(|u| - band, 0)``, whose derivative is 1 outside
-    the band and 0 inside: the Jacobian is ``diags(slope) @ system``, the system's rows inside the band
-    emptied (``System.kept``)."""
+    the band and 0 inside: the Jacobian is ``diags(slope) @ system``, the system with its rows inside the band
+    emptied (``System.operator``, a ``LinearOperator``)."""
     n_fit = system.n_fit
     # which film rows are outside the dead band at the last residual's point: the solver asks for the
     # Jacobian at the point whose residual it has just computed, so the Jacobian reuses them (the same rows as
@@ -481,16 +593,14 @@ def _residuals(system: System, target_vec: np.ndarray, band: float):
         return r
 
     if band <= 0:
-        whole = system.csr()
+        whole = system.operator(system.all_rows)
         return residual, lambda x: whole
-    outside = np.ones(system.shape[0], bool)
 
     def jacobian(x):
         if last["x"] is not None and np.array_equal(last["x"], x):
-            outside[:n_fit] = last["outside"]
+            outside = last["outside"]
         else:
-            f = system.fit_matvec(x) - target_vec[:n_fit]
-            np.greater(np.abs(f), band, out=outside[:n_fit])
-        return system.kept(outside)
+            outside = np.abs(system.fit_matvec(x) - target_vec[:n_fit]) > band
+        return system.operator(outside)
 
     return residual, jacobian
