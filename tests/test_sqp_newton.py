@@ -1,6 +1,7 @@
 """The SQP's Newton first try (``robots.sqp_newton``) against what it replaces (issue 17's "same plans").
 
-- its derivatives equal central differences of forward kinematics;
+- its derivatives, and the errors of eqs. 21-22 with the gradients SLSQP is given, equal central
+  differences of forward kinematics (the gantry's whole eq. 8 chain);
 - on problems like a stroke's (the reference one waypoint step from the tolerance), each Newton answer holds
   eqs. 21-22 and the joint limits, and costs no more on eq. 20 than SLSQP's answer to the same problem;
 - along a path, Newton first gives no fewer reachable waypoints, no higher eq. 20 total, and every SQP
@@ -20,7 +21,7 @@ from scipy.spatial.transform import Rotation
 import sprayplan.robots.gantry as gantry_module
 from sprayplan.robots.gantry import Gantry, pose_errors, solve_gantry_path, solve_sqp
 from sprayplan.robots.model import fk
-from sprayplan.robots.sqp_newton import _cross, chain_frames, second_derivative_along
+from sprayplan.robots.sqp_newton import _cross, chain_frames, pose_errors_first_order, second_derivative_along
 from sprayplan.robots.ur_ik import nearest_equivalent, ur_ik
 from sprayplan.surface.poses import stroke_poses
 from sprayplan.types import Stroke
@@ -37,6 +38,37 @@ def _target_and_axis(gantry, q):
     robot = gantry.robot
     axes, origins, end = chain_frames(robot.d, robot.a, robot.alpha, robot.theta_offset, q, _offset(gantry))
     return axes, origins, end[:3, 3], end[:3, 2]
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_slsqps_errors_and_gradients_are_those_of_forward_kinematics(seed):
+    """SLSQP's constraint values and gradients (``pose_errors_first_order``) are eqs. 21-22 computed with the
+    gantry's forward kinematics (``target2world``, the whole chain with the gantry and ``Rot(x, pi)``) and
+    their central differences over all nine axes."""
+    gantry = Gantry()
+    rng = np.random.default_rng(40 + seed)
+    x = np.r_[rng.uniform(-3.0, 3.0, 6), rng.uniform(-500.0, 500.0, 3)]
+    # a wanted pose a few mm and degrees from the achieved one
+    achieved = gantry.target2world(x)[0]
+    turn = Rotation.from_rotvec(rng.normal(size=3) * 0.05).as_matrix()
+    wanted = achieved.copy()
+    wanted[:3, :3] = turn @ achieved[:3, :3]
+    wanted[:3, 3] += rng.normal(size=3) * 3.0
+    jac_e = np.zeros((3, 9))
+    jac_e[:, 6:] = np.eye(3)
+    flip = np.array([1.0, -1.0, -1.0])
+    first = pose_errors_first_order(gantry.robot, _offset(gantry), wanted[:3, 3], flip * wanted[:3, 2], x, jac_e)
+    distance, grad_1, cos_angle, grad_2 = first[3], first[5], first[6], first[9]
+    position, axis = (e[0] for e in pose_errors(gantry.target2world(x), wanted))
+    assert distance == pytest.approx(position, abs=1e-9)
+    assert math.acos(cos_angle) == pytest.approx(axis, abs=1e-12)
+    h = np.array([1e-6] * 6 + [1e-4] * 3)
+    for i in range(9):
+        step = np.eye(9)[i] * h[i]
+        plus = pose_errors(gantry.target2world(x + step), wanted)
+        minus = pose_errors(gantry.target2world(x - step), wanted)
+        assert grad_1[i] == pytest.approx((plus[0][0] - minus[0][0]) / (2 * h[i]), rel=1e-7, abs=1e-6)
+        assert grad_2[i] == pytest.approx((plus[1][0] - minus[1][0]) / (2 * h[i]), rel=1e-7, abs=1e-6)
 
 
 @pytest.mark.parametrize("seed", range(5))

@@ -37,7 +37,7 @@ from scipy.optimize import minimize
 from sprayplan.checks import check_points, check_poses
 from sprayplan.errors import ConfigError, DataError
 from sprayplan.robots.model import RobotModel, fk, fk_point, load_robot
-from sprayplan.robots.sqp_newton import newton_sqp
+from sprayplan.robots.sqp_newton import newton_sqp, pose_errors_first_order
 from sprayplan.types import read_only
 
 log = logging.getLogger(__name__)
@@ -330,17 +330,20 @@ def solve_sqp(
         found = _newton_try(gantry, wanted, start, k_d, position_tol_mm, axis_tol_rad)
         if found is not None:
             return found
-    step = np.array([1e-7] * 6 + [1e-5] * 3)  # rad, mm
     cache: dict = {}
+    offset2flange = gantry.gun.gun2flange @ gantry.gun.target2gun
+    flip_wanted_z = ROT_X_PI[:3, :3].diagonal() * wanted[:3, 2]
+    jac_e = np.zeros((3, 9))
+    jac_e[:, 6:] = np.eye(3)
 
     def evaluate(x):
-        """Errors at x and their finite-difference gradients, from one batched forward kinematics call."""
+        """Eqs. 21 and 22 at x and their exact gradients (``sqp_newton.pose_errors_first_order``)."""
         key = x.tobytes()
         if key not in cache:
-            batch = np.vstack([x, x + np.diag(step)])
-            position, axis = pose_errors(gantry.target2world(batch), wanted)
+            first = pose_errors_first_order(gantry.robot, offset2flange, wanted[:3, 3], flip_wanted_z, x, jac_e)
+            distance, grad_1, cos_angle, grad_2 = first[3], first[5], first[6], first[9]
             cache.clear()
-            cache[key] = (position[0], axis[0], (position[1:] - position[0]) / step, (axis[1:] - axis[0]) / step)
+            cache[key] = (distance, math.acos(cos_angle), grad_1, grad_2)
         return cache[key]
 
     def objective(x):
@@ -366,10 +369,7 @@ def solve_sqp(
         options={"maxiter": max_iter, "ftol": 1e-10},
     )
 
-    def errors(x):
-        return evaluate(x)[:2]
-
-    position, axis = errors(result.x)
+    position, axis = (e[0] for e in pose_errors(gantry.target2world(result.x), wanted))
     ok = bool(position <= position_tol_mm * (1 + 1e-6) and axis <= axis_tol_rad * (1 + 1e-6))
     return SQPResult(result.x, ok, float(position), float(axis), int(result.nit), str(result.message))
 

@@ -102,6 +102,36 @@ def second_derivative_along(axes, rows, v):
     return np.where(_UPPER, out, out.T)
 
 
+def pose_errors_first_order(robot, offset2flange, wanted_p, flip_wanted_z, x, jac_e):
+    """Eqs. 21 and 22 at ``x = (q, t)`` and their exact gradients over the nine axes (the module's formulas).
+
+    ``flip_wanted_z`` is the wanted gun axis in the arm's base frame (``Rot(x, pi)`` of the world's);
+    ``jac_e`` (3, 9) holds the identity in its last three columns (the gantry moves the target as it moves)
+    and gets the spray target's position Jacobian in its first six. Returns the joint axes (6, 3), the
+    target's and the gun axis's derivatives in the base frame (6, 3 each), the position error (mm), its unit
+    vector (0 at no error), its gradient (9,), the cosine and sine of the axis error, the cosine's gradient
+    over the joints (6,) and the axis error's gradient (9,) (0 where the error is 0: the angle has no
+    derivative there)."""
+    axes, origins, end = chain_frames(robot.d, robot.a, robot.alpha, robot.theta_offset, x[:6], offset2flange)
+    p_b, z_b = end[:3, 3], end[:3, 2]
+    jac = _cross(axes, np.stack([p_b - origins, np.broadcast_to(z_b, (6, 3))]))
+    jp, jz = jac[0], jac[1]
+    # eq. 21: h1 = |e| - P with e the spray target's error in the world, t + Rot(x, pi) p_b - p*
+    error = x[6:] + _FLIP * p_b - wanted_p
+    distance = math.sqrt(error @ error)
+    jac_e[:, :6] = (jp * _FLIP).T
+    unit = error / distance if distance > TINY else np.zeros(3)
+    grad_1 = jac_e.T @ unit
+    # eq. 22: h2 = angle - A, the angle between the gun axis and the wanted one, arccos(c)
+    cos_angle = min(max(float(flip_wanted_z @ z_b), -1.0), 1.0)
+    sin_angle = math.sqrt(1.0 - cos_angle * cos_angle)
+    grad_c = jz @ flip_wanted_z
+    grad_2 = np.zeros(9)
+    if sin_angle > TINY:
+        grad_2[:6] = -grad_c / sin_angle
+    return axes, jp, jz, distance, unit, grad_1, cos_angle, sin_angle, grad_c, grad_2
+
+
 def newton_sqp(robot, offset2flange, wanted_p, wanted_z, reference, *, k_d, position_tol_mm, axis_tol_rad):
     """The minimum of eq. 20 under eqs. 21-22 and the joint limits by Newton's method on the KKT
     conditions, started at the reference; or None.
@@ -137,23 +167,8 @@ def newton_sqp(robot, offset2flange, wanted_p, wanted_z, reference, *, k_d, posi
     steps = 0
     for _ in range(MAX_STEPS):
         steps += 1
-        axes, origins, end = chain_frames(robot.d, robot.a, robot.alpha, robot.theta_offset, x[:6], offset2flange)
-        p_b, z_b = end[:3, 3], end[:3, 2]
-        jac = _cross(axes, np.stack([p_b - origins, np.broadcast_to(z_b, (6, 3))]))
-        jp, jz = jac[0], jac[1]
-        # eq. 21: h1 = |e| - P with e the spray target's error in the world, t + Rot(x, pi) p_b - p*
-        error = x[6:] + _FLIP * p_b - wanted_p
-        distance = math.sqrt(error @ error)
-        jac_e[:, :6] = (jp * _FLIP).T
-        unit = error / distance if distance > TINY else np.zeros(3)
-        grad_1 = jac_e.T @ unit
-        # eq. 22: h2 = angle - A, the angle between the gun axis and the wanted one, arccos(c)
-        cos_angle = min(max(float(flip_wanted_z @ z_b), -1.0), 1.0)
-        sin_angle = math.sqrt(1.0 - cos_angle * cos_angle)
-        grad_c = jz @ flip_wanted_z
-        grad_2 = np.zeros(9)
-        if sin_angle > TINY:
-            grad_2[:6] = -grad_c / sin_angle
+        first = pose_errors_first_order(robot, offset2flange, wanted_p, flip_wanted_z, x, jac_e)
+        axes, jp, jz, distance, unit, grad_1, cos_angle, sin_angle, grad_c, grad_2 = first
         # the Lagrangian's Hessian: eq. 20's, and the constraints' weighted by their multipliers
         hess = hess_f.copy()
         if mu[0] > 0.0 and distance > TINY:
