@@ -365,3 +365,49 @@ def test_the_best_tilt_needs_few_reaches_and_is_the_one_of_all_shares():
         assert len(calls) <= n
         lazy_calls += len(calls)
     assert lazy_calls < 0.75 * all_calls  # many choices need one share or none, not all of them
+
+
+def test_the_tunings_after_touch_ups_start_from_the_round_befores_factors(testdata, monkeypatch):
+    """After a touch-up round the speeds are tuned again from the factors the round before found (1 on the
+    added strokes' waypoints) with at most ``touch_up_iterations`` evaluations; the first tuning starts
+    from 1 everywhere with ``iterations``."""
+    import sprayplan.refine.stage as stage
+    from sprayplan.coating.stage import meet_thickness
+    from sprayplan.config import JobConfig
+    from sprayplan.io.load import load_part
+    from sprayplan.surface.region import select_region
+    from tests.helpers import planned as plan
+
+    part = select_region(load_part(testdata / "meshes" / "reach_curved_part.ply", units="m"), "x > -300")
+    job, _ = meet_thickness(
+        JobConfig().replace(coating={"thickness_um": 50.0}, tuning={"touch_up_iterations": 7, "touch_up_rounds": 1})
+    )
+    calls = []
+    tune = stage.tune_speeds
+
+    def recording(part_, paths, *args, **kwargs):
+        found = tune(part_, paths, *args, **kwargs)
+        calls.append((paths, kwargs.get("initial"), kwargs["config"].iterations, found))
+        return found
+
+    monkeypatch.setattr(stage, "tune_speeds", recording)
+    planned = plan(part, job)
+    stage.tune_plan(part, planned, job)
+    assert len(calls) == 2
+    (_, first_initial, first_its, first), (paths, initial, its, _) = calls
+    assert first_initial is None and first_its == job.tuning.iterations and its == 7
+    # the second plan's strokes: the first's in their order (the same geometry), with the added ones (touch-ups
+    # and their transfers) put in between
+    old, j = first.paths.strokes, 0
+    is_new = []
+    for stroke in paths.strokes:
+        same = j < len(old) and len(old[j]) == len(stroke) and np.array_equal(old[j].tcp, stroke.tcp)
+        is_new.append(np.full(len(stroke), not same))
+        j += same
+    assert j == len(old)
+    is_new = np.concatenate(is_new)
+    assert is_new.any() and not is_new.all()
+    earlier = np.concatenate([s.dwell for s in first.paths.strokes])
+    assert (earlier != 1.0).any()  # the first round moved the factors
+    np.testing.assert_array_equal(initial[~is_new], earlier)
+    assert (initial[is_new] == 1.0).all()

@@ -706,6 +706,9 @@ class RefineConfig(Section):
         the share in spec over uniformity; 0 <= band < 1.
     smoothing, iterations, loss, painted_fraction
         The least-squares fit's settings (``refine.tuning.TuningConfig``; ``refine.stage.tuning_settings``).
+    touch_up_iterations : int
+        Most evaluations of the tunings after each touch-up round, which start from the factors the round
+        before found (1 on the added strokes) instead of 1 everywhere; at most ``iterations``.
     touch_up_rounds : int
         With speeds tuned: rounds of touch-up strokes, each aimed at a patch the tuned plan still leaves
         under-painted (a lip or flange that faces away from every stroke), run from the nearest station and
@@ -735,6 +738,7 @@ class RefineConfig(Section):
     iterations: int = 30
     loss: str = "huber"
     painted_fraction: float = 0.1
+    touch_up_iterations: int = 20
     touch_up_rounds: int = 2
     touch_up_aim: bool = True
     touch_up_stations: int = 4
@@ -747,6 +751,7 @@ class RefineConfig(Section):
             raise _fail(RefineConfig, "band", "a number in [0, 1)", self.band)
         _at_least(RefineConfig, "smoothing", self.smoothing, 0)
         _within(RefineConfig, "iterations", self.iterations, 1, 10_000)
+        _within(RefineConfig, "touch_up_iterations", self.touch_up_iterations, 1, 10_000)
         _choice(RefineConfig, "loss", self.loss, ("huber", "linear"))
         _within(RefineConfig, "painted_fraction", self.painted_fraction, 0, 1)
         _within(RefineConfig, "touch_up_rounds", self.touch_up_rounds, 0, 10)

@@ -3,7 +3,9 @@
 With a film target and ``[tuning] tune_speed``, the finished plan's time factors are fitted to its simulated
 film (``tuning.tune_speeds``); then, for ``touch_up_rounds`` rounds, touch-up strokes are aimed at the patches
 still under-painted (``touchup``), run from the planned stations or from new ones (``extend``), and every
-speed is tuned again. Only the appended strokes' columns of the deposit matrix are computed in a round.
+speed is tuned again, from the factors the round before found (1 on the added strokes) and with at most
+``touch_up_iterations`` evaluations. Only the appended strokes' columns of the deposit matrix are computed in a
+round.
 """
 
 from __future__ import annotations
@@ -63,23 +65,33 @@ def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None
     radius = process.pattern.radius_mm
     report = per_stage(progress, "refine")
 
-    def tuned(plan_, earlier=None):
+    def tuned(plan_, earlier=None, earlier_dwell=None):
         """The plan's speeds tuned; ``earlier``: a list holding the plan it extends, its samples and deposit
-        matrix, emptied once the new matrix is made (so that the earlier one is freed before the tuning)."""
+        matrix, emptied once the new matrix is made (so that the earlier one is freed before the tuning);
+        ``earlier_dwell``: that plan's tuned time factors, where the solver starts from (1 on the added
+        strokes)."""
         paths = plan_paths_in_order(plan_, job.paths.standoff_mm, job.paths.spacing or 0.0)
         lower = lower_dwell(paths, settings)
-        deposit = None if earlier is None else extended_deposit(part, plan_, *earlier, process, coating)
+        deposit, initial, round_config = None, None, config
         if earlier is not None:
+            is_new = appended_waypoints(plan_, earlier[0])
+            deposit = extended_deposit(part, plan_, *earlier, process, coating)
             earlier.clear()
+            if earlier_dwell is not None:
+                initial = np.ones(len(is_new))
+                initial[~is_new] = earlier_dwell
+                most = min(config.iterations, settings.touch_up_iterations)
+                round_config = dataclasses.replace(config, iterations=most)
         return tune_speeds(
             part,
             paths,
             process,
             target,
             tolerance,
-            config=config,
+            config=round_config,
             coating=coating,
             lower=lower,
+            initial=initial,
             deposit=deposit,
             progress=report,
         )
@@ -121,8 +133,9 @@ def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None
         if sum(len(st.strokes) for st in plan.stations) == before:
             break  # the arm reaches none of them
         earlier = [previous, tuning.samples, tuning.deposit_mm]
+        dwell = np.concatenate([st.dwell for st in tuning.paths.strokes])
         tuning = None  # the earlier deposit matrix is freed once the extended one is made
-        tuning = tuned(plan, earlier)
+        tuning = tuned(plan, earlier, dwell)
     strokes = iter(tuning.paths.strokes)
     stations = tuple(dataclasses.replace(st, strokes=tuple(next(strokes) for _ in st.strokes)) for st in plan.stations)
     summary = tuning.summary(target, tolerance)
@@ -152,20 +165,22 @@ def _reach_from(plan: Plan, job: JobConfig, new_stations: bool):
     return reach
 
 
+def appended_waypoints(plan: Plan, earlier: Plan) -> np.ndarray:
+    """(waypoints,) bool over ``plan``'s strokes in order: the waypoints of strokes appended to ``earlier``'s
+    stations (stations matched by ``index``; a new station's strokes are all appended)."""
+    before = {st.index: len(st.strokes) for st in earlier.stations}
+    flags = [np.full(len(s), j >= before.get(st.index, 0)) for st in plan.stations for j, s in enumerate(st.strokes)]
+    return np.concatenate(flags) if flags else np.zeros(0, bool)
+
+
 def extended_deposit(part, plan: Plan, earlier: Plan, samples, deposit_mm, process, coating):
     """The deposit matrix of ``plan`` (``coating.deposit_matrix``) from that of ``earlier``, a plan whose
     stations ``plan`` extends with strokes appended at their ends and new stations inserted into the visiting
     order (stations matched by ``index``): only the added strokes' columns are computed, on the earlier
     samples (the film of a time step does not depend on the other strokes). Returns (samples, matrix)."""
-    added, is_new = [], []
     before = {st.index: len(st.strokes) for st in earlier.stations}
-    for st in plan.stations:
-        for j, stroke in enumerate(st.strokes):
-            appended = j >= before.get(st.index, 0)
-            is_new.append(np.full(len(stroke), appended))
-            if appended:
-                added.append(stroke)
-    is_new = np.concatenate(is_new)
+    added = [s for st in plan.stations for j, s in enumerate(st.strokes) if j >= before.get(st.index, 0)]
+    is_new = appended_waypoints(plan, earlier)
     return samples, with_added_columns(
         part, deposit_mm, samples, np.flatnonzero(~is_new), added, np.flatnonzero(is_new), process, coating
     )
