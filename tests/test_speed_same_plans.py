@@ -19,6 +19,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import sparse
 
+import sprayplan.refine.tuning as tuning_module
 import sprayplan.robots.gantry as gantry_module
 from sprayplan.coating import Process, SprayPattern, deposit_matrix
 from sprayplan.coating.thickness import CoatingConfig
@@ -92,11 +93,14 @@ def _same_operator(got, expected, rng):
         np.testing.assert_allclose(got @ two, expected @ two, rtol=1e-12, atol=1e-12)
 
 
-@pytest.mark.parametrize("workers", [1, 2])
-def test_the_tunings_system_and_jacobian_are_scipys(workers):
-    """``tuning.System`` holds the film rows scipy's scaling, slicing and stacking built (bit for bit), its
-    product is scipy's bit for bit, and the dead band's Jacobian (rows inside the band emptied, a
-    ``LinearOperator``) gives the products of ``diags(slope) @ system``, on one thread or two."""
+@pytest.mark.parametrize(("workers", "threaded"), [(1, False), (1, True), (2, True)])
+def test_the_tunings_system_and_jacobian_are_scipys(workers, threaded, monkeypatch):
+    """``tuning.System`` holds the system scipy's scaling, slicing and stacking built (bit for bit), its
+    product is scipy's bit for bit, and the dead band's Jacobian (rows inside the band emptied: a CSR copy,
+    or for a large system a ``LinearOperator`` over pieces on threads) gives the products of
+    ``diags(slope) @ system``."""
+    if threaded:  # a small system taken as a large one: in pieces, on threads
+        monkeypatch.setattr(tuning_module, "THREADED_ENTRIES", 0)
     rng = np.random.default_rng(5)
     deposit = sparse.random(500, 80, density=0.1, random_state=2, format="csr") * 0.00025  # mm
     rows = np.sort(rng.choice(500, 400, replace=False))
@@ -122,7 +126,9 @@ def test_the_tunings_system_and_jacobian_are_scipys(workers):
             assert 0 < inside.sum() < 400  # some rows dropped, some kept
             slope = np.r_[(~inside).astype(float), np.ones(len(pair_first))]
             expected = sparse.diags(slope) @ reference
-            _same_operator(jacobian(x), expected, rng)
+            got = jacobian(x)
+            assert isinstance(got, sparse.csr_matrix) != threaded
+            _same_operator(got, expected, rng)
             r = reference @ x - target
             r[:400] = np.sign(r[:400]) * np.maximum(np.abs(r[:400]) - band, 0.0)
             np.testing.assert_array_equal(residual(x), r)
@@ -131,9 +137,10 @@ def test_the_tunings_system_and_jacobian_are_scipys(workers):
             _same_operator(jacobian(x), expected, rng)  # at another point than the last residual's: anew
 
 
-def test_the_tunings_products_do_not_depend_on_the_threads():
+def test_the_tunings_products_do_not_depend_on_the_threads(monkeypatch):
     """The transposed product adds fixed pieces of the rows in order: one thread and three give the same
     numbers bit for bit (a seeded tuning repeats on any machine's core count)."""
+    monkeypatch.setattr(tuning_module, "THREADED_ENTRIES", 0)
     deposit = sparse.random(3000, 200, density=0.05, random_state=3, format="csr") * 0.00025
     rows = np.arange(0, 3000, 2)
     position = np.arange(200)
@@ -145,7 +152,7 @@ def test_the_tunings_products_do_not_depend_on_the_threads():
         with system.threads():
             op = system.operator(keep)
             answers.append((op.rmatvec(u), op.matvec(np.linspace(0.5, 2.0, 200))))
-    assert len(system.pieces) > 3  # the rows were cut into pieces
+    assert len(system._whole.spans) > 3  # the rows were cut into pieces
     for a, b in zip(*answers):
         np.testing.assert_array_equal(a, b)
 

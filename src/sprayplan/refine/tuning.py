@@ -28,6 +28,7 @@ changes the speed along a stroke.
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 import os
@@ -377,7 +378,10 @@ def _scaled_matvec(indptr, indices, data, factor, x):
 #: The film rows of the tuning's products are cut into this many pieces of about equal entries, whatever the
 #: number of threads: the transposed product adds the pieces' sums in their order, so the answer is the same
 #: on one thread as on several.
-PRODUCT_PIECES = 8
+PRODUCT_PIECES = 4
+#: Matrices with fewer entries than this are one piece, their products on the calling thread: a small
+#: matrix's product takes less than handing pieces to threads (the demo roof's LSMR makes thousands of them).
+THREADED_ENTRIES = 8_000_000
 
 
 class System:
@@ -385,11 +389,12 @@ class System:
     (``cols`` where ``position >= 0``, in that order), then a smoothness row ``(-scale, scale)`` on the
     columns ``pair_first + (0, 1)`` of each pair of neighbouring waypoints; entries that are 0 left out.
 
-    The film rows are copied once into a CSR matrix of their own (``fit``, every entry ``(a * 1000) * (1 /
-    tol)``, as scipy's scaling, slicing and ``/ tol`` made it); the smoothness rows are never stored. Its
-    products with a vector, and the dead band's Jacobian (:meth:`operator`: the system with some film rows
-    emptied, as a ``LinearOperator``), run on ``workers`` threads (within :meth:`threads`) over
-    ``PRODUCT_PIECES`` pieces of the film rows; ``csr`` and ``kept`` give the system as a CSR matrix (for the
+    It is built once as a CSR matrix (``matrix``: every entry ``(a * 1000) * (1 / tol)``, as scipy's scaling,
+    slicing and ``/ tol`` made it). Its products with a vector, and those of the dead band's Jacobian
+    (:meth:`operator`: a copy with the film rows inside the band emptied, as a ``LinearOperator``), run in
+    compiled loops on ``workers`` threads (within :meth:`threads`) over pieces of the rows fixed by the matrix
+    alone (``PRODUCT_PIECES`` of about equal entries, one below ``THREADED_ENTRIES``), so that the answers do
+    not depend on the number of threads; ``csr`` and ``kept`` give the system as a CSR matrix (for the
     tests)."""
 
     def __init__(self, deposit_mm, rows, position, n_cols, inv_tol, pair_first, scale, workers: int = 1):
@@ -402,25 +407,8 @@ class System:
         self.shape = (self.n_fit + len(self.pair_first), int(n_cols))
         self.workers = max(int(workers), 1)
         self.pool = None
-        d = self.deposit
-        data, indices, indptr = _system_kept(
-            d.indptr, d.indices, d.data, self.rows, self.position, UM_PER_MM, self.inv_tol,
-            np.zeros(0, np.int64), 0.0, np.ones(self.n_fit, np.bool_),
-        )  # fmt: skip
-        self.fit = sparse.csr_matrix((data, indices, indptr), shape=(self.n_fit, self.shape[1]))
-        # the kernels read the indices as unsigned: numba then does not check them for negative values, which
-        # halves a product's time
-        unsigned = np.uint32 if self.fit.indices.dtype == np.int32 else np.uint64
-        self._fit_arrays = (
-            self.fit.indptr.astype(self.fit.indices.dtype, copy=False).view(unsigned),
-            self.fit.indices.view(unsigned),
-            self.fit.data,
-        )
-        entries = indptr[1:]
-        total = entries[-1] if len(entries) else 0
-        cuts = np.searchsorted(entries, np.arange(1, PRODUCT_PIECES) * (total / PRODUCT_PIECES))
-        self.pieces = np.unique(np.r_[0, cuts, self.n_fit]).astype(np.int64)
-        self.all_rows = np.ones(self.n_fit, np.bool_)
+        self.matrix = self.csr()
+        self._whole = _Products(self.matrix, self, np.ones(self.shape[0], np.bool_))
 
     def threads(self):
         """A context in which the products run on ``workers`` threads (one pool for all of them)."""
@@ -428,7 +416,7 @@ class System:
 
         @contextmanager
         def pool():
-            if self.workers < 2 or len(self.pieces) < 3:
+            if self.workers < 2 or self.matrix.nnz < THREADED_ENTRIES:
                 yield
                 return
             with ThreadPoolExecutor(max_workers=self.workers) as executor:
@@ -440,75 +428,49 @@ class System:
 
         return pool()
 
-    def _each_piece(self, work) -> list:
-        spans = list(zip(self.pieces[:-1], self.pieces[1:]))
-        if self.pool is None:
-            return [work(lo, hi) for lo, hi in spans]
-        return list(self.pool.map(lambda span: work(*span), spans))
-
-    def _arrays(self):
-        d = self.deposit
-        return d.indptr, d.indices, d.data, self.rows, self.position, UM_PER_MM, self.inv_tol
-
-    def fit_matvec(self, x, keep=None) -> np.ndarray:
-        """The film rows times ``x``; with ``keep``, the rows where it is False are 0."""
-        x = np.asarray(x, float)
-        keep = self.all_rows if keep is None else keep
-        out = np.empty(self.n_fit)
-        arrays = self._fit_arrays
-        self._each_piece(lambda lo, hi: _rows_matvec(*arrays, keep, x, lo, hi, out))
-        return out
-
-    def fit_rmatvec(self, u, keep=None) -> np.ndarray:
-        """The film rows' transpose times ``u`` (one value per film row); with ``keep``, only the rows where it
-        is True. Each piece is summed into a vector of its own, the pieces then added in order."""
-        u = np.asarray(u, float)
-        keep = self.all_rows if keep is None else keep
-        arrays, n_cols = self._fit_arrays, self.shape[1]
-        parts = self._each_piece(lambda lo, hi: _rows_rmatvec(*arrays, keep, u, lo, hi, n_cols))
-        out = np.zeros(self.shape[1])
-        for part in parts:
-            out += part
-        return out
-
-    def _smooth_matvec(self, x) -> np.ndarray:
-        first = self.pair_first
-        if self.scale == 0.0:
-            return np.zeros(len(first))
-        return (0.0 + (-self.scale) * x[first]) + self.scale * x[first + 1]
-
     def matvec(self, x) -> np.ndarray:
-        """The system times ``x``: the film rows, then the smoothness rows."""
-        x = np.asarray(x, float)
-        return np.concatenate([self.fit_matvec(x), self._smooth_matvec(x)])
+        """The system times ``x``."""
+        if self.matrix.nnz < THREADED_ENTRIES:
+            return self.matrix @ np.asarray(x, float)
+        return self._whole.matvec(np.asarray(x, float))
 
-    def operator(self, keep) -> LinearOperator:
-        """The system with the film rows where ``keep`` is False emptied, as a ``LinearOperator`` (the flags
-        are copied: the caller may change its array)."""
-        keep = np.array(keep[: self.n_fit], dtype=np.bool_)
-        n_fit, first, scale = self.n_fit, self.pair_first, self.scale
+    def fit_matvec(self, x) -> np.ndarray:
+        """The film rows times ``x``."""
+        return self.matvec(x)[: self.n_fit]
 
-        def matvec(x):
-            x = np.ravel(x)
-            return np.concatenate([self.fit_matvec(x, keep), self._smooth_matvec(x)])
-
-        def rmatvec(u):
-            u = np.ravel(u)
-            out = self.fit_rmatvec(u[:n_fit], keep)
-            if scale != 0.0:
-                smooth = u[n_fit:]
-                out[first] -= scale * smooth
-                out[first + 1] += scale * smooth
-            return out
+    def operator(self, keep_fit) -> LinearOperator | sparse.csr_matrix:
+        """The system with the film rows where ``keep_fit`` (one flag a film row) is False emptied, as a
+        linear map: below ``THREADED_ENTRIES`` a CSR copy of the rows kept, which ``least_squares`` scales and
+        multiplies itself (a small system's LSMR makes hundreds of products per Jacobian, fastest on a compact
+        copy: the tuning as it was before the threads, bit for bit), above it a ``LinearOperator`` whose
+        products run on threads over the matrix itself with the rows' flags (there LSMR makes a few products
+        per Jacobian, and a copy and ``least_squares``' own copies of it cost more than they save)."""
+        keep = np.ones(self.shape[0], np.bool_)
+        keep[: self.n_fit] = keep_fit[: self.n_fit]
+        m = self.matrix
+        if m.nnz < THREADED_ENTRIES:
+            data, indices, indptr = _kept_rows(m.indptr, m.indices, m.data, keep)
+            return sparse.csr_matrix((data, indices, indptr), shape=self.shape)
+        products = _Products(m, self, keep)
 
         def matmat(xs):
-            return np.column_stack([matvec(xs[:, j]) for j in range(xs.shape[1])])
+            return np.column_stack([products.matvec(xs[:, j]) for j in range(xs.shape[1])])
 
-        return LinearOperator(self.shape, matvec=matvec, rmatvec=rmatvec, matmat=matmat, dtype=float)
+        return LinearOperator(
+            self.shape,
+            matvec=lambda x: products.matvec(np.asarray(np.ravel(x), float)),
+            rmatvec=lambda u: products.rmatvec(np.asarray(np.ravel(u), float)),
+            matmat=matmat,
+            dtype=float,
+        )
 
     def kept(self, outside: np.ndarray) -> sparse.csr_matrix:
         """The system with the rows where ``outside`` is False emptied, as a CSR matrix of its own."""
-        data, indices, indptr = _system_kept(*self._arrays(), self.pair_first, self.scale, outside)
+        d = self.deposit
+        data, indices, indptr = _system_kept(
+            d.indptr, d.indices, d.data, self.rows, self.position, UM_PER_MM, self.inv_tol, self.pair_first,
+            self.scale, outside,
+        )  # fmt: skip
         return sparse.csr_matrix((data, indices, indptr), shape=self.shape)
 
     def csr(self) -> sparse.csr_matrix:
@@ -516,9 +478,51 @@ class System:
         return self.kept(np.ones(self.shape[0], bool))
 
 
+class _Products:
+    """A CSR matrix's products with vectors, over pieces of its rows (``System``'s rule), on the system's
+    threads when it has them. The kernels read the indices as unsigned (of the same width): numba then does
+    not check them for negative values, which halves a product's time."""
+
+    def __init__(self, matrix: sparse.csr_matrix, system: System, keep: np.ndarray):
+        self.keep = keep
+        unsigned = np.uint32 if matrix.indices.dtype == np.int32 else np.uint64
+        indptr = matrix.indptr.astype(matrix.indices.dtype, copy=False).view(unsigned)
+        self.arrays = (indptr, matrix.indices.view(unsigned), matrix.data)
+        self.shape = matrix.shape
+        self.system = system
+        entries = matrix.indptr[1:]
+        total = int(entries[-1]) if len(entries) else 0
+        pieces = PRODUCT_PIECES if total >= THREADED_ENTRIES else 1
+        cuts = np.searchsorted(entries, np.arange(1, pieces) * (total / pieces))
+        bounds = np.unique(np.r_[0, cuts, self.shape[0]])
+        self.spans = list(itertools.pairwise(bounds))
+
+    def _each(self, work) -> list:
+        pool = self.system.pool
+        if pool is None or len(self.spans) < 2:
+            return [work(lo, hi) for lo, hi in self.spans]
+        return list(pool.map(lambda span: work(*span), self.spans))
+
+    def matvec(self, x) -> np.ndarray:
+        out = np.empty(self.shape[0])
+        arrays, keep = self.arrays, self.keep
+        self._each(lambda lo, hi: _rows_matvec(*arrays, keep, x, lo, hi, out))
+        return out
+
+    def rmatvec(self, u) -> np.ndarray:
+        """Each piece summed into a vector of its own, the pieces then added in order."""
+        arrays, keep, n_cols = self.arrays, self.keep, self.shape[1]
+        parts = self._each(lambda lo, hi: _rows_rmatvec(*arrays, keep, u, lo, hi, n_cols))
+        out = parts[0] if parts else np.zeros(n_cols)
+        for part in parts[1:]:
+            out += part
+        return out
+
+
 @njit(cache=True, nogil=True)
 def _rows_matvec(indptr, indices, data, keep, x, lo, hi, out):
-    """``out[lo:hi]``: the rows ``lo..hi`` of a CSR matrix times ``x``, 0 where ``keep`` is False."""
+    """``out[lo:hi]``: the rows ``lo..hi`` of a CSR matrix times ``x``, each summed in order; 0 where ``keep``
+    is False."""
     for i in range(lo, hi):
         total = 0.0
         if keep[i]:
@@ -529,7 +533,7 @@ def _rows_matvec(indptr, indices, data, keep, x, lo, hi, out):
 
 @njit(cache=True, nogil=True)
 def _rows_rmatvec(indptr, indices, data, keep, u, lo, hi, n_cols):
-    """The rows ``lo..hi`` of a CSR matrix (where ``keep``) transposed, times ``u[lo:hi]``: a vector of
+    """The rows ``lo..hi`` of a CSR matrix (those where ``keep``) transposed, times ``u[lo:hi]``: a vector of
     ``n_cols``."""
     out = np.zeros(n_cols)
     for i in range(lo, hi):
@@ -538,6 +542,28 @@ def _rows_rmatvec(indptr, indices, data, keep, u, lo, hi, n_cols):
             for k in range(indptr[i], indptr[i + 1]):
                 out[indices[k]] += data[k] * weight
     return out
+
+
+@njit(cache=True, nogil=True)
+def _kept_rows(indptr, indices, data, keep):
+    """A copy of a CSR matrix with the rows where ``keep`` is False emptied."""
+    rows = len(indptr) - 1
+    out_indptr = np.zeros(rows + 1, indptr.dtype)
+    total = 0
+    for i in range(rows):
+        if keep[i]:
+            total += indptr[i + 1] - indptr[i]
+        out_indptr[i + 1] = total
+    out_indices = np.empty(total, indices.dtype)
+    out_data = np.empty(total, np.float64)
+    for i in range(rows):
+        if keep[i]:
+            at = out_indptr[i]
+            for k in range(indptr[i], indptr[i + 1]):
+                out_indices[at] = indices[k]
+                out_data[at] = data[k]
+                at += 1
+    return out_data, out_indices, out_indptr
 
 
 @njit(cache=True, nogil=True)
@@ -593,7 +619,7 @@ def _residuals(system: System, target_vec: np.ndarray, band: float):
         return r
 
     if band <= 0:
-        whole = system.operator(system.all_rows)
+        whole = system.operator(np.ones(n_fit, np.bool_))
         return residual, lambda x: whole
 
     def jacobian(x):

@@ -314,8 +314,9 @@ def solve_sqp(
     SLSQP solve's cost where the reference is one waypoint step from the tolerance boundary, as it is along a
     stroke. Its answer is kept when it is a strict local minimum within the joint limits whose eq. 20 cost is
     at most ``NEWTON_COST_LIMIT`` (a moderate move from the reference; a larger one may be a worse local
-    minimum than SLSQP's, so SLSQP decides); otherwise SLSQP with finite-difference gradients runs from
-    ``start_q9`` as without it.
+    minimum than SLSQP's, so SLSQP decides); otherwise SLSQP runs from ``start_q9`` as without it, given the
+    constraints' exact gradients (the geometric Jacobian, as Newton's; finite differences cost ten forward
+    kinematics an evaluation and answered fewer problems: docs/benchmarks.md, "Session 19").
 
     Returns
     -------
