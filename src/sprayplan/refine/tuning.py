@@ -389,13 +389,19 @@ class System:
     (``cols`` where ``position >= 0``, in that order), then a smoothness row ``(-scale, scale)`` on the
     columns ``pair_first + (0, 1)`` of each pair of neighbouring waypoints; entries that are 0 left out.
 
-    It is built once as a CSR matrix (``matrix``: every entry ``(a * 1000) * (1 / tol)``, as scipy's scaling,
-    slicing and ``/ tol`` made it). Its products with a vector, and those of the dead band's Jacobian
-    (:meth:`operator`: a copy with the film rows inside the band emptied, as a ``LinearOperator``), run in
-    compiled loops on ``workers`` threads (within :meth:`threads`) over pieces of the rows fixed by the matrix
-    alone (``PRODUCT_PIECES`` of about equal entries, one below ``THREADED_ENTRIES``), so that the answers do
-    not depend on the number of threads; ``csr`` and ``kept`` give the system as a CSR matrix (for the
-    tests)."""
+    A small system (fewer entries than ``THREADED_ENTRIES``) is read from the deposit matrix in place: its
+    products and the dead band's Jacobian (:meth:`operator`: a CSR copy with the film rows inside the band
+    emptied, which ``least_squares`` scales and multiplies itself) are computed from the matrix's own arrays
+    with scipy's values and summation order. A large one is copied once (``matrix``: every entry ``(a *
+    1000) * (1 / tol)``, as scipy's scaling, slicing and ``/ tol`` made it), and its products, and those of
+    the Jacobian (a ``LinearOperator`` over the same matrix with the rows' flags), run in compiled loops on
+    ``workers`` threads (within :meth:`threads`) over ``PRODUCT_PIECES`` pieces of the rows fixed by the
+    matrix alone, so that the answers do not depend on the number of threads. Why two ways: a small
+    system's LSMR makes hundreds of products per Jacobian (the demo roof: 6,000 in a tuning), fastest on a
+    compact copy; a large one's makes a few (the car body: about 8), and copying 18 million entries per
+    Jacobian, with ``least_squares``' own copies of it, cost more than the products. ``csr`` and ``kept`` give
+    the system as a CSR matrix.
+    """
 
     def __init__(self, deposit_mm, rows, position, n_cols, inv_tol, pair_first, scale, workers: int = 1):
         self.deposit = deposit_mm.tocsr()
@@ -407,8 +413,13 @@ class System:
         self.shape = (self.n_fit + len(self.pair_first), int(n_cols))
         self.workers = max(int(workers), 1)
         self.pool = None
-        self.matrix = self.csr()
-        self._whole = _Products(self.matrix, self, np.ones(self.shape[0], np.bool_))
+        # a large system is copied once (its products on threads); a small one is read from the deposit
+        # matrix in place, its Jacobians copies of the rows kept (``kept``)
+        d = self.deposit
+        entries = int((d.indptr[self.rows + 1] - d.indptr[self.rows]).sum()) + 2 * len(self.pair_first)
+        self.large = entries >= THREADED_ENTRIES
+        self.matrix = self.csr() if self.large else None
+        self._whole = _Products(self.matrix, self, np.ones(self.shape[0], np.bool_)) if self.large else None
 
     def threads(self):
         """A context in which the products run on ``workers`` threads (one pool for all of them)."""
@@ -416,7 +427,7 @@ class System:
 
         @contextmanager
         def pool():
-            if self.workers < 2 or self.matrix.nnz < THREADED_ENTRIES:
+            if self.workers < 2 or not self.large:
                 yield
                 return
             with ThreadPoolExecutor(max_workers=self.workers) as executor:
@@ -429,14 +440,26 @@ class System:
         return pool()
 
     def matvec(self, x) -> np.ndarray:
-        """The system times ``x``."""
-        if self.matrix.nnz < THREADED_ENTRIES:
-            return self.matrix @ np.asarray(x, float)
-        return self._whole.matvec(np.asarray(x, float))
+        """The system times ``x``: the film rows, then the smoothness rows."""
+        x = np.asarray(x, float)
+        if self.large:
+            return self._whole.matvec(x)
+        out = np.empty(self.shape[0])
+        out[: self.n_fit] = self.fit_matvec(x)
+        first = self.pair_first
+        if self.scale != 0.0:
+            out[self.n_fit :] = (0.0 + (-self.scale) * x[first]) + self.scale * x[first + 1]
+        else:
+            out[self.n_fit :] = 0.0
+        return out
 
     def fit_matvec(self, x) -> np.ndarray:
         """The film rows times ``x``."""
-        return self.matvec(x)[: self.n_fit]
+        x = np.asarray(x, float)
+        if self.large:
+            return self._whole.matvec(x)[: self.n_fit]
+        d = self.deposit
+        return _system_matvec(d.indptr, d.indices, d.data, self.rows, self.position, UM_PER_MM, self.inv_tol, x)
 
     def operator(self, keep_fit) -> LinearOperator | sparse.csr_matrix:
         """The system with the film rows where ``keep_fit`` (one flag a film row) is False emptied, as a
@@ -447,11 +470,9 @@ class System:
         per Jacobian, and a copy and ``least_squares``' own copies of it cost more than they save)."""
         keep = np.ones(self.shape[0], np.bool_)
         keep[: self.n_fit] = keep_fit[: self.n_fit]
-        m = self.matrix
-        if m.nnz < THREADED_ENTRIES:
-            data, indices, indptr = _kept_rows(m.indptr, m.indices, m.data, keep)
-            return sparse.csr_matrix((data, indices, indptr), shape=self.shape)
-        products = _Products(m, self, keep)
+        if not self.large:
+            return self.kept(keep)
+        products = _Products(self.matrix, self, keep)
 
         def matmat(xs):
             return np.column_stack([products.matvec(xs[:, j]) for j in range(xs.shape[1])])
@@ -545,25 +566,20 @@ def _rows_rmatvec(indptr, indices, data, keep, u, lo, hi, n_cols):
 
 
 @njit(cache=True, nogil=True)
-def _kept_rows(indptr, indices, data, keep):
-    """A copy of a CSR matrix with the rows where ``keep`` is False emptied."""
-    rows = len(indptr) - 1
-    out_indptr = np.zeros(rows + 1, indptr.dtype)
-    total = 0
-    for i in range(rows):
-        if keep[i]:
-            total += indptr[i + 1] - indptr[i]
-        out_indptr[i + 1] = total
-    out_indices = np.empty(total, indices.dtype)
-    out_data = np.empty(total, np.float64)
-    for i in range(rows):
-        if keep[i]:
-            at = out_indptr[i]
-            for k in range(indptr[i], indptr[i + 1]):
-                out_indices[at] = indices[k]
-                out_data[at] = data[k]
-                at += 1
-    return out_data, out_indices, out_indptr
+def _system_matvec(indptr, indices, data, rows, position, factor, inv_tol, x):
+    """The film rows of ``System`` times ``x``, read from the deposit matrix in place, each row summed in
+    order (as scipy's CSR product of the system sums it)."""
+    out = np.empty(len(rows))
+    for i in range(len(rows)):
+        r = rows[i]
+        total = 0.0
+        for k in range(indptr[r], indptr[r + 1]):
+            column = position[indices[k]]
+            value = (data[k] * factor) * inv_tol
+            if column >= 0 and value != 0.0:
+                total += value * x[column]
+        out[i] = total
+    return out
 
 
 @njit(cache=True, nogil=True)
