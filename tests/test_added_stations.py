@@ -370,7 +370,8 @@ def test_the_best_tilt_needs_few_reaches_and_is_the_one_of_all_shares():
 def test_the_tunings_after_touch_ups_start_from_the_round_befores_factors(testdata, monkeypatch):
     """After a touch-up round the speeds are tuned again from the factors the round before found (1 on the
     added strokes' waypoints) with at most ``touch_up_iterations`` evaluations; the first tuning starts
-    from 1 everywhere with ``iterations``."""
+    from 1 everywhere, with as many; with no touch-ups to add, it is continued from its factors to
+    ``iterations`` evaluations in all, on the same deposit matrix."""
     import sprayplan.refine.stage as stage
     from sprayplan.coating.stage import meet_thickness
     from sprayplan.config import JobConfig
@@ -395,7 +396,7 @@ def test_the_tunings_after_touch_ups_start_from_the_round_befores_factors(testda
     stage.tune_plan(part, planned, job)
     assert len(calls) == 2
     (_, first_initial, first_its, first), (paths, initial, its, _) = calls
-    assert first_initial is None and first_its == job.tuning.iterations and its == 7
+    assert first_initial is None and first_its == 7 and its == 7
     # the second plan's strokes: the first's in their order (the same geometry), with the added ones (touch-ups
     # and their transfers) put in between
     old, j = first.paths.strokes, 0
@@ -411,3 +412,12 @@ def test_the_tunings_after_touch_ups_start_from_the_round_befores_factors(testda
     assert (earlier != 1.0).any()  # the first round moved the factors
     np.testing.assert_array_equal(initial[~is_new], earlier)
     assert (initial[is_new] == 1.0).all()
+
+    calls.clear()  # no touch-ups found: the first tuning goes on
+    monkeypatch.setattr(stage, "touch_up_strokes", lambda *args, **kwargs: [])
+    _, summary, _, last = stage.tune_plan(part, planned, job)
+    assert [c[2] for c in calls] == [7, job.tuning.iterations - 7]
+    (_, _, _, first), (paths, initial, _, second) = calls
+    assert paths is first.paths and last is second
+    np.testing.assert_array_equal(initial, np.concatenate([s.dwell for s in first.paths.strokes]))
+    assert second.deposit_mm is first.deposit_mm and summary["touch_up_strokes"] == 0

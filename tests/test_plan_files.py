@@ -117,7 +117,7 @@ def reach(testdata, tmp_path_factory):
 def coated(testdata, tmp_path_factory):
     """The same with a film target: tuned speeds, touch-ups and an added station."""
     job = JobConfig().replace(
-        load={"units": "m", "region": "x > -250"}, coating={"thickness_um": 50.0}, paths=BARE_NORMALS
+        load={"units": "m", "region": "x > -300"}, coating={"thickness_um": 50.0}, paths=BARE_NORMALS
     )
     result = run_job(testdata / "meshes" / "reach_curved_part.ply", job, until="totals")
     out = tmp_path_factory.mktemp("coated")

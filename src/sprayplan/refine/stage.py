@@ -4,8 +4,9 @@ With a film target and ``[tuning] tune_speed``, the finished plan's time factors
 film (``tuning.tune_speeds``); then, for ``touch_up_rounds`` rounds, touch-up strokes are aimed at the patches
 still under-painted (``touchup``), run from the planned stations or from new ones (``extend``), and every
 speed is tuned again, from the factors the round before found (1 on the added strokes) and with at most
-``touch_up_iterations`` evaluations. Only the appended strokes' columns of the deposit matrix are computed in a
-round.
+``touch_up_iterations`` evaluations. With touch-up rounds the first tuning stops there too, and is continued
+to ``iterations`` evaluations in all when no round follows. Only the appended strokes' columns of the deposit
+matrix are computed in a round.
 """
 
 from __future__ import annotations
@@ -65,7 +66,7 @@ def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None
     radius = process.pattern.radius_mm
     report = per_stage(progress, "refine")
 
-    def tuned(plan_, earlier=None, earlier_dwell=None):
+    def tuned(plan_, earlier=None, earlier_dwell=None, iterations=None):
         """The plan's speeds tuned; ``earlier``: a list holding the plan it extends, its samples and deposit
         matrix, emptied once the new matrix is made (so that the earlier one is freed before the tuning);
         ``earlier_dwell``: that plan's tuned time factors, where the solver starts from (1 on the added
@@ -73,6 +74,8 @@ def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None
         paths = plan_paths_in_order(plan_, job.paths.standoff_mm, job.paths.spacing or 0.0)
         lower = lower_dwell(paths, settings)
         deposit, initial, round_config = None, None, config
+        if iterations is not None:
+            round_config = dataclasses.replace(config, iterations=iterations)
         if earlier is not None:
             is_new = appended_waypoints(plan_, earlier[0])
             deposit = extended_deposit(part, plan_, *earlier, process, coating)
@@ -96,9 +99,13 @@ def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None
             progress=report,
         )
 
-    tuning = tuned(plan)
+    # with touch-up rounds the first tuning stops at touch_up_iterations (the rounds go on from it); if no
+    # round follows it is continued to ``iterations`` evaluations in all
+    short = min(settings.touch_up_iterations, settings.iterations) if settings.touch_up_rounds else None
+    tuning = tuned(plan, iterations=short)
     first = tuning.summary(target, tolerance)
     planned_stations = len(plan.stations)
+    rounds = 0
     for _ in range(settings.touch_up_rounds):
         extra = touch_up_strokes(
             tuning.samples,
@@ -136,6 +143,21 @@ def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None
         dwell = np.concatenate([st.dwell for st in tuning.paths.strokes])
         tuning = None  # the earlier deposit matrix is freed once the extended one is made
         tuning = tuned(plan, earlier, dwell)
+        rounds += 1
+    if rounds == 0 and short is not None and short < settings.iterations:
+        tuning = tune_speeds(
+            part,
+            tuning.paths,
+            process,
+            target,
+            tolerance,
+            config=dataclasses.replace(config, iterations=settings.iterations - short),
+            coating=coating,
+            lower=lower_dwell(tuning.paths, settings),
+            initial=np.concatenate([st.dwell for st in tuning.paths.strokes]),
+            deposit=(tuning.samples, tuning.deposit_mm),
+            progress=report,
+        )
     strokes = iter(tuning.paths.strokes)
     stations = tuple(dataclasses.replace(st, strokes=tuple(next(strokes) for _ in st.strokes)) for st in plan.stations)
     summary = tuning.summary(target, tolerance)

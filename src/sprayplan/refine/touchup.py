@@ -25,6 +25,8 @@ stroke along its main extent, which serves it less well. Patches are not split.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from scipy import sparse
 from scipy.ndimage import uniform_filter1d
@@ -197,6 +199,23 @@ def misfit(film_um: np.ndarray, area_mm2: np.ndarray, target_um: float, toleranc
     return (area_mm2 * excess * excess).sum(axis=-1)
 
 
+#: The candidates' film is scored with time steps and visibility views this many times farther apart than the
+#: film's own (a score picks a tilt; the chosen strokes' film is computed at the film's own steps).
+AIM_COARSER = 2.0
+
+
+def scoring_film(coating, process):
+    """The film settings the aims are scored with: ``coating``'s with ``AIM_COARSER`` times its time step and
+    its distance between visibility views (their defaults: the pattern radius / 10 and / 2.5)."""
+    from sprayplan.coating.thickness import CoatingConfig
+
+    coating = CoatingConfig() if coating is None else coating
+    radius = process.pattern.radius_mm
+    step = radius / 10.0 if coating.max_step_mm is None else coating.max_step_mm
+    views = radius / 2.5 if coating.occlusion_step_mm is None else coating.occlusion_step_mm
+    return dataclasses.replace(coating, max_step_mm=AIM_COARSER * step, occlusion_step_mm=AIM_COARSER * views)
+
+
 def aim_touch_ups(
     part,
     strokes: list[Stroke],
@@ -216,7 +235,8 @@ def aim_touch_ups(
 
     Aiming along a patch's normal is not always best: on a narrow step between two surfaces already in spec,
     the pass also paints its neighbours. Each stroke is tried turned about its direction of travel by each of
-    ``tilts_deg``; its deposit is computed with the film model (``deposit_matrix``, occlusion included) and
+    ``tilts_deg``; its deposit is computed with the film model (``deposit_matrix``, occlusion included, at
+    :func:`scoring_film`'s coarser steps) and
     added to the film at each of ``AIM_SCALES`` times its speed's worth, and the tilt whose best scale lowers
     :func:`misfit` over the ``tuned`` samples most is kept. With ``reach`` (a function of a stroke giving the
     share of its waypoints the robot can reach), only tilts the robot reaches at least half of, or failing
@@ -230,7 +250,11 @@ def aim_touch_ups(
         return []
     candidates = [tilted(s, t, standoff_mm) for s in strokes for t in tilts_deg]
     _, matrix = deposit_matrix(
-        part, Paths(tuple(candidates), standoff_mm, 0.0), process, config=coating, samples=samples
+        part,
+        Paths(tuple(candidates), standoff_mm, 0.0),
+        process,
+        config=scoring_film(coating, process),
+        samples=samples,
     )
     # the film each candidate adds at unit time factors, on the tuned samples
     bounds = np.r_[0, np.cumsum([len(c) for c in candidates])]
