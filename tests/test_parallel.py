@@ -100,6 +100,34 @@ def test_the_helpers_log_records_reach_the_jobs_logging(caplog):
     assert any(f"in process {os.getpid()}" not in t for t in texts)  # some were logged in the helper
 
 
+def _logs_info(x):
+    logging.getLogger("sprayplan.test_parallel").info("item %d seen in process %d", x, os.getpid())
+    return x
+
+
+def test_the_helpers_records_below_the_jobs_level_are_dropped():
+    """A record the helper logs below the level the job's loggers let through (the command line shows
+    warnings; the helper logs at INFO) is not handed to the job's handlers: the command line's stderr stays one
+    line."""
+    parallel.stop_helper()
+    _ready_helper()
+    seen = []
+    handler = logging.Handler()  # level NOTSET, as the command line's stderr handler
+    handler.emit = seen.append
+    logger = logging.getLogger("sprayplan.test_parallel")
+    logger.addHandler(handler)
+    old_level = logger.level
+    logger.setLevel(logging.WARNING)
+    try:
+        shared_map(_logs_info, range(6), processes=2)
+        shared_map(_logs, range(6), processes=2)
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(old_level)
+    assert all(r.levelno >= logging.WARNING for r in seen)
+    assert len(seen) == 6  # the warnings, from both processes
+
+
 def test_a_dead_helper_leaves_its_items_to_the_job(monkeypatch, caplog):
     parallel.stop_helper()
     monkeypatch.setenv("SPRAYPLAN_TEST_PARENT", str(os.getpid()))

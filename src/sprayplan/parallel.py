@@ -141,8 +141,10 @@ class Helper:
                 ok, value, records = pickle.loads(self.receive.recv_bytes())
             except (OSError, EOFError) as exc:
                 raise HelperLost(str(exc) or type(exc).__name__) from None
-        for record in records:
-            logging.getLogger(record.name).handle(record)
+        for record in records:  # as if logged here: only those this process's loggers let through
+            logger = logging.getLogger(record.name)
+            if logger.isEnabledFor(record.levelno):
+                logger.handle(record)
         if not ok:
             raise value
         return value
