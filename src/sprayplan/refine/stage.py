@@ -67,10 +67,10 @@ def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None
     report = per_stage(progress, "refine")
 
     def tuned(plan_, earlier=None, earlier_dwell=None, iterations=None):
-        """The plan's speeds tuned; ``earlier``: a list holding the plan it extends, its samples and deposit
-        matrix, emptied once the new matrix is made (so that the earlier one is freed before the tuning);
-        ``earlier_dwell``: that plan's tuned time factors, where the solver starts from (1 on the added
-        strokes)."""
+        """The plan's speeds tuned, with at most ``iterations`` evaluations (default ``[tuning] iterations``);
+        ``earlier``: a list holding the plan it extends, its samples and deposit matrix, emptied once the new
+        matrix is made (so that the earlier one is freed before the tuning); ``earlier_dwell``: that plan's
+        tuned time factors, where the solver starts from (1 on the added strokes)."""
         paths = plan_paths_in_order(plan_, job.paths.standoff_mm, job.paths.spacing or 0.0)
         lower = lower_dwell(paths, settings)
         deposit, initial, round_config = None, None, config
@@ -83,8 +83,6 @@ def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None
             if earlier_dwell is not None:
                 initial = np.ones(len(is_new))
                 initial[~is_new] = earlier_dwell
-                most = min(config.iterations, settings.touch_up_iterations)
-                round_config = dataclasses.replace(config, iterations=most)
         return tune_speeds(
             part,
             paths,
@@ -142,7 +140,7 @@ def tune_plan(part, plan: Plan, job: JobConfig, progress: Progress | None = None
         earlier = [previous, tuning.samples, tuning.deposit_mm]
         dwell = np.concatenate([st.dwell for st in tuning.paths.strokes])
         tuning = None  # the earlier deposit matrix is freed once the extended one is made
-        tuning = tuned(plan, earlier, dwell)
+        tuning = tuned(plan, earlier, dwell, iterations=short)
         rounds += 1
     if rounds == 0 and short is not None and short < settings.iterations:
         tuning = tune_speeds(
