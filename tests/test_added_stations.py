@@ -286,7 +286,7 @@ def test_the_new_plan_settings_are_checked():
 def test_the_dead_bands_jacobian_is_the_derivative_of_its_residuals():
     from scipy import sparse
 
-    from sprayplan.refine.tuning import System, _residuals
+    from sprayplan.refine.system import System, _residuals
 
     rng = np.random.default_rng(3)
     deposit = sparse.random(30, 12, density=0.3, random_state=rng, format="csr") * 0.003  # mm: 3 um at most

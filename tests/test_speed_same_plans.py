@@ -19,12 +19,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import sparse
 
-import sprayplan.refine.tuning as tuning_module
+import sprayplan.refine.system as system_module
 import sprayplan.robots.gantry as gantry_module
 from sprayplan.coating import Process, SprayPattern, deposit_matrix
 from sprayplan.coating.thickness import CoatingConfig
 from sprayplan.refine.stage import merged_columns
-from sprayplan.refine.tuning import System, _residuals
+from sprayplan.refine.system import System, _residuals
 from sprayplan.robots.gantry import Gantry, remembered_sqp, solve_sqp
 from sprayplan.surface.pairs import unique_pairs
 from sprayplan.types import Paths, Stroke
@@ -100,7 +100,7 @@ def test_the_tunings_system_and_jacobian_are_scipys(workers, threaded, monkeypat
     or for a large system a ``LinearOperator`` over pieces on threads) gives the products of
     ``diags(slope) @ system``."""
     if threaded:  # a small system taken as a large one: in pieces, on threads
-        monkeypatch.setattr(tuning_module, "THREADED_ENTRIES", 0)
+        monkeypatch.setattr(system_module, "THREADED_ENTRIES", 0)
     rng = np.random.default_rng(5)
     deposit = sparse.random(500, 80, density=0.1, random_state=2, format="csr") * 0.00025  # mm
     rows = np.sort(rng.choice(500, 400, replace=False))
@@ -140,7 +140,7 @@ def test_the_tunings_system_and_jacobian_are_scipys(workers, threaded, monkeypat
 def test_the_tunings_products_do_not_depend_on_the_threads(monkeypatch):
     """The transposed product adds fixed pieces of the rows in order: one thread and three give the same
     numbers bit for bit (a seeded tuning repeats on any machine's core count)."""
-    monkeypatch.setattr(tuning_module, "THREADED_ENTRIES", 0)
+    monkeypatch.setattr(system_module, "THREADED_ENTRIES", 0)
     deposit = sparse.random(3000, 200, density=0.05, random_state=3, format="csr") * 0.00025
     rows = np.arange(0, 3000, 2)
     position = np.arange(200)
