@@ -116,6 +116,11 @@ class CoatingConfig:
     batch: int = 4096
     workers: int | None = None
 
+    def threads(self) -> int:
+        """``workers``, or by default the number of cores, at most 4 (the film's threads; the speed tuning's
+        products use as many)."""
+        return int(self.workers) if self.workers is not None else min(os.cpu_count() or 1, 4)
+
     def __post_init__(self):
         if self.occlusion not in METHODS:
             raise ConfigError(f"occlusion must be one of {', '.join(METHODS)}, got {self.occlusion!r}")
@@ -388,7 +393,7 @@ def _setup(part, paths, process, overrides, config: CoatingConfig, targets, node
     half = pattern.support_radius_mm * config.search_factor + 0.5 * occ_step * pattern.standoff_mm / max(
         float(np.median(depth)), 1.0
     )
-    workers = config.workers if config.workers is not None else min(os.cpu_count() or 1, 4)
+    workers = config.threads()
     on_vertices = targets is None and part.is_mesh
     occlusion = compute_occlusion(
         config.occlusion if part.is_mesh else "none",

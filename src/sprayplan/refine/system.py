@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import itertools
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 
 import numpy as np
 from numba import njit
@@ -66,23 +67,18 @@ class System:
         self.matrix = self.csr() if self.large else None
         self._whole = _Products(self.matrix, self, np.ones(self.shape[0], np.bool_)) if self.large else None
 
+    @contextmanager
     def threads(self):
-        """A context in which the products run on ``workers`` threads (one pool for all of them)."""
-        from contextlib import contextmanager
-
-        @contextmanager
-        def pool():
-            if self.workers < 2 or not self.large:
+        """A context in which a large system's products run on ``workers`` threads (one pool for all of them)."""
+        if self.workers < 2 or not self.large:
+            yield
+            return
+        with ThreadPoolExecutor(max_workers=self.workers) as executor:
+            self.pool = executor
+            try:
                 yield
-                return
-            with ThreadPoolExecutor(max_workers=self.workers) as executor:
-                self.pool = executor
-                try:
-                    yield
-                finally:
-                    self.pool = None
-
-        return pool()
+            finally:
+                self.pool = None
 
     def matvec(self, x) -> np.ndarray:
         """The system times ``x``: the film rows, then the smoothness rows."""

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -228,7 +227,7 @@ def tune_speeds(
     if tuned.any() and free.any():
         dwell[free] = _solve(
             deposit_mm, samples.area_mm2, tuned, free, starts, target_um, tolerance_um, config, low, high, first,
-            progress, product_workers(coating),
+            progress, (CoatingConfig() if coating is None else coating).threads(),
         )  # fmt: skip
     after = _film_um(deposit_mm, dwell)
     release_freed_memory()  # the solver's copies of the Jacobian (sprayplan.heap)
@@ -277,13 +276,6 @@ def tuned_film(tuning: Tuning, process: Process, coating: CoatingConfig | None =
         paths.name,
         samples.part_face,
     )
-
-
-def product_workers(coating: CoatingConfig | None) -> int:
-    """The threads of the tuning's products: the film's own (``CoatingConfig.workers``; by default the cores,
-    at most 4)."""
-    workers = None if coating is None else coating.workers
-    return int(workers) if workers is not None else min(os.cpu_count() or 1, 4)
 
 
 def _solve(
