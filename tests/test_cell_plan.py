@@ -388,6 +388,36 @@ def test_touch_ups_are_visited_in_a_nearest_neighbour_tour_each_run_the_nearer_w
     assert touch_up_order([], start) == [] and touch_up_order(strokes[:1], None) == [(0, False)]
 
 
+def test_touch_ups_aim_at_bare_surface_a_robot_reaches_and_not_at_unreached_surface():
+    """``touch_up_targets``: the tuned samples, and every sample on a face some robot reaches; so a bare patch on
+    reached surface gets a touch-up stroke, and one on surface no robot reaches gets none."""
+    from sprayplan.cells.plan import touch_up_targets
+    from sprayplan.coating.sampling import surface_samples
+    from sprayplan.refine.touchup import touch_up_strokes
+
+    part = grid_box(40, (2000.0, 400.0, 10.0))  # a plate, its top split at x = 0 below
+    samples = surface_samples(part, max_edge_mm=0)
+    top = outward_face_normals(part.vertices, part.faces)[1][:, 2] > 0.9
+    centre_x = part.vertices[part.faces].mean(axis=1)[:, 0]
+    face_robot = np.where(top & (centre_x < 0), 0, -1)  # only the top's x < 0 half is reached
+    tuned = np.zeros(len(samples.points), bool)
+    targets = touch_up_targets(samples, tuned, face_robot)
+    on_reached = face_robot[samples.part_face] >= 0
+    assert np.array_equal(targets, on_reached) and targets.any() and not targets.all()
+    tuned[:5] = True
+    assert np.array_equal(touch_up_targets(samples, tuned, face_robot), on_reached | tuned)
+    film = np.zeros(len(samples.points))  # bare everywhere
+    strokes = touch_up_strokes(
+        samples, film, targets, 50.0, 5.0, standoff_mm=100.0, step_mm=20.0, lead_mm=0.0, min_area_mm2=100.0
+    )
+    assert strokes, "a bare patch on reached surface gets a touch-up"
+    for s in strokes:
+        assert (s.points[:, 0] < 0).all() and (s.points[:, 2] > 0).all()  # over the reached half of the top
+    assert not touch_up_strokes(
+        samples, film, tuned & False, 50.0, 5.0, standoff_mm=100.0, step_mm=20.0, lead_mm=0.0, min_area_mm2=100.0
+    )
+
+
 def test_seed_001_table_4_in_one_command(tmp_path):
     """`plan --ruled case1_table4_r5150.toml --robot r5150`: the ten points of seed 001's table 4 with its
     joints theta1..theta4 (theta5, the roll about the vertical tool axis, moves nothing and is free)."""
