@@ -143,6 +143,38 @@ def _cell(**robots):
         (_cell(a={"model": "abb-irb2400-10", "base_mm": [0, float("nan"), 0]}), "finite number"),
         ({"name": "t", "robot": []}, "at least one"),
         (_cell(a={"model": "gantry-ur5"}, b={"model": "abb-irb2400-10", "base_mm": [3000, 0, 0]}), "gantry"),
+        (_cell(a={"model": "gantry-ur5", "lift": {"above_part_mm": 100, "range_mm": [0, 10]}}), "gantry robot"),
+        (
+            _cell(a={"model": "abb-irb2400-10", "lift": {"above_part_mm": 1000, "range_mm": [0, 0]}}),
+            "lift.range_mm: the lift has zero or negative length",
+        ),
+        (
+            _cell(a={"model": "abb-irb2400-10", "lift": {"above_part_mm": 0, "range_mm": [0, 100]}}),
+            "lift.above_part_mm: must be above 0",
+        ),
+        (
+            _cell(
+                a={
+                    "model": "abb-irb2400-10",
+                    "base_mm": [0, 0, 500],
+                    "lift": {"above_part_mm": 9, "range_mm": [0, 100]},
+                }
+            ),
+            "outside 0 .. 100",
+        ),
+        (_cell(a={"model": "abb-irb2400-10", "lift": {"above_part_mm": 9}}), "lift.range_mm: missing"),
+        (_cell(a={"model": "abb-irb2400-10", "lift": {"range_mm": [0, 1], "speed": 3}}), "unknown key 'speed'"),
+        (
+            _cell(
+                a={
+                    "model": "abb-irb2400-10",
+                    "base_mm": [0, 0, 3000],
+                    "lift": {"above_part_mm": 9, "range_mm": [0, 4000]},
+                },
+                b={"model": "abb-irb2400-10", "base_mm": [100, 0, 0]},
+            ),
+            "same place",
+        ),
     ],
 )
 def test_bad_cells_name_the_file_and_the_problem(data, message):
@@ -184,6 +216,25 @@ def test_a_part_is_placed_along_x_on_its_skid(testdata):
     assert np.all(placed.reach_share > 0)
 
 
+def test_a_lift_sets_its_robot_above_each_part_within_its_range(testdata, bmw):
+    """line3's roof robot stands ``above_part_mm`` over each body's top (1.74 and 2.34 m high on the skid), the
+    other robots where the file has them; a part so tall that the lift would pass its range stops at its top."""
+    suv = load_part(testdata / "meshes" / "gazebo_suv_body_m.ply", units="m")
+    cell = load_cell("line3")
+    roof = cell.robots[0]
+    assert roof.lift is not None and cell.robots[1].lift is None
+    for body in (bmw, suv):
+        placed = place_part(body, cell)
+        top = placed.part.vertices[:, 2].max()
+        bases = [r.base2cell for r in placed.cell.robots]
+        assert bases[0][2, 3] == pytest.approx(top + roof.lift.above_part_mm)
+        assert roof.lift.range_mm[0] <= bases[0][2, 3] <= roof.lift.range_mm[1]
+        assert np.array_equal(bases[0][:3, :3], roof.base2cell[:3, :3]) and np.array_equal(bases[0][:2, 3], [0, 0])
+        assert all(np.array_equal(b, r.base2cell) for b, r in zip(bases[1:], cell.robots[1:]))
+    tall = Part(suv.vertices * [1.0, 1.0, 2.0], suv.faces, name="tall")
+    assert place_part(tall, cell).cell.robots[0].base2cell[2, 3] == roof.lift.range_mm[1]
+
+
 def test_a_robot_inside_the_part_or_a_part_out_of_reach_is_refused(bmw):
     inside = cell_from_dict(_cell(a={"model": "abb-irb2400-10", "base_mm": [0, 0, 300]}), source="in.toml")
     with pytest.raises(ConfigError, match="in.toml: robot 'a' stands inside the part"):
@@ -199,8 +250,9 @@ def _assert_seed_split(body: Part, cell_name: str) -> None:
     which face the car's middle under it, aside: no robot beside the car paints them straight on)."""
     from sprayplan.cells.plan import area_surface
 
-    cell = load_cell(cell_name)
-    part, _ = area_surface(drop_floor_facing(place_part(body, cell).part, 45.0)[0])  # as plan_cell splits it
+    placed = place_part(body, load_cell(cell_name))
+    cell = placed.cell  # its lifts set over this body, as plan_cell sets them
+    part, _ = area_surface(drop_floor_facing(placed.part, 45.0)[0])  # as plan_cell splits it
     areas = segment_areas(part)
     reach = reach_matrix(cell, part, areas.face_normals, standoff_mm=113.0)
     got = assign_areas(areas, part.face_areas, reach)
@@ -226,8 +278,7 @@ def test_line3_splits_the_bmw_like_the_seed(bmw):
 @pytest.mark.parametrize("cell_name", ["line3", "line3-tall"])
 def test_line3_and_line3_tall_split_the_suv_like_the_seed(testdata, cell_name):
     """The SUV (about 1.84 m tall): its roof to the roof robot and each side to its own, as in seed 003, in
-    line3 (its roof robot hung 3.7 m up for bodies up to about 1.85 m) and in line3-tall (the body on the
-    floor)."""
+    line3 (its roof robot on a lift, 1.6 m over the body's top) and in line3-tall (the body on the floor)."""
     suv = load_part(testdata / "meshes" / "gazebo_suv_body_m.ply", units="m")
     assert 1700.0 < np.ptp(suv.vertices[:, 2]) < 2000.0  # z up in its file
     _assert_seed_split(suv, cell_name)

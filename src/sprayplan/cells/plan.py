@@ -526,6 +526,7 @@ def plan_cell(
     begin("place")
 
     placed = place_part(part, cell)
+    cell = placed.cell  # its lifts at their heights over this part
     # oriented once, as a whole: each robot's share then keeps the body's outward side (a share voted on
     # alone can turn a piece of the nose inward)
     painted, left_out = painted_surface(oriented_part(placed.part), job.collision)

@@ -20,6 +20,7 @@ A cell file is TOML::
     base_rpy_deg = [180, 0, 0]       # its orientation: roll, pitch, yaw about the cell's x, y, z (extrinsic)
     reach_mm = 2050                  # optional: the flange's reach from the base origin (else measured by FK)
     track = {axis = "x", range_mm = [-3000, 3000], speed_mm_s = 1000}   # optional linear track
+    lift = {above_part_mm = 1600, range_mm = [3300, 4300]}   # optional: the base's height set per part
 
 A ``gantry-ur5`` (or ``gantry-ur5e``) robot is seed 000's nine-axis gantry: it has no base pose of its own (the
 gantry frame is the cell frame) and takes no track.
@@ -57,8 +58,9 @@ TRACK_SAMPLES = 33
 _AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 _CELL_KEYS = {"name", "description", "floor_z_mm", "part", "robot"}
 _PART_KEYS = {"align", "position_mm", "lift_mm", "yaw_deg"}
-_ROBOT_KEYS = {"name", "model", "tool", "base_mm", "base_rpy_deg", "reach_mm", "track"}
+_ROBOT_KEYS = {"name", "model", "tool", "base_mm", "base_rpy_deg", "reach_mm", "track", "lift"}
 _TRACK_KEYS = {"axis", "range_mm", "speed_mm_s"}
+_LIFT_KEYS = {"above_part_mm", "range_mm"}
 
 
 @dataclass(frozen=True)
@@ -75,6 +77,20 @@ class Track:
 
 
 @dataclass(frozen=True)
+class Lift:
+    """A height axis set once per part, before the work (a roof robot's lift, as a line that paints bodies of
+    several heights has): the base's height is the part's top plus ``above_part_mm``, kept within
+    ``range_mm`` (cell frame z, mm); the robot's ``base_mm`` height is where it stands before a part is placed."""
+
+    above_part_mm: float
+    range_mm: tuple[float, float]
+
+    def height_mm(self, part_top_mm: float) -> float:
+        """The base's height over a part whose highest point is at ``part_top_mm``."""
+        return float(np.clip(part_top_mm + self.above_part_mm, *self.range_mm))
+
+
+@dataclass(frozen=True)
 class CellRobot:
     """One robot of a cell.
 
@@ -86,6 +102,8 @@ class CellRobot:
     reach_mm : float
         The flange's farthest distance from the base origin (NaN for a gantry: its reach is its travel).
     track : Track or None
+    lift : Lift or None
+        A height set per part (:func:`place_part` sets ``base2cell``'s height by it).
     """
 
     name: str
@@ -94,6 +112,7 @@ class CellRobot:
     base2cell: np.ndarray
     reach_mm: float
     track: Track | None = None
+    lift: Lift | None = None
 
     @property
     def is_gantry(self) -> bool:
@@ -222,6 +241,23 @@ def _track(table, where: str) -> Track:
     return Track(vec, (float(lo), float(hi)), speed)
 
 
+def _lift(table, base_z: float, where: str) -> Lift:
+    if not isinstance(table, dict):
+        raise ConfigError(f"{where}: must be a table with above_part_mm and range_mm")
+    _unknown(table, _LIFT_KEYS, where)
+    if "above_part_mm" not in table:
+        raise ConfigError(f"{where}.above_part_mm: missing (the base's height over the part's top, mm)")
+    above = _number(table["above_part_mm"], f"{where}.above_part_mm", positive=True)
+    if "range_mm" not in table:
+        raise ConfigError(f"{where}.range_mm: missing (the lowest and highest base heights, mm)")
+    lo, hi = _vector(table["range_mm"], 2, f"{where}.range_mm")
+    if not hi > lo:
+        raise ConfigError(f"{where}.range_mm: the lift has zero or negative length ({lo:g} .. {hi:g} mm)")
+    if not lo <= base_z <= hi:
+        raise ConfigError(f"{where}.range_mm: the base's height {base_z:g} mm (base_mm) is outside {lo:g} .. {hi:g}")
+    return Lift(above, (float(lo), float(hi)))
+
+
 def at_base(arm, base2world: np.ndarray):
     """The arm with its base at ``base2world`` (the R5150 keeps its base in its D-H model)."""
     if "base2world" in {f.name for f in dataclasses.fields(arm)}:
@@ -264,7 +300,7 @@ def _robot(table, where: str) -> CellRobot:
         raise ConfigError(f"{where}: {exc}") from None
     gantry = model.startswith("gantry-")
     if gantry:
-        for key in ("base_mm", "base_rpy_deg", "track", "reach_mm"):
+        for key in ("base_mm", "base_rpy_deg", "track", "reach_mm", "lift"):
             if key in table:
                 raise ConfigError(f"{where}.{key}: a gantry robot has no base pose, track or reach of its own")
         return CellRobot(name, model, tool, np.eye(4), math.nan)
@@ -273,12 +309,22 @@ def _robot(table, where: str) -> CellRobot:
     rpy = _vector(table.get("base_rpy_deg", [0.0, 0.0, 0.0]), 3, f"{where}.base_rpy_deg")
     base[:3, :3] = Rotation.from_euler("xyz", rpy, degrees=True).as_matrix()
     track = _track(table["track"], f"{where}.track") if "track" in table else None
+    lift = _lift(table["lift"], float(base[2, 3]), f"{where}.lift") if "lift" in table else None
     if "reach_mm" in table:
         reach = _number(table["reach_mm"], f"{where}.reach_mm", positive=True)
     else:
         reach = measured_reach_mm(at_base(arm, np.eye(4)))
     model_tool = "none" if model == "r5150" else tool
-    return CellRobot(name, model, model_tool, base, reach, track)
+    return CellRobot(name, model, model_tool, base, reach, track, lift)
+
+
+def _base_paths(robot: CellRobot) -> np.ndarray:
+    """(k, 3) the base origin over its track, and over its lift's whole range where it has one, mm."""
+    path = robot.base_path_mm()
+    if robot.lift is None:
+        return path
+    heights = np.linspace(*robot.lift.range_mm, 9)
+    return np.concatenate([np.column_stack([path[:, :2], np.full(len(path), h)]) for h in heights])
 
 
 def _segment_gap(a: np.ndarray, b: np.ndarray) -> float:
@@ -323,7 +369,7 @@ def cell_from_dict(data: dict, source: str = "") -> Cell:
             raise ConfigError("a gantry robot is a cell of its own: it cannot share a cell with other robots")
         for i, a in enumerate(robots):
             for b in robots[:i]:
-                gap = _segment_gap(a.base_path_mm(), b.base_path_mm())
+                gap = _segment_gap(_base_paths(a), _base_paths(b))
                 if gap < MIN_BASE_GAP_MM:
                     raise ConfigError(
                         f"robots {b.name!r} and {a.name!r} stand at the same place (their bases come within "
@@ -358,15 +404,33 @@ class PlacedPart:
     reach_share : (r,) float
         The share of the part's vertices within each robot's reach sphere over its track (a coarse first
         look, before inverse kinematics).
+    cell : Cell
+        The cell as it stands for this part: each robot with a ``lift`` at its height over the part
+        (:func:`lifted_cell`); the cell given otherwise.
     """
 
     part: Part
     part2cell: np.ndarray
     reach_share: np.ndarray
+    cell: Cell
+
+
+def lifted_cell(cell: Cell, part_top_mm: float) -> Cell:
+    """``cell`` with every robot that has a :class:`Lift` at its height over a part whose top is at
+    ``part_top_mm`` (cell frame z, mm)."""
+    robots = []
+    for r in cell.robots:
+        if r.lift is not None:
+            base = r.base2cell.copy()
+            base[2, 3] = r.lift.height_mm(part_top_mm)
+            r = dataclasses.replace(r, base2cell=base)
+        robots.append(r)
+    return dataclasses.replace(cell, robots=tuple(robots))
 
 
 def place_part(part: Part, cell: Cell) -> PlacedPart:
-    """The part in the cell frame (the cell's ``[part]`` rules), checked against the robots.
+    """The part in the cell frame (the cell's ``[part]`` rules), the robots with a lift set to its height
+    (:func:`lifted_cell`), checked against the robots.
 
     Raises
     ------
@@ -399,11 +463,12 @@ def place_part(part: Part, cell: Cell) -> PlacedPart:
 
 
 def _checked(placed: Part, part2cell: np.ndarray, cell: Cell) -> PlacedPart:
-    """The placed part checked against the robots (:func:`place_part`'s errors)."""
+    """The placed part checked against the robots (:func:`place_part`'s errors), the lifts set to it."""
     where = cell.source or f"cell {cell.name}"
     if cell.is_gantry:
-        return PlacedPart(placed, part2cell, np.ones(1))
+        return PlacedPart(placed, part2cell, np.ones(1), cell)
     box_lo, box_hi = placed.vertices.min(axis=0), placed.vertices.max(axis=0)
+    cell = lifted_cell(cell, float(box_hi[2]))
     from scipy.spatial import cKDTree
 
     tree = cKDTree(placed.vertices)
@@ -423,7 +488,7 @@ def _checked(placed: Part, part2cell: np.ndarray, cell: Cell) -> PlacedPart:
     shares = np.array(shares)
     if not (shares > 0).any():
         raise ConfigError(f"{where}: the part {placed.name!r} is out of every robot's reach")
-    return PlacedPart(placed, part2cell, shares)
+    return PlacedPart(placed, part2cell, shares, cell)
 
 
 def single_robot_cell(model: str, tool: str | None = None) -> Cell:

@@ -37,6 +37,9 @@ def cmd_cells(args) -> int:
             axis = ", ".join(f"{v:g}" for v in r.track.axis)
             lo, hi = r.track.range_mm
             track = f", track along ({axis}) {lo:g} .. {hi:g} mm at {r.track.speed_mm_s:g} mm/s"
+        if r.lift is not None:
+            lo, hi = r.lift.range_mm
+            track += f", lift {r.lift.above_part_mm:g} mm over the part's top within z {lo:g} .. {hi:g} mm"
         print(f"  {r.name}: {r.model}, gun {r.tool}, base at ({origin}) mm, reach {r.reach_mm:.0f} mm{track}")
     return 0
 
@@ -73,7 +76,9 @@ def cmd_areas(args) -> int:
     if not part.is_mesh:
         raise ConfigError(f"{args.part}: areas are found on meshes only (this is a point cloud)")
     with _stage("place"):
-        placed = oriented_part(place_part(part, cell).part)  # as plan_cell orients it
+        placed = place_part(part, cell)
+        cell = placed.cell  # its lifts at their heights over this part
+        placed = oriented_part(placed.part)  # as plan_cell orients it
         # the surface plan_cell paints (default [collision] settings but the floor's angle), and which faces
         # of the part as loaded it keeps
         surface = CollisionConfig(floor_facing_deg=args.floor_facing_deg)
