@@ -832,13 +832,13 @@ def test_an_unreached_run_solved_on_its_own_is_painted_from_the_joints_before_it
 
 
 def test_touch_ups_no_route_reaches_free_are_dropped_and_their_neighbours_joined(tmp_path):
-    """``unrouted_touch_ups`` names the touch-up a failed transfer leads into (the keys ``routed_work`` keeps);
+    """``unrouted_runs`` names the touch-up a failed transfer leads into (the keys ``routed_work`` keeps);
     ``without_strokes`` takes it and its transfers out: the spray strokes left are the others in their order,
     with every waypoint's joints as before, and each transfer joins the end of the stroke before to the start of
     the one after (the gun's tip and the joints at both ends are its neighbours')."""
     import dataclasses
 
-    from sprayplan.cells.collide import unrouted_touch_ups
+    from sprayplan.cells.collide import unrouted_runs
     from sprayplan.cells.work import without_strokes
 
     _, plan, _ = _box_cell(tmp_path)
@@ -855,9 +855,19 @@ def test_touch_ups_no_route_reaches_free_are_dropped_and_their_neighbours_joined
     into = spray[3] - 1  # the transfer into the fourth spray stroke, a touch-up
     assert not work.strokes[into].spray_on and len(work.strokes[into]) == 2
     failed = {pairs[starts[into] : starts[into] + 2].tobytes(), b"another transfer"}
-    assert unrouted_touch_ups(work, failed, first) == [spray[3]]
-    assert unrouted_touch_ups(work, set(), first) == []
-    assert unrouted_touch_ups(work, failed, spray[3] + 1) == []  # before the round: not a touch-up to drop
+    assert unrouted_runs(work, failed, first) == [spray[3]]
+    assert unrouted_runs(work, set(), first) == []
+    assert unrouted_runs(work, failed, spray[3] + 1) == []  # before the round: not a touch-up to drop
+    # outside a touch-up round any run may go: the one the failed transfer leads into, unless its start state
+    # was blamed already (a run after it was dropped and the new transfer from it failed again): then the run
+    # before it
+    into_planned = spray[1] - 1
+    failed.add(pairs[starts[into_planned] : starts[into_planned] + 2].tobytes())
+    assert unrouted_runs(work, failed, first) == [spray[3]]  # in a round the planned stroke stays
+    blamed = set()
+    assert unrouted_runs(work, failed, 0, touch_ups_only=False, blamed=blamed) == [spray[1], spray[3]]
+    assert blamed == {pairs[starts[into_planned]].tobytes(), pairs[starts[into]].tobytes()}
+    assert unrouted_runs(work, failed, 0, touch_ups_only=False, blamed=blamed) == [spray[0], spray[2]]
 
     out = without_strokes(work, [spray[3]])
     kept = [s for s in out.strokes if s.spray_on]

@@ -77,28 +77,41 @@ def _tail_checked(arm, work, since: int) -> RobotCollisions:
     return RobotCollisions(head, padded(found.motion_collides, False), found.motion_checked)
 
 
-#: How many times a touch-up round drops the touch-ups no route reaches free and routes the new transfers
-#: (:func:`freed_cell`): each drop joins the touch-ups either side by a new transfer, which may fail too. At 3
-#: the BMW in ``line3`` kept 7 transfers between two touch-ups in collision (session 17).
+#: How many times the runs no route reaches free are dropped and the new transfers routed (:func:`freed_cell`):
+#: each drop joins the runs either side by a new transfer, which may fail too. At 3 the BMW in ``line3`` kept
+#: 7 transfers between two touch-ups in collision (session 17).
 DROP_ROUNDS = 10
 
 
-def unrouted_touch_ups(work, failed: set, first: int) -> list:
-    """The touch-up strokes of ``work`` from stroke ``first`` on that a transfer no route freed leads into (or,
-    for the last transfer of a run of touch-ups into a planned stroke, leads out of): the keys of ``failed``
-    (``cells.routes.routed_work``'s: a transfer's two states as bytes)."""
+def unrouted_runs(work, failed: set, first: int, touch_ups_only: bool = True, blamed: set | None = None) -> list:
+    """The spray strokes of ``work`` from stroke ``first`` on that a transfer no route freed leads into (or, where
+    that one may not be dropped, leads out of): the keys of ``failed`` (``cells.routes.routed_work``'s: a
+    transfer's two states as bytes). ``touch_ups_only``: only touch-up strokes may be dropped (a touch-up round);
+    else any spray stroke (the plan's own runs, whose transfers no route freed: a program must not make that
+    move). ``blamed``: the start states (bytes) of transfers whose run after was dropped already, added to
+    here: a transfer from such a state that fails again drops the run before it instead (its end is what no
+    route leaves, so dropping run after run would not free it)."""
     starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
     pairs = np.column_stack([work.q, work.track_mm])
+    blamed = set() if blamed is None else blamed
     out = []
+
+    def droppable(k: int) -> bool:
+        s = work.strokes[k]
+        return k >= first and s.spray_on and (s.kind == "touch-up" or not touch_ups_only)
+
     for i in range(max(first - 1, 1), len(work.strokes) - 1):
         s = work.strokes[i]
         if s.spray_on or len(s) != 2 or pairs[starts[i] : starts[i] + 2].tobytes() not in failed:
             continue
-        after, before = work.strokes[i + 1], work.strokes[i - 1]
-        if after.kind == "touch-up" and i + 1 >= first:
-            out.append(i + 1)
-        elif before.kind == "touch-up" and i - 1 >= first:
-            out.append(i - 1)
+        origin = pairs[starts[i]].tobytes()
+        order = (i - 1, i + 1) if origin in blamed else (i + 1, i - 1)
+        for k in order:
+            if droppable(k):
+                out.append(k)
+                if k == i + 1:
+                    blamed.add(origin)
+                break
     return sorted(set(out))
 
 
@@ -124,8 +137,11 @@ def freed_cell(
     (a touch-up round appends strokes): only the later ones are checked, cut and routed. ``approach_mm``: the
     programs' approach and retract (``[export] approach_mm``), the way a transfer is checked and routed as the
     program makes it (``cells.routes.routed_work``), and, with ``config.repair``, each run cut to start and end
-    where those lines are free (``free_work``'s ``backs``). Returns the robots and per robot the repairs', the cut's
-    and the routes' counts."""
+    where those lines are free (``free_work``'s ``backs``). With ``config.repair``, a run that a transfer no
+    route frees leads into is dropped (:func:`unrouted_runs`; in a touch-up round only the touch-ups), the runs
+    either side joined by a new transfer, routed in turn, up to :data:`DROP_ROUNDS` times: a program makes every
+    transfer of its plan, so one that no route frees would be a motion into the body. Returns the robots and
+    per robot the repairs', the cut's, the routes' and the drops' counts."""
     from sprayplan.cells.repair import free_work, piece_tilts, resolved_piece
     from sprayplan.cells.routes import CellRouter, routed_work
     from sprayplan.cells.work import without_strokes
@@ -165,19 +181,20 @@ def freed_cell(
 
             work, routes = route(work)
             routes.pop("transfers_in_collision")  # the check after the film counts what is left
-            if first:  # a touch-up round: a touch-up no route reaches free is dropped, its neighbours joined
-                dropped = 0
-                for _ in range(DROP_ROUNDS):
-                    drop = unrouted_touch_ups(work, mine if mine is not None else set(), first)
-                    if not drop:
-                        break
-                    dropped += len(drop)
-                    work = without_strokes(work, drop)
-                    work, more = route(work)
-                    for key, value in more.items():
-                        if key != "transfers_in_collision":
-                            routes[key] = routes.get(key, 0) + value
-                routes["touch_ups_dropped"] = dropped
+            # a run no route reaches free is dropped, its neighbours joined and the new transfer routed: in a
+            # touch-up round only touch-ups, else any run
+            dropped, blamed = 0, set()
+            for _ in range(DROP_ROUNDS):
+                drop = unrouted_runs(work, mine if mine is not None else set(), first, bool(first), blamed)
+                if not drop:
+                    break
+                dropped += len(drop)
+                work = without_strokes(work, drop)
+                work, more = route(work)
+                for key, value in more.items():
+                    if key != "transfers_in_collision":
+                        routes[key] = routes.get(key, 0) + value
+            routes["touch_ups_dropped" if first else "runs_dropped"] = dropped
         out.append(work)
         counts[work.name] = {**repairs, **left, **routes}
     return tuple(out), counts

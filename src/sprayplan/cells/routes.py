@@ -349,7 +349,11 @@ def routed_work(
     joined to them (nodes ``[A backed off, route..., B backed off]``), so that the program's retract, route and
     approach are the moves checked; where none of those is free, every route is tried from the ends
     themselves, as without ``approach_mm`` (the search and home routes between the backed-off poses alone
-    left 23 transfers in collision on the BMW against 12, for 6 fewer program motions in collision)."""
+    left 23 transfers in collision on the BMW against 12, for 6 fewer program motions in collision), and kept
+    only when the program's way through it, the backed-off poses joined to its ends, is free too (the nodes
+    then ``[A backed off, route..., B backed off]``): the program backs off at a run's ends whatever the route,
+    and a route free from the ends themselves but not from the backed-off poses was a program motion in
+    collision (7 of the BMW's 14 in session 18)."""
     starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
     moves = [i for i, s in enumerate(work.strokes) if not s.spray_on and len(s) == 2 and i >= since - 1]
     counts = {"transfers_in_collision": 0, "transfers_routed": 0, **{f"routed_{kind}": 0 for kind in ROUTES}}
@@ -401,6 +405,17 @@ def routed_work(
                     found = inner[0], nodes, tracks
         if found is None:  # from the ends themselves: retract, via, the search, home
             found = router.route(work.q[s], work.track_mm[s], work.q[s + 1], work.track_mm[s + 1], seed + k)
+            if found is not None and k in backs:
+                # the program backs off at both ends all the same: its way is A, A backed off, the route's
+                # nodes, B backed off, B; those are the moves the plan keeps and checks
+                (*q_a, t_a), (*q_b, t_b) = backs[k]
+                nodes = np.vstack([q_a, found[1], q_b])
+                tracks = np.r_[t_a, found[2], t_b]
+                found = (
+                    (found[0], nodes, tracks)
+                    if router.free(work.q[s], work.track_mm[s], nodes, tracks, work.q[s + 1], work.track_mm[s + 1])
+                    else None
+                )
         if found is None:
             failed.add(key)
             continue
