@@ -163,6 +163,9 @@ def test_the_film_is_reported_over_the_whole_body_per_area_robot_and_seam(planne
     unreached = film["unreached"].get("area_mm2", 0.0)
     assert areas == pytest.approx(whole["area_mm2"], rel=1e-9)
     assert robots + unreached == pytest.approx(whole["area_mm2"], rel=1e-9)
+    assert film["reached"].get("area_mm2", 0.0) == pytest.approx(robots, rel=1e-9)
+    in_spec = sum(r["share_in_spec"] * r["area_mm2"] for r in film["per_robot"].values() if r.get("count"))
+    assert film["reached"]["share_in_spec"] == pytest.approx(in_spec / robots, rel=1e-9)
     # the samples no robot reaches stand for about the surface the area map leaves unreached
     assert unreached == pytest.approx(report["unreached_surface_mm2"], rel=0.1, abs=1000.0)
     assert film["report"]["measuring_points"]["count"] == 420

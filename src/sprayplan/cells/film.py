@@ -24,9 +24,10 @@ def _stats(um: np.ndarray, area: np.ndarray, target: float, tol: float) -> dict:
 def film_report(
     plan, target_um: float, tolerance_um: float, samples: int | None = 420, seed: int = 0, seams: bool = True
 ) -> dict:
-    """The film over the whole body, per area, per robot and (with ``seams``) along every seam (the samples
-    within one spray radius of an edge between two robots' faces), and ``samples`` measuring points over the
-    whole body (``coating.report.coating_report``; seed 003 measured 420)."""
+    """The film over the whole body, per area, per robot, over the surface some robot reaches (``reached``,
+    the robots' shares together) and the surface none reaches (``unreached``), and (with ``seams``) along every
+    seam (the samples within one spray radius of an edge between two robots' faces), and ``samples`` measuring
+    points over the whole body (``coating.report.coating_report``; seed 003 measured 420)."""
     from sprayplan.coating.report import coating_report
 
     film = plan.film
@@ -54,6 +55,7 @@ def film_report(
         r.name: _stats(um[robot_of == i], area[robot_of == i], target_um, tolerance_um)
         for i, r in enumerate(plan.cell.robots)
     }
+    out["reached"] = _stats(um[robot_of >= 0], area[robot_of >= 0], target_um, tolerance_um)
     out["unreached"] = _stats(um[robot_of < 0], area[robot_of < 0], target_um, tolerance_um)
     if not seams:
         return out
