@@ -637,6 +637,69 @@ def test_transfers_are_routed_the_way_the_programs_make_them(tmp_path, monkeypat
     assert found is None or (found[0] == "home" and len(found[1]) >= 1)
 
 
+@pytest.mark.parametrize("way_free", [True, False])
+def test_a_route_from_the_ends_is_kept_only_with_the_programs_back_offs_free(tmp_path, monkeypatch, way_free):
+    """A transfer no route between the backed-off poses frees, routed from its ends themselves: the program
+    still backs off at both ends, so the route is kept only when ``A, A backed off, route, B backed off, B`` is
+    free, and then those are its nodes; else the transfer is left in collision, its key in ``failed``."""
+    from sprayplan.cells.repair import free_work
+    from sprayplan.cells.routes import CellRouter, routed_work
+    from sprayplan.config import JobConfig
+
+    cell, plan, arms = _box_cell(tmp_path)
+    config = JobConfig().collision
+    work, arm, robot = plan.robots[0], arms[0], cell.robots[0]
+    freed, _ = free_work(work, check_robot(arm, work.q, work.track_mm, work.reachable))
+    router = CellRouter(robot, arm, plan.part, config)
+    starts = np.r_[0, np.cumsum([len(s) for s in freed.strokes])]
+    pairs = np.column_stack([freed.q, freed.track_mm])
+    transfers = [i for i, s in enumerate(freed.strokes) if not s.spray_on and 0 < i < len(freed.strokes) - 1]
+    backs = router.backed_off(pairs, starts[transfers], np.ones(len(transfers), bool), 50.0)
+    k = min(backs)
+    i, back_a, back_b = transfers[k], *backs[k]
+    end_a, end_b = pairs[starts[i]], pairs[starts[i] + 1]
+    via = 0.5 * (back_a + back_b)  # the route "found" from the ends: one node
+
+    def edges_free(self, a, b):  # the joint move A -> B and the leg between the backed-off poses blocked
+        hit = [
+            {tuple(np.round(x, 9)), tuple(np.round(y, 9))} in ({tuple(np.round(end_a, 9)), tuple(np.round(end_b, 9))},
+                                                              {tuple(np.round(back_a, 9)), tuple(np.round(back_b, 9))})
+            for x, y in zip(a, b)
+        ]  # fmt: skip
+        return ~np.array(hit, bool)
+
+    asked = []
+
+    def free(self, q_a, t_a, nodes, tracks, q_b, t_b):
+        asked.append(np.column_stack([nodes, tracks]))
+        return way_free
+
+    def route(self, q_a, t_a, q_b, t_b, seed=0, search=True):
+        if not search:  # between the backed-off poses: nothing
+            return None
+        return "via", via[None, :-1], via[-1:]
+
+    monkeypatch.setattr(CellRouter, "_edges_free", edges_free)
+    monkeypatch.setattr(CellRouter, "_states_free", lambda self, s: np.ones(len(s), bool))
+    monkeypatch.setattr(CellRouter, "free", free)
+    monkeypatch.setattr(CellRouter, "route", route)
+    failed: set = set()
+    routed, counts = routed_work(robot, freed, arm, plan.part, config, 200.0, failed=failed, approach_mm=50.0)
+    assert counts["transfers_in_collision"] == 1 and counts["transfers_routed"] == int(way_free)
+    checked = [a for a in asked if len(a) == 3]
+    assert checked, "the program's way through the route was checked"
+    np.testing.assert_allclose(checked[-1], [back_a, via, back_b])
+    new_starts = np.r_[0, np.cumsum([len(s) for s in routed.strokes])]
+    way = np.column_stack([routed.q, routed.track_mm])[new_starts[i] : new_starts[i + 1]]
+    key = pairs[starts[i] : starts[i] + 2].tobytes()
+    if way_free:
+        np.testing.assert_allclose(way, [end_a, back_a, via, back_b, end_b])
+        assert key not in failed
+    else:
+        np.testing.assert_allclose(way, [end_a, end_b])
+        assert key in failed
+
+
 def test_a_touch_up_round_checks_only_the_strokes_it_added(tmp_path):
     """``_tail_checked`` (a touch-up round's check of the strokes appended): the flags from the last waypoint
     before the new strokes on are the whole check's; the rows before it are returned free."""
