@@ -686,6 +686,9 @@ def test_a_route_from_the_ends_is_kept_only_with_the_programs_back_offs_free(tmp
     failed: set = set()
     routed, counts = routed_work(robot, freed, arm, plan.part, config, 200.0, failed=failed, approach_mm=50.0)
     assert counts["transfers_in_collision"] == 1 and counts["transfers_routed"] == int(way_free)
+    # ``only``: the transfers a drop made; the others are not looked at
+    _, elsewhere = routed_work(robot, freed, arm, plan.part, config, 200.0, approach_mm=50.0, only={i + 2})
+    assert elsewhere["transfers_in_collision"] == 0
     checked = [a for a in asked if len(a) == 3]
     assert checked, "the program's way through the route was checked"
     np.testing.assert_allclose(checked[-1], [back_a, via, back_b])

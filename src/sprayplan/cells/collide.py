@@ -174,10 +174,11 @@ def freed_cell(
         if config.repair and part is not None:
             mine = None if failed is None else failed.setdefault(work.name, set())
 
-            def route(work_, cell_robot=cell_robot, arm=arm, mine=mine, first=first):
+            def route(work_, only=None, cell_robot=cell_robot, arm=arm, mine=mine, first=first):
                 return routed_work(
-                    cell_robot, work_, arm, part, config, standoff_mm, failed=mine, since=first, approach_mm=approach_mm
-                )
+                    cell_robot, work_, arm, part, config, standoff_mm, failed=mine, since=first,
+                    approach_mm=approach_mm, only=only,
+                )  # fmt: skip
 
             work, routes = route(work)
             routes.pop("transfers_in_collision")  # the check after the film counts what is left
@@ -189,8 +190,13 @@ def freed_cell(
                 if not drop:
                     break
                 dropped += len(drop)
+                old = work.strokes  # kept alive, so that no new stroke takes an old one's id
+                before = {id(s) for s in old}
                 work = without_strokes(work, drop)
-                work, more = route(work)
+                # only the transfers the drops made are routed again (the others were routed or failed)
+                joined = {i for i, s in enumerate(work.strokes) if not s.spray_on and id(s) not in before}
+                del old
+                work, more = route(work, joined)
                 for key, value in more.items():
                     if key != "transfers_in_collision":
                         routes[key] = routes.get(key, 0) + value

@@ -331,6 +331,7 @@ def routed_work(
     failed=None,
     since: int = 0,
     approach_mm: float = 0.0,
+    only=None,
 ) -> tuple:
     """A robot's work (``cells.work.RobotWork``, its transfers joined: ``cells.repair.free_work``) with each
     transfer whose joint move is in collision re-routed (module docstring). Returns the work and
@@ -339,7 +340,8 @@ def routed_work(
     search of the ``k``-th transfer is seeded ``seed + k``. ``failed``: a set of the transfers no route freed
     (their ends' joints and track positions), added to here, and not tried again (a touch-up round cuts and
     routes the plan again). Only the transfers from stroke ``since - 1`` on are looked at (the strokes before
-    were routed already).
+    were routed already), and with ``only`` (a set of stroke indices) only those (the transfers a drop of runs
+    made, ``cells.collide.freed_cell``).
 
     ``approach_mm`` (``[export] approach_mm``; 0: not): the robot's programs leave a run backed off along the gun
     axis by this much and come to the next one the same way (``programs.build``), so a transfer is checked as
@@ -355,7 +357,11 @@ def routed_work(
     and a route free from the ends themselves but not from the backed-off poses was a program motion in
     collision (7 of the BMW's 14 in session 18)."""
     starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
-    moves = [i for i, s in enumerate(work.strokes) if not s.spray_on and len(s) == 2 and i >= since - 1]
+    moves = [
+        i
+        for i, s in enumerate(work.strokes)
+        if not s.spray_on and len(s) == 2 and i >= since - 1 and (only is None or i in only)
+    ]
     counts = {"transfers_in_collision": 0, "transfers_routed": 0, **{f"routed_{kind}": 0 for kind in ROUTES}}
     if not moves:
         return work, counts
