@@ -575,15 +575,11 @@ def test_a_transfer_nothing_shorter_frees_goes_out_to_a_park_and_back(tmp_path):
             assert any(np.array_equal(q, p) for p, _ in parks)
 
 
-def test_transfers_are_routed_the_way_the_programs_make_them(tmp_path, monkeypatch):
-    """With ``approach_mm`` (the programs' retract and approach), a transfer is checked as the program makes it:
-    one whose joint move is free but whose way through the backed-off poses is not (the leg between them
-    blocked here, the rest the real model) is routed between the backed-off poses (its first and last nodes),
-    so that every leg the program makes is free; without ``approach_mm`` it is left as it was."""
-    import dataclasses
-
+def _routing_case(tmp_path):
+    """The box cell's robot, its work cut to what it paints free, its router, the rows where its strokes start,
+    its (joints, track) rows and the indices of its transfers between two spray strokes."""
     from sprayplan.cells.repair import free_work
-    from sprayplan.cells.routes import CellRouter, routed_work
+    from sprayplan.cells.routes import CellRouter
     from sprayplan.config import JobConfig
 
     cell, plan, arms = _box_cell(tmp_path)
@@ -594,6 +590,19 @@ def test_transfers_are_routed_the_way_the_programs_make_them(tmp_path, monkeypat
     starts = np.r_[0, np.cumsum([len(s) for s in freed.strokes])]
     pairs = np.column_stack([freed.q, freed.track_mm])
     transfers = [i for i, s in enumerate(freed.strokes) if not s.spray_on and 0 < i < len(freed.strokes) - 1]
+    return plan, config, robot, arm, freed, router, starts, pairs, transfers
+
+
+def test_transfers_are_routed_the_way_the_programs_make_them(tmp_path, monkeypatch):
+    """With ``approach_mm`` (the programs' retract and approach), a transfer is checked as the program makes it:
+    one whose joint move is free but whose way through the backed-off poses is not (the leg between them
+    blocked here, the rest the real model) is routed between the backed-off poses (its first and last nodes),
+    so that every leg the program makes is free; without ``approach_mm`` it is left as it was."""
+    import dataclasses
+
+    from sprayplan.cells.routes import CellRouter, routed_work
+
+    plan, config, robot, arm, freed, router, starts, pairs, transfers = _routing_case(tmp_path)
     edges = router._edges_free(pairs[starts[transfers]], pairs[starts[transfers] + 1])
     backs = router.backed_off(pairs, starts[transfers], edges, 50.0)
     k = min(backs)  # a transfer whose joint move is free and whose ends back off
@@ -642,18 +651,9 @@ def test_a_route_from_the_ends_is_kept_only_with_the_programs_back_offs_free(tmp
     """A transfer no route between the backed-off poses frees, routed from its ends themselves: the program
     still backs off at both ends, so the route is kept only when ``A, A backed off, route, B backed off, B`` is
     free, and then those are its nodes; else the transfer is left in collision, its key in ``failed``."""
-    from sprayplan.cells.repair import free_work
     from sprayplan.cells.routes import CellRouter, routed_work
-    from sprayplan.config import JobConfig
 
-    cell, plan, arms = _box_cell(tmp_path)
-    config = JobConfig().collision
-    work, arm, robot = plan.robots[0], arms[0], cell.robots[0]
-    freed, _ = free_work(work, check_robot(arm, work.q, work.track_mm, work.reachable))
-    router = CellRouter(robot, arm, plan.part, config)
-    starts = np.r_[0, np.cumsum([len(s) for s in freed.strokes])]
-    pairs = np.column_stack([freed.q, freed.track_mm])
-    transfers = [i for i, s in enumerate(freed.strokes) if not s.spray_on and 0 < i < len(freed.strokes) - 1]
+    plan, config, robot, arm, freed, router, starts, pairs, transfers = _routing_case(tmp_path)
     backs = router.backed_off(pairs, starts[transfers], np.ones(len(transfers), bool), 50.0)
     k = min(backs)
     i, back_a, back_b = transfers[k], *backs[k]
