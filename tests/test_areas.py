@@ -217,10 +217,16 @@ def test_a_part_is_placed_along_x_on_its_skid(testdata):
 
 
 def test_a_lift_sets_its_robot_above_each_part_within_its_range(testdata, bmw):
-    """line3's roof robot stands ``above_part_mm`` over each body's top (1.74 and 2.34 m high on the skid), the
-    other robots where the file has them; a part so tall that the lift would pass its range stops at its top."""
+    """A roof robot on a lift (line3's robots, the roof one given ``lift``) stands ``above_part_mm`` over each
+    body's top (1.74 and 2.34 m high on the skid), the other robots where the file has them; a part so tall that
+    the lift would pass its range stops at its top."""
+    import tomllib
+    from importlib import resources
+
+    data = tomllib.loads(resources.files("sprayplan.cells").joinpath("presets", "line3.toml").read_text())
+    data["robot"][0]["lift"] = {"above_part_mm": 1600.0, "range_mm": [3300.0, 4300.0]}
+    cell = cell_from_dict(data, source="lifted.toml")
     suv = load_part(testdata / "meshes" / "gazebo_suv_body_m.ply", units="m")
-    cell = load_cell("line3")
     roof = cell.robots[0]
     assert roof.lift is not None and cell.robots[1].lift is None
     for body in (bmw, suv):
@@ -233,6 +239,10 @@ def test_a_lift_sets_its_robot_above_each_part_within_its_range(testdata, bmw):
         assert all(np.array_equal(b, r.base2cell) for b, r in zip(bases[1:], cell.robots[1:]))
     tall = Part(suv.vertices * [1.0, 1.0, 2.0], suv.faces, name="tall")
     assert place_part(tall, cell).cell.robots[0].base2cell[2, 3] == roof.lift.range_mm[1]
+    # without a lift the base stays where the file has it
+    assert np.array_equal(
+        place_part(bmw, load_cell("line3")).cell.robots[0].base2cell, load_cell("line3").robots[0].base2cell
+    )
 
 
 def test_a_robot_inside_the_part_or_a_part_out_of_reach_is_refused(bmw):
@@ -278,7 +288,8 @@ def test_line3_splits_the_bmw_like_the_seed(bmw):
 @pytest.mark.parametrize("cell_name", ["line3", "line3-tall"])
 def test_line3_and_line3_tall_split_the_suv_like_the_seed(testdata, cell_name):
     """The SUV (about 1.84 m tall): its roof to the roof robot and each side to its own, as in seed 003, in
-    line3 (its roof robot on a lift, 1.6 m over the body's top) and in line3-tall (the body on the floor)."""
+    line3 (its roof robot hung 3.7 m up for bodies up to about 1.85 m) and in line3-tall (the body on the
+    floor)."""
     suv = load_part(testdata / "meshes" / "gazebo_suv_body_m.ply", units="m")
     assert 1700.0 < np.ptp(suv.vertices[:, 2]) < 2000.0  # z up in its file
     _assert_seed_split(suv, cell_name)
