@@ -119,23 +119,45 @@ def free_shares(cell, index: int, arm, strokes) -> tuple[float, float]:
     return reached / max(total, 1), free / max(total, 1)
 
 
-def main() -> None:
-    from sprayplan.cells.collide import cell_arms
-
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def base_parser(doc: str, values: str) -> argparse.ArgumentParser:
+    """The options of a bench that moves one robot's base: ``--body``, ``--cell``, ``--robot``, ``--axis``,
+    ``--values`` (``values`` their default)."""
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
     parser.add_argument("--body", default="suv", choices=sorted(BODIES))
     parser.add_argument("--cell", default="line3")
     parser.add_argument("--robot", default="roof")
     parser.add_argument("--axis", default="z", choices=("x", "y", "z"))
-    parser.add_argument("--values", default="3700,3900,4100", help="base coordinates along --axis, mm")
+    parser.add_argument("--values", default=values, help="base coordinates along --axis, mm")
+    return parser
+
+
+def robot_index(cell, name: str) -> int:
+    """The index of robot ``name`` in ``cell`` (exit with a message when it has none)."""
+    names = [r.name for r in cell.robots]
+    if name not in names:
+        raise SystemExit(f"--robot: {name!r} is not a robot of {cell.name} ({', '.join(names)})")
+    return names.index(name)
+
+
+def moved_cell(cell, index: int, axis: int, value: float):
+    """``cell`` with robot ``index``'s base at ``value`` mm along cell axis ``axis`` (its lift dropped)."""
+    moved = cell.robots[index].base2cell.copy()
+    moved[axis, 3] = value
+    robots = list(cell.robots)
+    robots[index] = dataclasses.replace(robots[index], base2cell=moved, lift=None)
+    return dataclasses.replace(cell, robots=tuple(robots))
+
+
+def main() -> None:
+    from sprayplan.cells.collide import cell_arms
+
+    parser = base_parser(__doc__, "3700,3900,4100")
     parser.add_argument("--strokes", type=int, default=60)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     cell, painted, job, arms, areas, works = planned(args.body, args.cell)
     names = [r.name for r in cell.robots]
-    if args.robot not in names:
-        raise SystemExit(f"--robot: {args.robot!r} is not a robot of {cell.name} ({', '.join(names)})")
-    index = names.index(args.robot)
+    index = robot_index(cell, args.robot)
     base = cell.robots[index].base2cell[:3, 3]
     print(json.dumps({"body": args.body, "cell": cell.name, "as_placed": {n: r.base2cell[:3, 3].round(1).tolist()
                       for n, r in zip(names, cell.robots)}, "first": first_collisions(arms, areas, works)}),
@@ -146,11 +168,7 @@ def main() -> None:
     picked = [spray[k] for k in rng.choice(len(spray), min(args.strokes, len(spray)), replace=False)]
     axis = "xyz".index(args.axis)
     for value in (float(v) for v in args.values.split(",")):
-        moved = cell.robots[index].base2cell.copy()
-        moved[axis, 3] = value
-        robots = list(cell.robots)
-        robots[index] = dataclasses.replace(robots[index], base2cell=moved, lift=None)
-        at = dataclasses.replace(cell, robots=tuple(robots))
+        at = moved_cell(cell, index, axis, value)
         arm = cell_arms(at, painted, job.collision)[index]
         reached, free = free_shares(at, index, arm, picked)
         print(json.dumps({"robot": args.robot, args.axis: value, "as_placed": float(base[axis]),

@@ -15,8 +15,6 @@ route (docs/benchmarks.md, "Session 21").
 
 from __future__ import annotations
 
-import argparse
-import dataclasses
 import json
 import sys
 from pathlib import Path
@@ -27,8 +25,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "src"))
 sys.path.insert(0, str(REPO / "bench"))
 
-from bench_cell_collisions import BODIES  # noqa: E402
-from bench_cell_heights import planned  # noqa: E402
+from bench_cell_heights import base_parser, moved_cell, planned, robot_index  # noqa: E402
 
 
 def stroke_ends(solved) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -58,26 +55,13 @@ def main() -> None:
     from sprayplan.cells.plan import solve_strokes
     from sprayplan.cells.routes import CellRouter
 
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--body", default="suv", choices=sorted(BODIES))
-    parser.add_argument("--cell", default="line3")
-    parser.add_argument("--robot", default="roof")
-    parser.add_argument("--axis", default="z", choices=("x", "y", "z"))
-    parser.add_argument("--values", default="3700,3942,4300", help="base coordinates along --axis, mm")
-    args = parser.parse_args()
+    args = base_parser(__doc__, "3700,3942,4300").parse_args()
     cell, painted, job, _, _, works = planned(args.body, args.cell)
-    names = [r.name for r in cell.robots]
-    if args.robot not in names:
-        raise SystemExit(f"--robot: {args.robot!r} is not a robot of {cell.name} ({', '.join(names)})")
-    index = names.index(args.robot)
+    index = robot_index(cell, args.robot)
     spray = [s for s in works[index].strokes if s.spray_on]
     axis = "xyz".index(args.axis)
     for value in (float(v) for v in args.values.split(",")):
-        moved = cell.robots[index].base2cell.copy()
-        moved[axis, 3] = value
-        robots = list(cell.robots)
-        robots[index] = dataclasses.replace(robots[index], base2cell=moved, lift=None)
-        at = dataclasses.replace(cell, robots=tuple(robots))
+        at = moved_cell(cell, index, axis, value)
         router = CellRouter(at.robots[index], cell_arms(at, painted, job.collision)[index], painted, job.collision)
         ends, a, b = stroke_ends(solve_strokes(at.robots[index], spray))
         free = router._states_free(ends) if len(ends) else np.zeros(0, bool)
