@@ -7,7 +7,8 @@ collision model, strokes, first IK solutions, no repairs); then, with ``--robot`
 last reached waypoint) free of the part and the floor, the ends whose back-off along the gun axis is free as the
 programs make it (``CellRouter.backs_free`` at ``[export] approach_mm``), and the straight joint moves from one
 stroke's end to the next one's start that are free (``CellRouter._edges_free``): the transfers that need no
-route (docs/benchmarks.md, "Session 21").
+route; and the ends by the way the surface faces there, with the share of each in collision
+(docs/benchmarks.md, "Session 21").
 
     python bench/bench_cell_transfers.py --body suv --values 3700,3942,4300
     python bench/bench_cell_transfers.py --body bmw --values 3343,3700,3900
@@ -28,26 +29,42 @@ sys.path.insert(0, str(REPO / "bench"))
 from bench_cell_heights import base_parser, moved_cell, planned, robot_index  # noqa: E402
 
 
-def stroke_ends(solved) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(ends (2k, dof + 1), transfer starts (m, dof + 1), transfer ends (m, dof + 1)): the joints and track
-    position at the first and last reached waypoint of every stroke reached at two or more, and the moves
-    from each such stroke's last to the next one's first (none across a stroke not reached)."""
-    ends, a, b = [], [], []
+def stroke_ends(strokes, solved) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(ends (2k, dof + 1), transfer starts (m, dof + 1), transfer ends (m, dof + 1), normals (2k, 3)): the
+    joints and track position at the first and last reached waypoint of every stroke reached at two or more,
+    the moves from each such stroke's last to the next one's first (none across a stroke not reached), and
+    the surface normal at each end."""
+    ends, a, b, normals = [], [], [], []
     last = None
-    for track, _, q, ok in solved:
+    for stroke, (track, _, q, ok) in zip(strokes, solved):
         k = np.flatnonzero(ok)
         if len(k) < 2:
             last = None
             continue
         first = np.r_[q[k[0]], track[k[0]]]
         ends += [first, np.r_[q[k[-1]], track[k[-1]]]]
+        normals += [stroke.normals[k[0]], stroke.normals[k[-1]]]
         if last is not None:
             a.append(last)
             b.append(first)
         last = ends[-1]
     width = solved[0][2].shape[1] + 1 if solved else 1
     shaped = [np.array(x).reshape(-1, width) for x in (ends, a, b)]
-    return shaped[0], shaped[1], shaped[2]
+    return shaped[0], shaped[1], shaped[2], np.array(normals).reshape(-1, 3)
+
+
+def by_facing(normals: np.ndarray, hit: np.ndarray) -> dict:
+    """Per way the surface faces at a stroke end (the normal's largest component: ``+x`` ... ``-z``): the ends
+    and the share of them in collision."""
+    axis = np.argmax(np.abs(normals), axis=1)
+    sign = np.sign(normals[np.arange(len(normals)), axis])
+    out = {}
+    for k, name in enumerate("xyz"):
+        for s_, label in ((1, "+"), (-1, "-")):
+            m = (axis == k) & (sign == s_)
+            if m.any():
+                out[label + name] = [int(m.sum()), round(float(hit[m].mean()), 3)]
+    return out
 
 
 def main() -> None:
@@ -63,7 +80,7 @@ def main() -> None:
     for value in (float(v) for v in args.values.split(",")):
         at = moved_cell(cell, index, axis, value)
         router = CellRouter(at.robots[index], cell_arms(at, painted, job.collision)[index], painted, job.collision)
-        ends, a, b = stroke_ends(solve_strokes(at.robots[index], spray))
+        ends, a, b, normals = stroke_ends(spray, solve_strokes(at.robots[index], spray))
         free = router._states_free(ends) if len(ends) else np.zeros(0, bool)
         backs = router.backs_free(ends[:, :-1], ends[:, -1], job.export.approach_mm) if len(ends) else free
         straight = router._edges_free(a, b) if len(a) else np.zeros(0, bool)
@@ -71,7 +88,8 @@ def main() -> None:
                           "stroke_ends": len(ends), "ends_free": round(float(free.mean()), 3) if len(free) else None,
                           "backs_free": round(float(backs.mean()), 3) if len(backs) else None,
                           "transfers": len(a),
-                          "straight_free": round(float(straight.mean()), 3) if len(a) else None}),
+                          "straight_free": round(float(straight.mean()), 3) if len(a) else None,
+                          "ends_by_facing_and_share_in_collision": by_facing(normals, ~free)}),
               flush=True)  # fmt: skip
 
 
