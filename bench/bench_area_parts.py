@@ -25,24 +25,17 @@ from scipy.sparse.csgraph import connected_components
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
 from _data import meshes_dir
+from bench_cell_collisions import BODIES
 
-BODIES = {"bmw": ("bmw_m6_body_m_yup.ply", {"units": "m", "up": "y"}), "suv": ("gazebo_suv_body_m.ply", {"units": "m"})}
 
+def face_pieces(part) -> np.ndarray:
+    """(m,) int: the connected piece of each face of a mesh ``Part``, faces joined where they share an edge
+    (``surface.areas.face_adjacency``), pieces numbered by decreasing face count."""
+    from sprayplan.surface.areas import face_adjacency
 
-def face_pieces(faces: np.ndarray) -> np.ndarray:
-    """(m,) int: the connected piece of each face, faces joined where they share an edge (its two vertex
-    indices), pieces numbered by decreasing face count."""
-    m = len(faces)
-    edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-    owner = np.repeat(np.arange(m), 3)
-    _, key = np.unique(edges, axis=0, return_inverse=True)
-    key = key.ravel()
-    # faces sharing an edge key are joined: each face to the first face (in key order) with that key
-    order = np.argsort(key, kind="stable")
-    starts = np.r_[True, key[order][1:] != key[order][:-1]]
-    head = np.maximum.accumulate(np.where(starts, np.arange(len(order)), 0))
-    first_face = owner[order][head]
-    graph = coo_matrix((np.ones(len(order)), (owner[order], first_face)), shape=(m, m))
+    m = len(part.faces)
+    pairs, _ = face_adjacency(part.faces, part.vertices)
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
     _, label = connected_components(graph, directed=False)
     counts = np.bincount(label)
     rank = np.empty_like(counts)
@@ -50,27 +43,33 @@ def face_pieces(faces: np.ndarray) -> np.ndarray:
     return rank[label]
 
 
-def main() -> None:
+def painted_in_cell(body: str, cell_name: str):
+    """The body placed in the cell and cut to the surface ``sprayplan plan --cell`` paints (the surface facing
+    the floor and the covered surface left out, long faces split: ``cells.plan.area_surface``)."""
     from sprayplan.cells import load_cell
     from sprayplan.cells.plan import area_surface
     from sprayplan.cells.spec import place_part
     from sprayplan.config import JobConfig
     from sprayplan.io.load import load_part
-    from sprayplan.surface.areas import segment_areas
     from sprayplan.surface.normals import oriented_part
     from sprayplan.surface.region import painted_surface
+
+    name, load = BODIES[body]
+    placed = place_part(load_part(str(meshes_dir() / name), **load), load_cell(cell_name))
+    painted, _ = painted_surface(oriented_part(placed.part), JobConfig().collision)
+    return area_surface(painted)[0]
+
+
+def main() -> None:
+    from sprayplan.surface.areas import segment_areas
 
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--body", default="suv", choices=sorted(BODIES))
     ap.add_argument("--cell", default="line3")
     args = ap.parse_args()
-    name, load = BODIES[args.body]
-    part = load_part(str(meshes_dir() / name), **load)
-    placed = place_part(part, load_cell(args.cell))
-    painted, _ = painted_surface(oriented_part(placed.part), JobConfig().collision)
-    painted, _ = area_surface(painted)
+    painted = painted_in_cell(args.body, args.cell)
     areas = segment_areas(painted)
-    piece = face_pieces(painted.faces)
+    piece = face_pieces(painted)
     fa = painted.face_areas
     pieces = []
     for p in range(piece.max() + 1):

@@ -24,8 +24,7 @@ from scipy.spatial import cKDTree
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
-from _data import meshes_dir
-from bench_area_parts import BODIES, face_pieces
+from bench_area_parts import BODIES, face_pieces, painted_in_cell
 
 #: A sample under this many um is bare.
 BARE_UM = 1.0
@@ -45,14 +44,6 @@ def losses(labels: np.ndarray, weight: np.ndarray, ok: np.ndarray, bare: np.ndar
 
 
 def main() -> None:
-    from sprayplan.cells import load_cell
-    from sprayplan.cells.plan import area_surface
-    from sprayplan.cells.spec import place_part
-    from sprayplan.config import JobConfig
-    from sprayplan.io.load import load_part
-    from sprayplan.surface.normals import oriented_part
-    from sprayplan.surface.region import painted_surface
-
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("out", help="the plan folder")
     ap.add_argument("--body", default="bmw", choices=sorted(BODIES))
@@ -61,10 +52,7 @@ def main() -> None:
     ap.add_argument("--tolerance-um", type=float, default=5.0)
     ap.add_argument("--top", type=int, default=10)
     args = ap.parse_args()
-    name, load = BODIES[args.body]
-    placed = place_part(load_part(str(meshes_dir() / name), **load), load_cell(args.cell))
-    painted, _ = painted_surface(oriented_part(placed.part), JobConfig().collision)
-    painted, _ = area_surface(painted)
+    painted = painted_in_cell(args.body, args.cell)
     with open(Path(args.out) / "areas.csv", newline="") as handle:
         area_of = np.array([row["area"] for row in csv.DictReader(handle)])
     if len(area_of) != len(painted.faces):
@@ -76,7 +64,7 @@ def main() -> None:
     um = film[:, 3]
     ok = np.abs(um - args.target_um) <= args.tolerance_um
     bare = um < BARE_UM
-    piece = face_pieces(painted.faces)
+    piece = face_pieces(painted)
     print(json.dumps({"out": args.out, "in_spec": round(100 * weight[ok].sum() / weight.sum(), 2),
                       "bare": round(100 * weight[bare].sum() / weight.sum(), 2),
                       "pieces": losses(piece[face], weight, ok, bare, args.top),
