@@ -235,7 +235,9 @@ def test_the_film_at_the_timed_speeds_is_the_film_of_the_timed_time_factors(box_
     want = weighted_stats(film.thickness_um, film.area_mm2, target - tol, target + tol)
     got = plan.report["film"]["at_timed_speeds"]
     assert got["whole"]["mean_um"] == pytest.approx(want["mean_um"], rel=1e-9)
-    assert got["whole"]["std_um"] == pytest.approx(want["std_um"], rel=1e-9)
+    # the std comes from the variance, E[x^2] - E[x]^2, which magnifies the sums' rounding (the plan's from the
+    # tuning's deposit matrix, this one simulated anew) by (mean / std)^2 over the mean's: the same 1e-9 there
+    assert got["whole"]["std_um"] == pytest.approx(want["std_um"], abs=1e-9 * want["mean_um"] ** 2 / want["std_um"])
     # the robots never run faster than planned, so the film is thicker at the timed speeds, not thinner
     planned = plan.report["film"]["whole"]
     assert got["whole"]["mean_um"] > planned["mean_um"]
