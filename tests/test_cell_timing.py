@@ -243,5 +243,7 @@ def test_the_film_at_the_timed_speeds_is_the_film_of_the_timed_time_factors(box_
     assert got["whole"]["mean_um"] > planned["mean_um"]
     points = plan.report["film"]["report"]["measuring_points"]
     assert got["measuring_points"]["count"] == points["count"] > 10  # at the planned film's points
-    assert got["measuring_points"]["mean_um"] == pytest.approx(film.thickness_um[points["indices"]].mean(), rel=1e-9)
+    # over 420 points the sample-by-sample rounding does not average out as over the whole body: the tuning's
+    # deposit matrix and a simulation anew agree within 1.2e-7 relative at every sample (the planned film's)
+    assert got["measuring_points"]["mean_um"] == pytest.approx(film.thickness_um[points["indices"]].mean(), rel=2e-7)
     assert set(got["per_robot"]) == {r.name for r in plan.robots}

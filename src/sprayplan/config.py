@@ -628,6 +628,10 @@ class FilmConfig(Section):
     tolerance_um : float
         The spec is ``thickness_um +- tolerance_um`` (default 5, seed 003's); without a target the film is
         judged against seed 003's 50 +- 5 um.
+    flow_ml_min : float or None
+        The paint's wet flow, mL/min, in place of the process's own (None: the process's). With a film target
+        the gun speed follows it (the film is flow over speed), so a lower flow paints the same film slower.
+        A cell plan may lower it further to the speeds its robots make (``[timing] fit_flow``).
     max_step_mm, occlusion, occlusion_step_mm, occlusion_pixels, sample_edge_mm, search_factor, batch, workers
         The film simulation's numerical settings (``sprayplan.coating.CoatingConfig``; None: its defaults).
     """
@@ -636,6 +640,7 @@ class FilmConfig(Section):
     process: str = "seed000_circle"
     thickness_um: float | None = None
     tolerance_um: float = 5.0
+    flow_ml_min: float | None = None
     max_step_mm: float | None = None
     occlusion: str = "auto"
     occlusion_step_mm: float | None = None
@@ -658,6 +663,8 @@ class FilmConfig(Section):
                 raise _fail(FilmConfig, "process", f"one of {', '.join(known)} or a .toml file", self.process)
         _at_least(FilmConfig, "thickness_um", self.thickness_um, 0, strict=True)
         _at_least(FilmConfig, "tolerance_um", self.tolerance_um, 0)
+        if self.flow_ml_min is not None and not (math.isfinite(self.flow_ml_min) and self.flow_ml_min > 0):
+            raise _fail(FilmConfig, "flow_ml_min", "a finite number > 0", self.flow_ml_min)
         _at_least(FilmConfig, "workers", self.workers, 1)
         try:
             self.simulation(MotionConfig())
@@ -948,6 +955,13 @@ class TimingConfig(Section):
         plan's own (tuned) speeds. Off by default: with the default (conservative) accelerations the arm makes
         a small share of the planned spray speed, so a film target comes out far above spec when timed, even
         with the speeds tuned within the limits (``[tuning] limit_rounds``; docs/benchmarks.md).
+    fit_flow : bool
+        A cell plan (``--cell``) with a film target and tuned speeds: the paint's flow and the gun speed scaled
+        down together to what the robots make (``cells.fit``: of the shares 1, 0.7, 0.5, 0.35 and 0.25, the one
+        with the most surface in spec at the timed speeds per second of the timed cycle; every share tried is in
+        the report's ``flow_fit``). The plan's predicted film does not change; the film the robots leave at
+        their timed speeds comes nearer to it and the cycle grows. False: the flow as set. Gantry plans keep
+        the flow as set.
     """
 
     SECTION = "timing"
@@ -961,6 +975,7 @@ class TimingConfig(Section):
     max_rounds: int = 2
     joint_jump_deg: float = 30.0
     film_at_timed_speeds: bool = False
+    fit_flow: bool = True
 
     def _check(self):
         from sprayplan.robots.model import check_rate_limits

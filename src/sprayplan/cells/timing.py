@@ -218,11 +218,12 @@ def _timed(work, q, axes: _Axes, limits, timed: dict, motion, jump_rad: float) -
     return WorkTiming(t, speed, float(spray), float(moves), float(t[-1]) if n else 0.0, slowed, worst)
 
 
-def timed_cell(cell, robots, job, report: dict) -> tuple:
+def timed_cell(cell, robots, job, report: dict, timed: list | None = None) -> tuple:
     """The robots' work (``RobotWork``) with the timed arrival at every waypoint (``t_s``; no waits: ``wait_s``
-    0), timed by :func:`time_cell`; ``report`` (the cell plan's) gets each robot's timed cycle and timing
-    summary beside its length over speed, and the cell's timed cycle, the longest robot's."""
-    timed = time_cell(cell, robots, job)
+    0), timed by :func:`time_cell` (or as ``timed`` gives it, that call's answer); ``report`` (the cell plan's)
+    gets each robot's timed cycle and timing summary beside its length over speed, and the cell's timed cycle,
+    the longest robot's."""
+    timed = time_cell(cell, robots, job) if timed is None else timed
     for r, tm in zip(robots, timed):
         entry = report["robots"][r.name]
         entry["length_over_speed_s"] = entry["cycle_time_s"]
@@ -234,6 +235,11 @@ def timed_cell(cell, robots, job, report: dict) -> tuple:
         "each robot timed within its axes' limits (toppra along the spray stretches, ruckig between them); "
         "the cell's is the longest robot's"
     )
+    return with_times(robots, timed)
+
+
+def with_times(robots, timed) -> tuple:
+    """The robots' work with the time stamps of their timings (``WorkTiming``), no waits."""
     return tuple(
         dataclasses.replace(r, t_s=tm.t_s.copy(), wait_s=np.zeros(len(r.strokes))) for r, tm in zip(robots, timed)
     )

@@ -12,12 +12,20 @@ from sprayplan.progress import Progress, per_stage
 from sprayplan.types import Paths, Plan
 
 
-def process_for(job: JobConfig):
-    """The spray process of a job: its preset, at the job's gun speed."""
+def job_paint(job: JobConfig):
+    """The job's spray process as set: its preset (``[coating] process``) with ``[coating] flow_ml_min`` when
+    given, at the preset's own speed."""
     from sprayplan.coating.process import load_preset
 
     process = load_preset(job.coating.process, "coating.process")
-    return dataclasses.replace(process, speed_mm_s=job.motion.gun_speed_mm_s)
+    if job.coating.flow_ml_min is not None:
+        process = dataclasses.replace(process, flow_ml_min=float(job.coating.flow_ml_min))
+    return process
+
+
+def process_for(job: JobConfig):
+    """The spray process of a job: :func:`job_paint` at the job's gun speed."""
+    return dataclasses.replace(job_paint(job), speed_mm_s=job.motion.gun_speed_mm_s)
 
 
 def meet_thickness(job: JobConfig) -> tuple[JobConfig, dict]:
@@ -29,14 +37,14 @@ def meet_thickness(job: JobConfig) -> tuple[JobConfig, dict]:
     """
     if job.coating.thickness_um is None:
         return job, {}
-    from sprayplan.coating.process import load_preset
     from sprayplan.coating.spacing import choose_spacing_and_speed
 
-    process = load_preset(job.coating.process, "coating.process")
+    process = job_paint(job)
     choice = choose_spacing_and_speed(process, job.coating.thickness_um, standoff_mm=job.paths.standoff_mm)
     chosen = {
         "spacing_mm": float(choice.spacing_mm),
         "gun_speed_mm_s": float(choice.speed_mm_s),
+        "flow_ml_min": float(process.flow_ml_min),
         "flat_panel_ripple_cv": float(choice.cv),
         "overlap": float(choice.overlap),
         "target_um": float(job.coating.thickness_um),

@@ -146,9 +146,9 @@ def _plan_parts(plan, job, totals: dict, part_file, film, timing):
     """plan.json in three parts: the entries before ``stations`` (a dict), the stations (per station in
     visiting order: its entries before ``strokes``, with ``platform_mm`` still an array, and its strokes'
     :func:`_stroke_fields`), and the entries after them (a dict)."""
-    from sprayplan.coating import load_preset
+    from sprayplan.coating.stage import job_paint
 
-    flow = float(load_preset(job.coating.process).flow_ml_min)
+    flow = float(job_paint(job).flow_ml_min)
     stations = []
     for place, st in enumerate(plan.stations):
         strokes, start = [], 0
