@@ -102,3 +102,36 @@ def test_a_fitted_cell_plan_is_the_plan_at_the_share_kept(fitted_and_not):
     # the share kept has the most surface in spec per second of all tried
     rates = [t["timed_share_in_spec"] / t["timed_cycle_s"] for t in fit["tried"]]
     assert rates[[t["flow_share"] for t in fit["tried"]].index(fit["flow_share"])] == pytest.approx(max(rates))
+
+
+def test_speeds_tuned_within_the_limits_are_the_speeds_the_robots_make():
+    """``[tuning] limit_rounds`` with a cell: after the rounds no reached spray waypoint asks for more speed
+    than its robot makes (its planned time factor is at least its timed one), so the plan's own film is the
+    film at the timed speeds."""
+    from sprayplan.cells.limits import owned
+    from sprayplan.cells.plan import reached_strokes
+    from sprayplan.cells.timing import timed_factors
+
+    cell = cell_from_dict(CELL)
+    job = JobConfig().replace(coating={"thickness_um": 50.0}, tuning={"touch_up_rounds": 0, "limit_rounds": 2})
+    plan = plan_cell(grid_box(n=8, size=(600.0, 300.0, 200.0)), cell, job)
+    summary = plan.report["within_limits"]
+    assert summary["rounds"] >= 1 and summary["capped_waypoints"] > 0
+    timed = timed_factors(plan.robots, plan.job)
+    planned = [np.concatenate([s.dwell for s in r.strokes]) for r in plan.robots]
+    _, owners = reached_strokes(plan.robots)
+    at, wanted = owned(timed, plan.robots, owners), owned(planned, plan.robots, owners)
+    assert len(at) == len(wanted) > 100
+    assert (at <= wanted * (1 + 1e-9)).all()
+    film = plan.report["film"]
+    assert film["whole"]["share_in_spec"] == pytest.approx(film["at_timed_speeds"]["whole"]["share_in_spec"], abs=0.005)
+    assert film["whole"]["mean_um"] == pytest.approx(film["at_timed_speeds"]["whole"]["mean_um"], rel=0.01)
+
+
+def test_owned_gathers_the_runs_in_the_tunings_order():
+    robots = [SimpleNamespace(strokes=[np.zeros(3), np.zeros(2)]), SimpleNamespace(strokes=[np.zeros(4)])]
+    values = [np.array([0, 1, 2, 3, 4]), np.array([10, 11, 12, 13])]
+    from sprayplan.cells.limits import owned
+
+    got = owned(values, robots, [(1, 0, 1, 3), (0, 1, 0, 2), (0, 0, 0, 1)])
+    assert got.tolist() == [11, 12, 3, 4, 0]

@@ -733,7 +733,8 @@ class RefineConfig(Section):
         accelerations are not published (the UR models carry URScript's ``movej`` default, 80 deg/s^2): at
         those, the arm makes about a tenth of the spray speed on the demo roof, the tuned film comes out near
         three times the target, and the rounds take minutes. Turn them on with your arm's real limits
-        (``[kinematics] robot_file``).
+        (``[kinematics] robot_file``). With ``--cell`` the same rounds run on every robot's work after the flow
+        fit (``cells.limits``), and the plan's own film is then the one at the timed speeds.
     """
 
     SECTION = "tuning"

@@ -741,6 +741,18 @@ def plan_cell(
         if job.timing.fit_flow and tuning is not None and target is not None:
             job, timed_work, process, film = _fit_flow(plan, job, tuning, film_owners, everything, coating, report)
             plan = dataclasses.replace(plan, job=job, film=film)
+        if job.tuning.limit_rounds and tuning is not None and target is not None:
+            from sprayplan.cells.limits import tune_cell_within_limits
+            from sprayplan.cells.timing import time_cell
+            from sprayplan.refine.tuning import tuned_film
+
+            robots, timed_work, tuning, report["within_limits"] = tune_cell_within_limits(
+                painted, robots, tuning, film_owners, job, process, coating,
+                lambda robots_: time_cell(cell, robots_, job), timed_work,
+            )  # fmt: skip
+            film = tuned_film(tuning, process, coating)
+            plan = dataclasses.replace(plan, robots=robots, film=film)
+            report["film"] = film_report(plan, target, job.coating.tolerance, samples=job.output.samples or 420, seed=0)
         robots = timed_cell(cell, robots, job, report, timed_work)
         plan = dataclasses.replace(plan, robots=robots)
         if film is not None and target is not None:
