@@ -26,9 +26,8 @@ import logging
 
 import numpy as np
 
-from sprayplan.refine.limits import CAP_SLACK, SETTLED_SHARE, SETTLED_TOLERANCES, _off_share
+from sprayplan.refine.limits import CAP_SLACK, SETTLED_SHARE, SETTLED_TOLERANCES, _off_share, bounded_tuning
 from sprayplan.refine.stage import lower_dwell, tuning_settings
-from sprayplan.refine.tuning import tune_speeds
 
 log = logging.getLogger(__name__)
 
@@ -81,20 +80,7 @@ def tune_cell_within_limits(part, robots, tuning, owners, job, process, coating,
         if not slower.any():
             break
         lower[slower] = at[slower]
-        upper = np.maximum(settings.max_dwell, lower)
-        tuning = tune_speeds(
-            part,
-            tuning.paths,
-            process,
-            target,
-            tol,
-            config=config,
-            coating=coating,
-            lower=lower,
-            upper=upper,
-            initial=np.clip(dwell, lower, upper),
-            deposit=(tuning.samples, tuning.deposit_mm),
-        )
+        tuning = bounded_tuning(part, tuning, process, (target, tol), config, coating, lower, dwell, settings.max_dwell)
         dwell = np.concatenate([s.dwell for s in tuning.paths.strokes])
         robots = _with_columns(robots, tuning, owners, dwell)
         active = (lower > base_lower * (1.0 + CAP_SLACK)) & (dwell <= lower * (1.0 + CAP_SLACK))

@@ -150,20 +150,7 @@ def tune_within_limits(
         if not slower.any():
             break
         lower[slower] = timed[slower]
-        upper = np.maximum(settings.max_dwell, lower)
-        tuning = tune_speeds(
-            part,
-            tuning.paths,
-            process,
-            target,
-            tol,
-            config=config,
-            coating=coating,
-            lower=lower,
-            upper=upper,
-            initial=np.clip(dwell, lower, upper),
-            deposit=(tuning.samples, tuning.deposit_mm),
-        )
+        tuning = bounded_tuning(part, tuning, process, (target, tol), config, coating, lower, dwell, settings.max_dwell)
         dwell = np.concatenate([s.dwell for s in tuning.paths.strokes])
         plan = with_dwell(plan, dwell)
         # where the robot's speed is the bound, the robot is asked for the speed the tuning wanted (it makes what
@@ -203,6 +190,26 @@ def tune_within_limits(
         **_over_spec(plan, tuning, film, timed, capped, wanted, lower, target, tol),
     }
     return WithinLimits(plan, timing, tuning, film, summary)
+
+
+def bounded_tuning(part, tuning: Tuning, process, spec: tuple, config, coating, lower, dwell, max_dwell) -> Tuning:
+    """One round's tuning: ``tuning``'s paths tuned again to ``spec`` (target, tolerance um) with the lower
+    bounds ``lower`` (the upper ones ``max_dwell``, or the lower where higher), from the factors ``dwell``,
+    on the same deposit matrix."""
+    upper = np.maximum(max_dwell, lower)
+    return tune_speeds(
+        part,
+        tuning.paths,
+        process,
+        spec[0],
+        spec[1],
+        config=config,
+        coating=coating,
+        lower=lower,
+        upper=upper,
+        initial=np.clip(dwell, lower, upper),
+        deposit=(tuning.samples, tuning.deposit_mm),
+    )
 
 
 def film_of(tuning: Tuning, plan: Plan, timing, job) -> CoatingResult:
