@@ -211,3 +211,23 @@ def test_the_tuned_plans_film_is_the_simulated_one(testdata):
     np.testing.assert_allclose(film.stroke_paint_ml, simulated.stroke_paint_ml, rtol=1e-12)
     np.testing.assert_allclose(film.stroke_deposit_mm3, simulated.stroke_deposit_mm3, rtol=1e-6, atol=1e-6)
     assert film.stroke_deposit_mm3.sum() > 0
+
+
+def test_a_flow_set_by_hand_reaches_the_plan_and_its_speed(testdata, tmp_path):
+    """``[coating] flow_ml_min``: the gun speed for the target follows it (half the flow, half the speed), and
+    plan.json's spray strokes carry that flow."""
+    config = tmp_path / "flow.toml"
+    config.write_text("[timing]\nenabled = false\n[coating]\nflow_ml_min = 100.0\n[tuning]\ntune_speed = false\n")
+    out = tmp_path / "out"
+    part = str(testdata / "meshes" / "reach_curved_part.ply")
+    argv = ["plan", part, "-c", str(config), "--units", "m", "--region", "x > -700", "-o", str(out)]
+    assert main(argv + ["--thickness-um", "50", "--no-viewer", "--no-report"]) == 0
+    data = json.loads((out / "plan.json").read_text())
+    choice = choose_spacing_and_speed(load_preset("seed000_circle").with_(flow_ml_min=100.0), 50.0, standoff_mm=113.0)
+    full = choose_spacing_and_speed(load_preset("seed000_circle"), 50.0, standoff_mm=113.0)
+    assert choice.speed_mm_s == pytest.approx(full.speed_mm_s / 2, rel=1e-12)
+    assert data["settings"]["coating"]["flow_ml_min"] == 100.0
+    assert data["settings"]["motion"]["gun_speed_mm_s"] == pytest.approx(choice.speed_mm_s)
+    assert data["totals"]["chosen_for_thickness"]["flow_ml_min"] == 100.0
+    strokes = [s for st in data["stations"] for s in st["strokes"]]
+    assert all(s["flow_ml_min"] == (100.0 if s["spray_on"] else 0.0) for s in strokes)
