@@ -13,15 +13,17 @@ not):
 4. **paths**: each robot's share of each area sliced on its own (``paths.planner.plan_paths`` with the job's
    ``[paths]``; ``direction = "auto"`` slices each piece across its own longest axis, the direction the seed
    chose by hand per area), the pieces joined by spray-off transfers;
-5. **kinematics**: each stroke solved by its robot, the track moving with the gun (a coordinated external
-   axis, as paint lines run their rail robots along a car): at every waypoint the base stands at the track
-   position of the gun tip's own position along the track, plus an offset, clipped to the track's ends. The
-   offsets tried are 0, then 300 and 600 mm either side, each with the gun turned about its axis by 0, 90,
-   180 and 270 degrees; the first try that reaches every waypoint is kept, else the first that reaches the
-   most. Along the stroke the branch nearest the previous waypoint's joints is followed
-   (``robots.interface.follow_solutions``). Unreached waypoints are data (``reachable`` False). A fixed track
-   per stroke was tried first and dropped: one base position does not reach both ends of a 4 m stroke along a
-   car's side;
+5. **kinematics**: each stroke solved by its robot (:func:`~sprayplan.cells.tries.stroke_tries`): first with
+   the track held still through the stroke, at the middle of its extent along the track plus an offset; then
+   with the track moving with the gun (a coordinated external axis, as paint lines run their rail robots
+   along a car): at every waypoint the base stands at the gun tip's own position along the track plus an
+   offset. Offsets 0, then 300 and 600 mm either side, clipped to the track's ends, each with the gun turned
+   about its axis by 0, 90, 180 and 270 degrees; the first try that reaches every waypoint is kept, else the
+   first that reaches the most. Held still the track costs the stroke nothing at the timed speeds (a track
+   that follows the gun accelerates with every change of its speed, far slower than the arm); one base
+   position does not reach both ends of a 4 m stroke along a car's side, which then follows the gun. Along
+   the stroke the branch nearest the previous waypoint's joints is followed
+   (``robots.interface.follow_solutions``). Unreached waypoints are data (``reachable`` False);
 6. **film**: the strokes of all robots together over the whole body, cut to the runs of waypoints their
    robot reaches (:func:`reached_strokes`: an unreached waypoint leaves its surface bare), their speeds tuned
    to the target by

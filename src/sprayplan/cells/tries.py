@@ -32,14 +32,25 @@ def rot_z(angle_deg: float) -> np.ndarray:
 
 def stroke_tries(cell_robot, stroke: Stroke) -> list[tuple[np.ndarray, float]]:
     """The (track positions at the waypoints (n,) mm, roll deg) tries of a stroke, in the order they are
-    preferred; offsets that the track's ends make the same as an earlier one are left out."""
+    preferred; offsets that the track's ends make the same as an earlier one are left out.
+
+    On a track, first the track held still through the stroke, at the middle of the stroke's extent along it
+    plus each offset of :data:`TRACK_TRIES_MM`; then the track following the gun, at the gun tip's own
+    position along it plus each offset. Held still, the stroke is the arm's alone and the track moves between
+    strokes: a track that follows the gun has to speed up and slow down with every change of the gun's speed
+    along it, at an acceleration far below the arm's (``[timing] track_max_acceleration_mm_s2``), which slows
+    the whole stroke (docs/benchmarks.md, "Session 23": on the BMW body the film at the timed speeds 62.4 ->
+    71.5 % in spec). A stroke longer than the arm reaches from one place (4 m along a car's side) falls to the
+    following tries."""
     if cell_robot.track is None:
         return [(np.zeros(len(stroke)), r) for r in ROLL_TRIES_DEG]
     lo, hi = cell_robot.track.range_mm
     along = (stroke.tcp - cell_robot.base2cell[:3, 3]) @ cell_robot.track.axis
+    middle = 0.5 * (along.min() + along.max()) if len(along) else 0.0
     tracks: list[np.ndarray] = []
-    for d in TRACK_TRIES_MM:
-        s = np.clip(along + d, lo, hi)
-        if not any(np.array_equal(s, t) for t in tracks):
-            tracks.append(s)
+    for base in (np.full(len(along), middle), along):
+        for d in TRACK_TRIES_MM:
+            s = np.clip(base + d, lo, hi)
+            if not any(np.array_equal(s, t) for t in tracks):
+                tracks.append(s)
     return [(t, r) for t in tracks for r in ROLL_TRIES_DEG]
