@@ -45,28 +45,47 @@ def test_a_bad_flow_names_its_key(bad):
         FilmConfig(flow_ml_min=bad)
 
 
-def test_the_fit_keeps_the_most_surface_in_spec_per_second():
+def test_the_fit_keeps_the_most_in_spec_within_the_cycle_budget():
     """Synthetic timings: the cycle grows as the flow falls and the share in spec rises; the share kept is the
-    one with the largest share over cycle, and every share is reported."""
+    one with the most in spec whose cycle is within the budget times the first's; the first share over the
+    budget is reported and ends the search."""
     cycles = {1.0: 1000.0, 0.7: 1100.0, 0.5: 1300.0, 0.35: 1700.0, 0.25: 2300.0}
     in_spec = {1.0: 0.30, 0.7: 0.45, 0.5: 0.60, 0.35: 0.70, 0.25: 0.78}
-    job = JobConfig().replace(motion={"gun_speed_mm_s": 400.0})
+    timed_at = []
 
     def share_of(job_):
         return round(job_.motion.gun_speed_mm_s / 400.0, 6)
 
-    fitted, timed, report = fit_flow(
-        job,
-        lambda job_: [SimpleNamespace(cycle_s=cycles[share_of(job_)])],
-        lambda job_, timed_: in_spec[share_of(job_)],
-    )
-    want = max(FLOW_SHARES, key=lambda f: in_spec[f] / cycles[f])
-    assert want == 0.5  # not the slowest: the share in spec alone would keep 0.25
-    assert report["flow_share"] == want and timed[0].cycle_s == cycles[want]
-    assert fitted.coating.flow_ml_min == pytest.approx(200.0 * want)
-    assert fitted.motion.gun_speed_mm_s == pytest.approx(400.0 * want)
-    assert [t["flow_share"] for t in report["tried"]] == list(FLOW_SHARES)
-    assert [t["timed_share_in_spec"] for t in report["tried"]] == [in_spec[f] for f in FLOW_SHARES]
+    def time_at(job_):
+        timed_at.append(share_of(job_))
+        return [SimpleNamespace(cycle_s=cycles[share_of(job_)])]
+
+    for budget, want in ((1.5, 0.5), (1.0, 1.0), (1.7, 0.35), (3.0, 0.25)):
+        timed_at.clear()
+        job = JobConfig().replace(motion={"gun_speed_mm_s": 400.0}, timing={"fit_cycle_budget": budget})
+        fitted, timed, report = fit_flow(job, time_at, lambda job_, timed_: in_spec[share_of(job_)])
+        within = [f for f in FLOW_SHARES if cycles[f] <= budget * cycles[1.0]]
+        assert want == max(within, key=lambda f: in_spec[f])
+        assert report["flow_share"] == want and timed[0].cycle_s == cycles[want]
+        assert fitted.coating.flow_ml_min == pytest.approx(200.0 * want)
+        assert fitted.motion.gun_speed_mm_s == pytest.approx(400.0 * want)
+        assert report["cycle_budget_s"] == pytest.approx(budget * 1000.0)
+        # every share within the budget, and the first beyond it (not measured), then no more
+        over = [f for f in FLOW_SHARES if f not in within][:1]
+        assert timed_at == within + over
+        assert [t["flow_share"] for t in report["tried"]] == within + over
+        assert [t.get("timed_share_in_spec") for t in report["tried"]] == [in_spec[f] for f in within] + [None] * len(
+            over
+        )
+        assert [t.get("over_budget", False) for t in report["tried"]] == [False] * len(within) + [True] * len(over)
+
+
+@pytest.mark.parametrize("bad", [0.5, float("nan"), 1e6])
+def test_a_bad_cycle_budget_names_its_key(bad):
+    from sprayplan.config import TimingConfig
+
+    with pytest.raises(ConfigError, match="timing.fit_cycle_budget"):
+        TimingConfig(fit_cycle_budget=bad)
 
 
 @pytest.fixture(scope="module")
@@ -99,9 +118,11 @@ def test_a_fitted_cell_plan_is_the_plan_at_the_share_kept(fitted_and_not):
     assert first["timed_share_in_spec"] == pytest.approx(own_timed["share_in_spec"], abs=1e-6)
     assert first["timed_cycle_s"] == pytest.approx(own.report["cycle_time_s"], abs=1e-3)
     assert "flow_fit" not in own.report
-    # the share kept has the most surface in spec per second of all tried
-    rates = [t["timed_share_in_spec"] / t["timed_cycle_s"] for t in fit["tried"]]
-    assert rates[[t["flow_share"] for t in fit["tried"]].index(fit["flow_share"])] == pytest.approx(max(rates))
+    # the share kept has the most surface in spec of all within the cycle budget
+    within = [t for t in fit["tried"] if not t.get("over_budget")]
+    assert all(t["timed_cycle_s"] <= fit["cycle_budget_s"] + 1e-3 for t in within)
+    assert kept["timed_share_in_spec"] == max(t["timed_share_in_spec"] for t in within)
+    assert fit["cycle_budget_s"] == pytest.approx(1.5 * first["timed_cycle_s"], abs=2e-3)
 
 
 def test_speeds_tuned_within_the_limits_are_the_speeds_the_robots_make():

@@ -959,10 +959,13 @@ class TimingConfig(Section):
     fit_flow : bool
         A cell plan (``--cell``) with a film target and tuned speeds: the paint's flow and the gun speed scaled
         down together to what the robots make (``cells.fit``: of the shares 1, 0.7, 0.5, 0.35 and 0.25, the one
-        with the most surface in spec at the timed speeds per second of the timed cycle; every share tried is in
-        the report's ``flow_fit``). The plan's predicted film does not change; the film the robots leave at
-        their timed speeds comes nearer to it and the cycle grows. False: the flow as set. Gantry plans keep
-        the flow as set.
+        with the most surface in spec at the timed speeds whose timed cycle is within ``fit_cycle_budget``
+        times the cycle at the flow as set; every share tried is in the report's ``flow_fit``). The plan's
+        predicted film does not change; the film the robots leave at their timed speeds comes nearer to it and
+        the cycle grows. False: the flow as set. Gantry plans keep the flow as set.
+    fit_cycle_budget : float
+        The longest timed cycle the flow fit may take, as a multiple of the timed cycle at the flow as set
+        (1.5: half as long again; 1: the flow as set).
     """
 
     SECTION = "timing"
@@ -977,6 +980,7 @@ class TimingConfig(Section):
     joint_jump_deg: float = 30.0
     film_at_timed_speeds: bool = False
     fit_flow: bool = True
+    fit_cycle_budget: float = 1.5
 
     def _check(self):
         from sprayplan.robots.model import check_rate_limits
@@ -1005,6 +1009,7 @@ class TimingConfig(Section):
         _within(TimingConfig, "check_steps", self.check_steps, 1, 100)
         _within(TimingConfig, "max_rounds", self.max_rounds, 0, 100)
         _within(TimingConfig, "joint_jump_deg", self.joint_jump_deg, 1e-6, 360.0)
+        _within(TimingConfig, "fit_cycle_budget", self.fit_cycle_budget, 1.0, 100.0)
 
 
 @dataclass(frozen=True)

@@ -11,11 +11,11 @@ the planned speed on average (they start and stop every stretch at rest, and the
 A painter in that place lowers the flow, so that the gun can go slower for the same film. Here the flow and
 the gun speed are scaled together by each share of :data:`FLOW_SHARES` (the film the plan predicts, deposit
 over the time factors, does not change: only the speed the robots are asked for), the robots are timed again
-at each, and the film at the timed speeds is found from the tuning's deposit matrix; the share kept is the
-one with the most surface in spec per second of the cell's timed cycle (good paint per second: slower always
-brings the timed film nearer the plan's, at a longer cycle, so the share in spec alone would always take the
-slowest). Every share tried is reported (``report["flow_fit"]``), so that a user who values the film over the
-cycle can set ``[coating] flow_ml_min`` from the table and turn the fit off.
+at each, and the film at the timed speeds is found from the tuning's deposit matrix. Slower always brings the
+timed film nearer the plan's, at a longer cycle, so the share kept is the one with the most surface in spec at
+the timed speeds among those whose timed cycle is within ``[timing] fit_cycle_budget`` times the cycle at the
+flow as set (1.5 by default: half as long again). Every share tried is reported (``report["flow_fit"]``), so
+that a user can set ``[coating] flow_ml_min`` from the table and turn the fit off, or set the budget.
 """
 
 from __future__ import annotations
@@ -38,35 +38,40 @@ def scaled_job(job: JobConfig, share: float, flow_ml_min: float) -> JobConfig:
 
 
 def fit_flow(job: JobConfig, time_at: Callable, in_spec_at: Callable) -> tuple[JobConfig, object, dict]:
-    """The share of :data:`FLOW_SHARES` with the most surface in spec per second of timed cycle (module
-    docstring): ``time_at(job)`` times the robots for a job (their ``WorkTiming`` list), ``in_spec_at(job,
-    timed)`` is the share of the painted area in spec at those timed speeds. Returns the job at the share kept,
-    its timing, and the report: the flow and speed, timed cycle and share in spec of every share tried."""
+    """The share of :data:`FLOW_SHARES` with the most surface in spec at the timed speeds among those whose
+    timed cycle is within ``job.timing.fit_cycle_budget`` times the first's (module docstring): ``time_at(job)``
+    times the robots for a job (their ``WorkTiming`` list), ``in_spec_at(job, timed)`` is the share of the
+    painted area in spec at those timed speeds. Returns the job at the share kept, its timing, and the report:
+    the flow and speed, timed cycle and share in spec of every share tried."""
     from sprayplan.coating.stage import job_paint
 
     flow = float(job_paint(job).flow_ml_min)
-    tried, best = [], None
+    budget = float(job.timing.fit_cycle_budget)
+    tried, best, limit = [], None, None
     for share in FLOW_SHARES:
         scaled = scaled_job(job, share, flow)
         timed = time_at(scaled)
         cycle = max((t.cycle_s for t in timed), default=0.0)
+        limit = cycle * budget if limit is None else limit
+        entry = {
+            "flow_share": share,
+            "flow_ml_min": round(flow * share, 4),
+            "gun_speed_mm_s": round(scaled.motion.gun_speed_mm_s, 4),
+            "timed_cycle_s": round(cycle, 3),
+        }
+        tried.append(entry)
+        if cycle > limit * (1.0 + 1e-9):
+            entry["over_budget"] = True
+            break  # a lower flow only takes longer still
         in_spec = float(in_spec_at(scaled, timed))
-        rate = in_spec / cycle if cycle > 0 else in_spec
-        tried.append(
-            {
-                "flow_share": share,
-                "flow_ml_min": round(flow * share, 4),
-                "gun_speed_mm_s": round(scaled.motion.gun_speed_mm_s, 4),
-                "timed_cycle_s": round(cycle, 3),
-                "timed_share_in_spec": round(in_spec, 6),
-            }
-        )
-        if best is None or rate > best[0]:
-            best = (rate, share, scaled, timed)
+        entry["timed_share_in_spec"] = round(in_spec, 6)
+        if best is None or in_spec > best[0]:
+            best = (in_spec, share, scaled, timed)
     _, share, scaled, timed = best
     report = {
-        "rule": "flow and gun speed scaled together; kept: the most surface in spec at the timed speeds per "
-        "second of the timed cycle",
+        "rule": f"flow and gun speed scaled together; kept: the most surface in spec at the timed speeds with "
+        f"the timed cycle within {budget:g} times the first's",
+        "cycle_budget_s": round(limit, 3),
         "flow_share": share,
         "flow_ml_min": round(flow * share, 4),
         "gun_speed_mm_s": round(scaled.motion.gun_speed_mm_s, 4),
