@@ -26,6 +26,7 @@ import logging
 
 import numpy as np
 
+from sprayplan.cells.work import with_tuned_dwell
 from sprayplan.refine.limits import CAP_SLACK, SETTLED_SHARE, SETTLED_TOLERANCES, _off_share, bounded_tuning
 from sprayplan.refine.stage import lower_dwell, tuning_settings
 
@@ -49,8 +50,6 @@ def _timed_columns(robots, timed, owners, job) -> np.ndarray:
 
 def _with_columns(robots, tuning, owners, dwell):
     """The robots with the factors ``dwell`` (the tuning's column order) on their reached runs."""
-    from sprayplan.cells.plan import with_tuned_dwell
-
     starts = np.r_[0, np.cumsum([len(s) for s in tuning.paths.strokes])]
     strokes = [s.with_dwell(dwell[a : a + len(s)]) for s, a in zip(tuning.paths.strokes, starts)]
     return with_tuned_dwell(robots, strokes, owners)

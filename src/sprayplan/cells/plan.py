@@ -87,7 +87,7 @@ from sprayplan.cells.repair import repaired_work
 from sprayplan.cells.seams import SEAM_STEP_MM, SeamGuard, cut_stroke, feathered
 from sprayplan.cells.spec import Cell, place_part
 from sprayplan.cells.tries import rot_z, start_joints, stroke_tries
-from sprayplan.cells.work import RobotWork, joined_transfers, transfer_stroke
+from sprayplan.cells.work import RobotWork, joined_transfers, transfer_stroke, with_tuned_dwell
 from sprayplan.config import JobConfig
 from sprayplan.errors import ConfigError, InputError
 from sprayplan.progress import Progress, no_progress, per_stage
@@ -393,18 +393,6 @@ def touch_up_targets(samples, tuned: np.ndarray, face_robot: np.ndarray) -> np.n
     on = face >= 0
     reached[on] = face_robot[face[on]] >= 0
     return tuned | reached
-
-
-def with_tuned_dwell(robots, tuned, owners) -> tuple:
-    """The robots' strokes with the time factors the tuning chose for their reached runs (unreached waypoints
-    keep theirs)."""
-    dwell = [[s.dwell.copy() for s in r.strokes] for r in robots]
-    for stroke, (r_i, s_i, a, b) in zip(tuned, owners):
-        dwell[r_i][s_i][a:b] = stroke.dwell
-    return tuple(
-        dataclasses.replace(r, strokes=tuple(s.with_dwell(d) for s, d in zip(r.strokes, dwell[i])))
-        for i, r in enumerate(robots)
-    )
 
 
 def _append(arrays: dict, track, roll, q, ok) -> None:

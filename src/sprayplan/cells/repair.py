@@ -291,7 +291,7 @@ def free_work(work, found, resolve=None, backs=None, since: int = 0) -> tuple:
                 pending = [(lo, hi, SPLIT_DEPTH)]
                 while pending:
                     lo, hi, depth = pending.pop(0)
-                    k = a + lo - 1 if lo > 0 and work.reachable[a + lo - 1] else last_reached[a + lo]
+                    k = last_reached[a + lo]  # the piece's first waypoint where reached (the run's free neighbour)
                     seed = work.q[k] if k >= 0 else start_joints(work.q.shape[1])
                     cut = cut_stroke(stroke, lo, hi)
                     solved = resolve(cut, seed)

@@ -150,3 +150,15 @@ def without_strokes(work: RobotWork, drop) -> RobotWork:
         collides=None,
     )
     return joined_transfers(out)
+
+
+def with_tuned_dwell(robots, tuned, owners) -> tuple:
+    """The robots' strokes with the time factors the tuning chose for their reached runs (unreached waypoints
+    keep theirs)."""
+    dwell = [[s.dwell.copy() for s in r.strokes] for r in robots]
+    for stroke, (r_i, s_i, a, b) in zip(tuned, owners):
+        dwell[r_i][s_i][a:b] = stroke.dwell
+    return tuple(
+        dataclasses.replace(r, strokes=tuple(s.with_dwell(d) for s, d in zip(r.strokes, dwell[i])))
+        for i, r in enumerate(robots)
+    )
