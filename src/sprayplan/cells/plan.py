@@ -299,38 +299,6 @@ def plan_strokes(strokes, cell: Cell, name: str = "") -> CellPlan:
                     {"kinematics": round(time.perf_counter() - start, 3)}, name)  # fmt: skip
 
 
-def _fit_flow(plan: CellPlan, job: JobConfig, tuning, owners, everything, coating, report: dict):
-    """``cells.fit.fit_flow`` on the plan's robots (before they are timed), and what changes with the flow
-    kept: the job, the robots' timings at it, the process, the film (the same thicknesses; its stroke times
-    and flows at that process), and the report's chosen speed and flow, its lengths over speed and its
-    ``flow_fit``."""
-    from sprayplan.cells.fit import fit_flow
-    from sprayplan.cells.timing import time_cell, with_times
-    from sprayplan.coating.report import weighted_stats
-    from sprayplan.coating.stage import process_for
-    from sprayplan.refine.tuning import tuned_film
-
-    target, tol = job.coating.thickness_um, job.coating.tolerance
-    robots = plan.robots
-
-    def in_spec_at(job_, timed):
-        at = dataclasses.replace(plan, robots=with_times(robots, timed), job=job_)
-        film_ = film_at_timed_speeds(at, owners, tuning, everything, process_for(job_), coating)
-        return weighted_stats(film_.thickness_um, film_.area_mm2, target - tol, target + tol)["share_in_spec"]
-
-    job, timed, report["flow_fit"] = fit_flow(job, lambda job_: time_cell(plan.cell, robots, job_), in_spec_at)
-    process = process_for(job)
-    chosen = report.get("chosen_for_thickness") or {}
-    chosen.update(
-        {"gun_speed_mm_s": job.motion.gun_speed_mm_s, "flow_ml_min": process.flow_ml_min, "fitted_to_robots": True}
-    )
-    speed, transfer = job.motion.gun_speed_mm_s, job.motion.transfer_speed_mm_s
-    for r in robots:
-        report["robots"][r.name]["cycle_time_s"] = round(r.cycle_time_s(speed, transfer), 3)
-    report["cycle_time_s"] = max((e["cycle_time_s"] for e in report["robots"].values()), default=0.0)
-    return job, timed, process, tuned_film(tuning, process, coating)
-
-
 def reached_strokes(robots) -> tuple[list, list]:
     """The spray the robots can make: every spray stroke cut to its runs of reached waypoints (a run of one
     waypoint sprays nothing, so it is left out), all robots one after another. Returns the strokes and, for
@@ -729,7 +697,9 @@ def plan_cell(
         begin("timing")
         timed_work = None
         if job.timing.fit_flow and tuning is not None and target is not None:
-            job, timed_work, process, film = _fit_flow(plan, job, tuning, film_owners, everything, coating, report)
+            from sprayplan.cells.fit import fit_cell_flow
+
+            job, timed_work, process, film = fit_cell_flow(plan, job, tuning, film_owners, everything, coating, report)
             plan = dataclasses.replace(plan, job=job, film=film)
         if job.tuning.limit_rounds and tuning is not None and target is not None:
             from sprayplan.cells.limits import tune_cell_within_limits
