@@ -241,13 +241,18 @@ def test_a_robot_inside_the_part_is_exit_2_and_nothing_written(planned, tmp_path
 
 
 def test_the_pictures_are_written(planned):
-    """areas.png and film.png: images of the figure's size (a person looks at them; see docs/cells.md)."""
+    """areas.png, film.png and film_timed.png: images of the figure's size (a person looks at them; see
+    docs/cells.md); the film at the timed speeds, thicker than planned where the robots are slower, is not the
+    planned film's picture."""
     import matplotlib.image
 
-    for name in ("areas.png", "film.png"):
+    images = {}
+    for name in ("areas.png", "film.png", "film_timed.png"):
         image = matplotlib.image.imread(planned["out"] / name)
         assert image.shape[:2] == (585, 1440)
         assert image[..., :3].std() > 0.05  # not a blank page
+        images[name] = image[..., :3]
+    assert np.abs(images["film.png"] - images["film_timed.png"]).max() > 0.1
 
 
 def test_the_film_is_made_only_by_reached_runs_and_their_tuning_goes_back():

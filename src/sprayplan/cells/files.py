@@ -17,8 +17,9 @@
     the time the robot reaches the waypoint in the cell's schedule, empty without ``--collisions``).
 ``areas.csv``
     One row a face of the painted surface: ``face, area, direction, robot, robot_index``.
-``areas.png``, ``film.png``
-    Pictures: the robot of each face, and the film (``cells.pictures``).
+``areas.png``, ``film.png``, ``film_timed.png``
+    Pictures: the robot of each face, the film, and the film at the robots' timed speeds (with a film target
+    and timing) (``cells.pictures``).
 ``cell.html``
     The 3D viewer (``view.cell_html``): the film, each robot's faces, strokes, base and track, the waypoints
     unreached or in collision; one self-contained page.
@@ -45,7 +46,7 @@ READ_VERSIONS = (1, 2)
 #: The files a cell plan writes into its folder.
 CELL_FILES = (
     "cell_plan.json", "waypoints.csv", "areas.csv", "areas.png", "thickness.ply", "thickness.csv", "coating.json",
-    "film.png", "cell.html",
+    "film.png", "film_timed.png", "cell.html",
 )  # fmt: skip
 WAYPOINT_COLUMNS = [
     "robot", "stroke", "waypoint", "kind", "area", "x_mm", "y_mm", "z_mm", "nx", "ny", "nz", "dwell", "track_mm",
@@ -197,6 +198,10 @@ def write_cell_plan(outdir, plan, target_um: float = 50.0, tolerance_um: float =
         path = os.path.join(outdir, "film.png")
         film_picture(path, plan, target_um, tolerance_um)
         written.append(path)
+        if getattr(plan, "timed_film", None) is not None:
+            path = os.path.join(outdir, "film_timed.png")
+            film_picture(path, plan, target_um, tolerance_um, timed=True)
+            written.append(path)
         for name, write in (("thickness.ply", None), ("thickness.csv", write_thickness_csv)):
             path = os.path.join(outdir, name)
             if write is None:

@@ -1,5 +1,6 @@
 """Pictures of a cell plan a person can check (``sprayplan plan --cell``): ``areas.png``, the surface coloured
-by the robot that paints it, and ``film.png``, the film over the whole body, each from two opposite
+by the robot that paints it, ``film.png``, the film over the whole body, and ``film_timed.png``, the film the
+robots leave at the speeds they make within their limits, each from two opposite
 three-quarter views so that both sides of a body show. Faces no robot reaches are grey in ``areas.png``; the
 film's colours are ``export.film.thickness_colours`` (blue bare, green in spec, red twice the target).
 """
@@ -76,11 +77,12 @@ def areas_picture(path: str, plan) -> None:
     _save(fig, path)
 
 
-def film_picture(path: str, plan, target_um: float, tolerance_um: float) -> None:
-    """``film.png``: each face coloured by the mean film of the samples nearest it."""
+def film_picture(path: str, plan, target_um: float, tolerance_um: float, timed: bool = False) -> None:
+    """``film.png``: each face coloured by the mean film of the samples nearest it; with ``timed``,
+    ``film_timed.png``: the film the robots leave at their timed speeds (``plan.timed_film``)."""
     from sprayplan.export.film import thickness_colours
 
-    film = plan.film
+    film = plan.timed_film if timed else plan.film
     centres = plan.part.triangles.mean(axis=1)
     nearest = cKDTree(centres).query(film.points)[1]
     m = len(centres)
@@ -92,8 +94,10 @@ def film_picture(path: str, plan, target_um: float, tolerance_um: float) -> None
     fig = _figure()
     for k in range(2):
         _surface(_axes(fig, plan.part, k), plan.part, colours)
-    whole = plan.report.get("film", {}).get("whole", {})
+    report = plan.report.get("film", {})
+    whole = (report.get("at_timed_speeds", {}) if timed else report).get("whole", {})
     share = whole.get("share_in_spec")
     note = f": {100 * share:.1f} % within {target_um:g} +- {tolerance_um:g} um" if share is not None else ""
-    fig.suptitle(f"film over {plan.part.name} (blue bare, green in spec, red twice the target){note}")
+    what = "at the robots' timed speeds " if timed else ""
+    fig.suptitle(f"film {what}over {plan.part.name} (blue bare, green in spec, red twice the target){note}")
     _save(fig, path)

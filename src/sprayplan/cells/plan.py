@@ -143,6 +143,9 @@ class CellPlan:
     job : JobConfig or None
         The settings the plan was made with, the gun speed and spacing chosen for the film target among them
         (what the robot programs carry, ``programs.arms``).
+    timed_film : CoatingResult or None
+        The film the robots leave at their timed speeds (``report["film"]["at_timed_speeds"]`` in brief), when
+        the plan was timed with a film target; not read back from ``cell_plan.json``.
     """
 
     cell: Cell
@@ -156,6 +159,7 @@ class CellPlan:
     timings_s: dict = field(default_factory=dict)
     name: str = ""
     job: object = field(default=None, compare=False)
+    timed_film: object = field(default=None, compare=False)
 
 
 def _sub_part(part: Part, keep: np.ndarray, name: str) -> Part:
@@ -717,6 +721,7 @@ def plan_cell(
         plan = dataclasses.replace(plan, robots=robots)
         if film is not None and target is not None:
             timed = film_at_timed_speeds(plan, film_owners, tuning, everything, process, coating)
+            plan = dataclasses.replace(plan, timed_film=timed)
             report["film"]["at_timed_speeds"] = timed_film_summary(
                 dataclasses.replace(plan, film=timed),
                 target,
