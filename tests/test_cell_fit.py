@@ -129,9 +129,9 @@ def test_speeds_tuned_within_the_limits_are_the_speeds_the_robots_make():
     """``[tuning] limit_rounds`` with a cell: after the rounds no reached spray waypoint asks for more speed
     than its robot makes (its planned time factor is at least its timed one), so the plan's own film is the
     film at the timed speeds."""
-    from sprayplan.cells.limits import owned
     from sprayplan.cells.plan import reached_strokes
     from sprayplan.cells.timing import timed_factors
+    from sprayplan.cells.work import owned
 
     cell = cell_from_dict(CELL)
     job = JobConfig().replace(coating={"thickness_um": 50.0}, tuning={"touch_up_rounds": 0, "limit_rounds": 2})
@@ -152,7 +152,7 @@ def test_speeds_tuned_within_the_limits_are_the_speeds_the_robots_make():
 def test_owned_gathers_the_runs_in_the_tunings_order():
     robots = [SimpleNamespace(strokes=[np.zeros(3), np.zeros(2)]), SimpleNamespace(strokes=[np.zeros(4)])]
     values = [np.array([0, 1, 2, 3, 4]), np.array([10, 11, 12, 13])]
-    from sprayplan.cells.limits import owned
+    from sprayplan.cells.work import owned
 
     got = owned(values, robots, [(1, 0, 1, 3), (0, 1, 0, 2), (0, 0, 0, 1)])
     assert got.tolist() == [11, 12, 3, 4, 0]

@@ -11,6 +11,7 @@ import dataclasses
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sprayplan.cells.work import owned, runs_with_dwell
 from sprayplan.surface.areas import face_adjacency
 from sprayplan.types import Paths
 
@@ -85,13 +86,8 @@ def film_at_timed_speeds(plan, owners, tuning, strokes, process, coating):
     from the last tuning's deposit matrix (``tuning``), or simulated anew without one."""
     from sprayplan.cells.timing import timed_factors
 
-    factors = timed_factors(plan.robots, plan.job)
-    starts = [np.r_[0, np.cumsum([len(s) for s in r.strokes])] for r in plan.robots]
     runs = tuning.paths.strokes if tuning is not None else strokes
-    timed = tuple(
-        s.with_dwell(factors[r_i][starts[r_i][s_i] + a : starts[r_i][s_i] + b])
-        for s, (r_i, s_i, a, b) in zip(runs, owners)
-    )
+    timed = runs_with_dwell(runs, owned(timed_factors(plan.robots, plan.job), plan.robots, owners))
     paths = Paths(timed, plan.job.paths.standoff_mm, plan.job.paths.spacing or 0.0, plan.part.name)
     if tuning is not None:
         from sprayplan.refine.tuning import tuned_film

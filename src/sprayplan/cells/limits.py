@@ -26,33 +26,23 @@ import logging
 
 import numpy as np
 
-from sprayplan.cells.work import with_tuned_dwell
+from sprayplan.cells.timing import timed_factors, with_times
+from sprayplan.cells.work import owned, runs_with_dwell, with_tuned_dwell
 from sprayplan.refine.limits import CAP_SLACK, SETTLED_SHARE, SETTLED_TOLERANCES, _off_share, bounded_tuning
 from sprayplan.refine.stage import lower_dwell, tuning_settings
 
 log = logging.getLogger(__name__)
 
 
-def owned(values: list, robots, owners) -> np.ndarray:
-    """Per-waypoint ``values`` of the robots (one array per robot, over its strokes one after another)
-    gathered in the tuning's column order: each owner ``(robot, stroke, a, b)``'s slice, one after another."""
-    starts = [np.r_[0, np.cumsum([len(s) for s in r.strokes])] for r in robots]
-    parts = [values[r][starts[r][s] + a : starts[r][s] + b] for r, s, a, b in owners]
-    return np.concatenate(parts) if parts else np.zeros(0)
-
-
 def _timed_columns(robots, timed, owners, job) -> np.ndarray:
-    from sprayplan.cells.timing import timed_factors, with_times
-
-    factors = timed_factors(with_times(robots, timed), job)
-    return owned(factors, robots, owners)
+    """The timed time factors of the robots' reached runs (``timed``: their ``WorkTiming``), in the tuning's
+    column order."""
+    return owned(timed_factors(with_times(robots, timed), job), robots, owners)
 
 
 def _with_columns(robots, tuning, owners, dwell):
     """The robots with the factors ``dwell`` (the tuning's column order) on their reached runs."""
-    starts = np.r_[0, np.cumsum([len(s) for s in tuning.paths.strokes])]
-    strokes = [s.with_dwell(dwell[a : a + len(s)]) for s, a in zip(tuning.paths.strokes, starts)]
-    return with_tuned_dwell(robots, strokes, owners)
+    return with_tuned_dwell(robots, runs_with_dwell(tuning.paths.strokes, dwell), owners)
 
 
 def tune_cell_within_limits(part, robots, tuning, owners, job, process, coating, time_at, timed=None):
@@ -99,9 +89,8 @@ def tune_cell_within_limits(part, robots, tuning, owners, job, process, coating,
     slower = at > dwell
     active = (lower > base_lower * (1.0 + CAP_SLACK)) & (dwell <= lower * (1.0 + CAP_SLACK))
     final = np.where(slower | active, at, dwell)
-    robots = _with_columns(robots, tuning, owners, final)
-    starts = np.r_[0, np.cumsum([len(s) for s in tuning.paths.strokes])]
-    strokes = tuple(s.with_dwell(final[a : a + len(s)]) for s, a in zip(tuning.paths.strokes, starts))
+    strokes = runs_with_dwell(tuning.paths.strokes, final)
+    robots = with_tuned_dwell(robots, strokes, owners)
     tuning = dataclasses.replace(tuning, paths=dataclasses.replace(tuning.paths, strokes=strokes))
     summary = {
         "rounds": rounds,

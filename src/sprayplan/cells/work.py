@@ -162,3 +162,18 @@ def with_tuned_dwell(robots, tuned, owners) -> tuple:
         dataclasses.replace(r, strokes=tuple(s.with_dwell(d) for s, d in zip(r.strokes, dwell[i])))
         for i, r in enumerate(robots)
     )
+
+
+def owned(values: list, robots, owners) -> np.ndarray:
+    """Per-waypoint ``values`` of the robots (one array per robot, over its strokes one after another)
+    gathered in the tuning's column order: each owner ``(robot, stroke, a, b)``'s slice (``cells.plan.
+    reached_strokes``), one after another."""
+    starts = [np.r_[0, np.cumsum([len(s) for s in r.strokes])] for r in robots]
+    parts = [values[r][starts[r][s] + a : starts[r][s] + b] for r, s, a, b in owners]
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def runs_with_dwell(runs, columns: np.ndarray) -> tuple:
+    """The strokes ``runs`` with the time factors ``columns`` (over all of them one after another)."""
+    starts = np.r_[0, np.cumsum([len(s) for s in runs])]
+    return tuple(s.with_dwell(columns[a : a + len(s)]) for s, a in zip(runs, starts))
