@@ -47,7 +47,7 @@ def where_slower(cell, plan, job, ends_mm: float) -> dict:
         q = axes.of(work)
         stretches = list(cell_timing._stretches(work, axes, q, job.motion, jump))
         timings = time_paths(
-            [(q[i], cap) for i, cap in stretches],
+            [(path, cap) for path, cap, *_ in stretches],
             limits,
             axes.tip,
             check_steps=job.timing.check_steps,
@@ -55,13 +55,16 @@ def where_slower(cell, plan, job, ends_mm: float) -> dict:
         )
         lengths, time = [], {"ends_planned": 0.0, "ends_timed": 0.0, "inside_planned": 0.0, "inside_timed": 0.0}
         held_back = np.zeros(q.shape[1] + 1, int)
-        for (idx, cap), t in zip(stretches, timings):
+        for (_, caps, idx, up, run_out), t in zip(stretches, timings):
+            # the stretch's own waypoints (its run-up and run-out, spray off, left out of the figures)
+            cap = caps[int(up) : len(caps) - int(run_out)]
+            t_s = t.t_s[int(up) : len(t.t_s) - int(run_out)]
             step = np.linalg.norm(np.diff(axes.tip(q[idx]), axis=0), axis=1)
             along = np.r_[0.0, np.cumsum(step)]
             lengths.append(along[-1])
             middle = (along[:-1] + along[1:]) / 2
             at_end = (middle < ends_mm) | (middle > along[-1] - ends_mm)
-            real, planned = np.diff(t.t_s), step / cap
+            real, planned = np.diff(t_s), step / cap
             time["ends_planned"] += planned[at_end].sum()
             time["ends_timed"] += real[at_end].sum()
             time["inside_planned"] += planned[~at_end].sum()

@@ -147,12 +147,36 @@ def _expected_poses(plan, cell, robot_index):
     return np.array(poses), np.array(tracks), np.array(spray), np.array(reach)
 
 
+def _lead_poses(plan, cell, robot_index, poses):
+    """The run-ups' starts and run-outs' ends of a robot from cell_plan.json alone (its ``leads``: waypoint,
+    side, joints, track), by the same chain as :func:`_expected_poses` with their waypoint's standoff; and
+    their waypoints and sides."""
+    cr = cell.robots[robot_index]
+    work = plan["robots"][robot_index]
+    leads = work.get("leads")
+    if leads is None or not len(leads["waypoint"]):
+        return np.zeros((0, 4, 4)), np.zeros(0, int), np.zeros(0, int)
+    params = load_opw(cr.model)
+    gun = load_gun(cr.tool).gun2flange
+    standoff = np.concatenate([np.linalg.norm(s["tcp_mm"] - s["points_mm"], axis=1) for s in work["strokes"]])
+    out = []
+    for k, q, track in zip(leads["waypoint"], leads["q_rad"], leads["track_mm"]):
+        base = cr.base2cell.copy()
+        if cr.track is not None:
+            base[:3, 3] += track * np.asarray(cr.track.axis)
+        target = np.eye(4)
+        target[2, 3] = standoff[k]
+        out.append(base @ opw_fk(params, q)[0] @ gun @ target)
+    return np.array(out), np.asarray(leads["waypoint"], int), np.asarray(leads["side"], int)
+
+
 @pytest.mark.parametrize("fmt", FORMATS)
 def test_each_robots_program_read_back_moves_to_its_waypoints(runs, fmt):
     """The programs read back by their own strict readers: every linear target is a reached spray waypoint of
-    its robot (pose from cell_plan.json's joints, 0.01 mm / 0.01 deg) or an approach / retract on a waypoint's
-    gun axis; the track is the external axis; every reached spray waypoint is moved to except those the
-    summary lists as left out."""
+    its robot (pose from cell_plan.json's joints, 0.01 mm / 0.01 deg), a run-up's start or a run-out's end of
+    the plan, or an approach / retract on the gun axis of a waypoint or of a run-up's start or run-out's end;
+    the track is the external axis; every reached spray waypoint is moved to except those the summary lists as
+    left out; every run-up and run-out of the plan is made but those the summary counts as left out."""
     written = runs[fmt]
     plan, cell = written["plan"], written["cell"]
     job = JobConfig()
@@ -161,8 +185,10 @@ def test_each_robots_program_read_back_moves_to_its_waypoints(runs, fmt):
         axes = 0 if cr.track is None else 1
         read = read_programs(folder, job, fmt, axes)
         poses, tracks, spray, reach = _expected_poses(plan, cell, i)
+        leads, _, _ = _lead_poses(plan, cell, i, poses)
         want = np.flatnonzero(spray & reach)
-        hit = set()
+        axis_bases = np.concatenate([poses[want], leads])
+        hit, leads_hit = set(), set()
         for move in read.moves:
             assert len(move.external_mm) == axes
             if move.kind != "linear":
@@ -177,12 +203,21 @@ def test_each_robots_program_read_back_moves_to_its_waypoints(runs, fmt):
                 if axes:
                     assert abs(move.external_mm[0] - tracks[k]) <= 1e-3
                 hit.add(k)
-            else:  # an approach or retract: on some waypoint's gun axis, behind it
-                rel = move.pose[:3, 3] - poses[want, :3, 3]
-                along = np.einsum("ij,ij->i", rel, poses[want, :3, 2])
-                off = np.linalg.norm(rel - along[:, None] * poses[want, :3, 2], axis=1)
-                assert ((off <= 0.01) & (along < 0)).any()
+                continue
+            d = np.linalg.norm(leads[:, :3, 3] - move.pose[:3, 3], axis=1) if len(leads) else np.zeros(0)
+            if (d <= 0.01).any():  # a run-up's start or a run-out's end
+                leads_hit.add(int(np.argmin(d)))
+                continue
+            # an approach or retract: on the gun axis of a waypoint, a run-up's start or a run-out's end, behind it
+            rel = move.pose[:3, 3] - axis_bases[:, :3, 3]
+            along = np.einsum("ij,ij->i", rel, axis_bases[:, :3, 2])
+            off = np.linalg.norm(rel - along[:, None] * axis_bases[:, :3, 2], axis=1)
+            assert ((off <= 0.01) & (along < 0)).any()
         summary = json.loads((folder / "summary.json").read_text())
+        counts = summary["counts"]
+        assert len(leads) > 0 and counts["run_ups"] + counts["run_outs"] > 0
+        assert len(leads_hit) == counts["run_ups"] + counts["run_outs"]
+        assert counts["run_ups"] + counts["run_outs"] + counts["run_ups_left_out"] == len(leads)
         unapproachable = len(summary["left_out"]["unapproachable_waypoints"])
         duplicates = summary["counts"]["duplicate_waypoints"]
         assert len(hit) >= len(want) - unapproachable - duplicates
@@ -391,8 +426,8 @@ def test_one_fixed_robot_gets_its_programs_checked(tmp_path, robot, formats):
 
 
 def test_program_motions_are_checked_with_the_collision_model(written, tmp_path):
-    """``plan --cell ... --collisions --program rapid``: the program's joint moves, approaches and retracts are
-    sampled and checked (``summary.json``: ``counts.program_motions``), one motion each; and a motion ending in
+    """``plan --cell ... --collisions --program rapid``: the program's joint moves, approaches, retracts, run-ups
+    and run-outs are sampled and checked (``summary.json``: ``counts.program_motions``), one motion each; and a motion ending in
     the box is found, one between two poses clear of it is not."""
     pytest.importorskip("coal")
     from sprayplan.cells.collide import cell_arms
@@ -409,9 +444,11 @@ def test_program_motions_are_checked_with_the_collision_model(written, tmp_path)
         found = json.loads((folder / "summary.json").read_text())["counts"]["program_motions"]
         axes = 1 if robot == "left" else 0
         moves = read_programs(folder, JobConfig(), "rapid", axes).moves
+        counts = json.loads((folder / "summary.json").read_text())["counts"]
         expected = sum(1 for m in moves[1:] if m.kind == "joint") + 2 * sum(
             1 for a, b in itertools.pairwise(moves) if a.kind == "joint" and b.kind == "linear"
-        )
+        )  # joint moves, approaches and retracts
+        expected += counts["run_ups"] + counts["run_outs"]
         assert found["motions_checked"] == expected and found["samples"] >= expected
         # the plan's waypoints still in collision are left out, each listed
         data = read_cell_plan(out / "cell_plan.json")
@@ -485,6 +522,7 @@ def _split_at(work, i: int, m: int, flip: bool):
     return dataclasses.replace(
         work, strokes=strokes, area=area, q=joints, track_mm=pick(work.track_mm), roll_deg=pick(work.roll_deg),
         reachable=pick(work.reachable), collides=None, t_s=None, wait_s=None,
+        lead_q=pick(work.lead_q), lead_track_mm=pick(work.lead_track_mm), lead_s=None,
     )  # fmt: skip
 
 

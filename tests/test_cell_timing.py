@@ -61,13 +61,18 @@ def test_every_robot_is_timed_within_its_limits_and_its_planned_speeds(box_plan)
     checked = 0
     for robot, work in zip(cell.robots, plan.robots):
         t = work.t_s
-        assert t[0] == 0.0 and (np.diff(t) >= -1e-12).all()  # every waypoint a time, never back in time
+        lead_s = work.lead_s
+        # every waypoint a time, never back in time; the first after its run-up (from time 0)
+        assert t[0] == pytest.approx(lead_s[0, 0], abs=1e-12) and (np.diff(t) >= -1e-12).all()
         limits = cell_limits(robot, job.timing)
         axes = _Axes(robot)
         q = axes.of(work)
+        leads = np.concatenate([work.lead_q, work.lead_track_mm[:, :, None]], axis=2) if axes.axis is not None else (
+            work.lead_q)  # fmt: skip
         entry = report["robots"][work.name]
-        assert entry["cycle_time_s"] == pytest.approx(t[-1], abs=1e-3)
+        assert entry["cycle_time_s"] == pytest.approx(max(t[-1], float((t + lead_s[:, 1]).max())), abs=1e-3)
         spray_planned = 0.0
+        run_ups = 0
         for s, idx, run in _stretches(work, jump):
             dt = np.diff(t[idx[run]])
             assert (dt > 0).all()
@@ -82,10 +87,20 @@ def test_every_robot_is_timed_within_its_limits_and_its_planned_speeds(box_plan)
             assert (tip / dt <= cap * (1 + 1e-6)).all()
             spray_planned += float((tip / cap).sum())
             checked += len(run)
+            # a run-up (run-out): within the axes' speeds and no faster than the first (last) planned speed
+            for w, side, c in ((idx[run[0]], 0, cap[0]), (idx[run[-1]], 1, cap[-1])):
+                if lead_s[w, side] > 0:
+                    run_ups += 1
+                    step = np.abs(q[w] - leads[w, side])
+                    assert (step / lead_s[w, side] <= limits.velocity * (1 + 1e-6)).all()
+                    tip = np.linalg.norm(axes.tip(q[w]) - axes.tip(leads[w, side]))
+                    assert tip / lead_s[w, side] <= c * (1 + 1e-6)
+                    spray_planned += tip / c
         # no faster than the planned speeds allow along the spray, and the moves take time as well
         assert entry["timing"]["spray_s"] >= spray_planned * (1 - 1e-9)
         assert entry["cycle_time_s"] >= entry["timing"]["spray_s"]
         assert entry["length_over_speed_s"] > 0
+        assert run_ups > 0
     assert checked > 100
 
 

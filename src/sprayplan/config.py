@@ -966,6 +966,16 @@ class TimingConfig(Section):
     fit_cycle_budget : float
         The longest timed cycle the flow fit may take, as a multiple of the timed cycle at the flow as set
         (1.5: half as long again; 1: the flow as set).
+    run_up_mm : float
+        A cell plan's six-axis arms (``--cell``): every spray stretch begins with a run-up of this length, spray
+        off, straight back along its first segment, and ends with a run-out as long along its last, so that the
+        gun passes the stretch's first and last waypoints at speed instead of starting and stopping there
+        (``cells.runups``: shortened to a half or a quarter, or left out, where the arm cannot make it or it
+        would collide). The timing, the schedule and the programs all make them. 0: none (every stretch from
+        rest to rest at its ends). Gantry plans make none. On the BMW body in ``line3`` (at 163 mm/s) 10 mm
+        gave nearly all of the gain in the film at the timed speeds for the least cycle time (71.5 -> 74.9 %
+        in spec, 1,699 -> 1,772 s; 50 mm: 75.0 % at 1,961 s; docs/benchmarks.md, "Session 24"); arms slower
+        to accelerate than the assumed ones need longer.
     """
 
     SECTION = "timing"
@@ -981,6 +991,7 @@ class TimingConfig(Section):
     film_at_timed_speeds: bool = False
     fit_flow: bool = True
     fit_cycle_budget: float = 1.5
+    run_up_mm: float = 10.0
 
     def _check(self):
         from sprayplan.robots.model import check_rate_limits
@@ -1010,6 +1021,7 @@ class TimingConfig(Section):
         _within(TimingConfig, "max_rounds", self.max_rounds, 0, 100)
         _within(TimingConfig, "joint_jump_deg", self.joint_jump_deg, 1e-6, 360.0)
         _within(TimingConfig, "fit_cycle_budget", self.fit_cycle_budget, 1.0, 100.0)
+        _within(TimingConfig, "run_up_mm", self.run_up_mm, 0.0, 1000.0)
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,10 @@
     the six joints (rad), whether it is reached and (with ``--collisions``) whether it collides, when the robot gets there (``t_s``) and the stroke's wait
     (``wait_s``) in the cell's schedule (``cells.schedule``), and where the schedule has the robot when the
     cycle starts and ends (``schedule_ends``: ``q_rad`` (2, 6), ``track_mm`` (2,); its programs start and end
-    there; absent without a schedule); and the report (film over the whole body, per area, per robot, per seam; cycle times). mm, rad, s.
+    there; absent without a schedule); the run-ups and run-outs of its stretches (``leads``, ``cells.runups``:
+    per lead its ``waypoint`` over the robot's strokes one after another, its ``side``, 0 a run-up into the
+    waypoint, 1 a run-out after it, ``q_rad``, ``track_mm`` and its time ``t_s``; absent without run-ups); and
+    the report (film over the whole body, per area, per robot, per seam; cycle times). mm, rad, s.
 ``waypoints.csv``
     One row a waypoint of every robot: ``robot, stroke, waypoint, kind, area, x_mm, y_mm, z_mm, nx, ny, nz,
     dwell, track_mm, roll_deg, q1..q6, reachable, collides, t_s`` (``q6`` empty for the five-axis R5150;
@@ -132,6 +135,8 @@ def cell_plan_dict(plan) -> dict:
         ends = {}
         if r.ends_q is not None:
             ends = {"schedule_ends": {"q_rad": np.round(r.ends_q, 12), "track_mm": np.round(r.ends_track_mm, 6)}}
+        if r.lead_q is not None:
+            ends["leads"] = _leads_entry(r)
         work.append({"name": r.name, "model": r.model, "strokes": strokes, **ends})
     return _clean(
         {
@@ -310,6 +315,7 @@ def cell_plan_from_file(path):
                 times.append(st.get("t_s", np.zeros(len(st["tcp_mm"]))))
                 waits.append(st.get("wait_s") or 0.0)
             ends = entry.get("schedule_ends")
+            leads = _leads_of(entry.get("leads"), sum(len(st["tcp_mm"]) for st in entry["strokes"]))
             works.append(
                 RobotWork(
                     entry["name"], entry["model"], tuple(strokes), np.asarray(area, int), np.concatenate(track_mm),
@@ -318,6 +324,7 @@ def cell_plan_from_file(path):
                     np.asarray(waits, float) if timed else None,
                     None if ends is None else np.asarray(ends["q_rad"], float).reshape(2, -1),
                     None if ends is None else np.asarray(ends["track_mm"], float).reshape(2),
+                    *leads,
                 )
             )  # fmt: skip
     except (KeyError, TypeError, ValueError, ConfigError) as exc:
@@ -325,3 +332,37 @@ def cell_plan_from_file(path):
     name = data["part"]["name"]
     return CellPlan(cell, None, data["part"]["part2cell"], None, None, tuple(works), None, data["report"], {}, name,
                     job=job)  # fmt: skip
+
+
+def _leads_entry(work) -> dict:
+    """A robot's run-ups and run-outs (``RobotWork.lead_q``) as cell_plan.json keeps them: for each, its
+    waypoint (over the robot's strokes one after another), its side (0 a run-up before the waypoint, 1 a
+    run-out after it), joints, track position and time (0 untimed)."""
+    has = np.isfinite(work.lead_q).all(axis=2)
+    way, side = np.nonzero(has)
+    times = np.zeros(len(way)) if work.lead_s is None else work.lead_s[way, side]
+    return {
+        "waypoint": way,
+        "side": side,
+        "q_rad": np.round(work.lead_q[way, side], 12),
+        "track_mm": np.round(work.lead_track_mm[way, side], 6),
+        "t_s": np.round(times, 6),
+    }
+
+
+def _leads_of(entry, n: int) -> tuple:
+    """``(lead_q, lead_track_mm, lead_s)`` of a cell_plan.json robot's ``leads`` (:func:`_leads_entry`); Nones
+    without."""
+    if entry is None:
+        return None, None, None
+    way = np.asarray(entry["waypoint"], int).reshape(-1)
+    side = np.asarray(entry["side"], int).reshape(-1)
+    q = np.asarray(entry["q_rad"], float).reshape(len(way), -1)
+    if len(way) and (way.min() < 0 or way.max() >= n or not set(side.tolist()) <= {0, 1}):
+        raise ValueError("a run-up of a waypoint the robot does not have")
+    lead_q = np.full((n, 2, q.shape[1] if len(way) else 6), np.nan)
+    lead_track, lead_s = np.full((n, 2), np.nan), np.zeros((n, 2))
+    lead_q[way, side] = q
+    lead_track[way, side] = np.asarray(entry["track_mm"], float).reshape(-1)
+    lead_s[way, side] = np.asarray(entry["t_s"], float).reshape(-1)
+    return lead_q, lead_track, lead_s

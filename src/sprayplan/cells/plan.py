@@ -65,7 +65,9 @@ share, but the arms' swept spaces are not compared. With it (``--collisions``):
   transfer, so the film is made only by what the robots can paint, touch-ups cut the same way; after the
   film, the whole plan is checked again for the report (:func:`~sprayplan.cells.collide.check_cell`: what is
   left in collision is in the transfers between runs);
-- then the robots are scheduled (:mod:`~sprayplan.cells.schedule`): the robot with the longest work first, a later robot waits,
+- then every stretch gets its run-up and run-out (:mod:`~sprayplan.cells.runups`, ``[timing] run_up_mm``, with
+  the timing; checked against the body here), the robots are timed, and the robots are scheduled
+  (:mod:`~sprayplan.cells.schedule`): the robot with the longest work first, a later robot waits,
   spray off, before a stroke that would bring it within the clearance of an earlier one, each robot parks
   when done, and the times of every waypoint, the waits and the cell's cycle time (the longest robot's, with
   its waits, no step faster than its axis and track speeds) go into the plan.
@@ -694,6 +696,12 @@ def plan_cell(
             key: int(sum(entry.get(key, 0) for entry in freed.values()))
             for key in ("left_out_in_collision", "left_out_unreached", "left_out_alone", "left_out_unapproachable")
         }
+        plan = dataclasses.replace(plan, robots=robots)
+    if job.timing.enabled and job.timing.run_up_mm > 0:
+        from sprayplan.cells.runups import with_run_ups
+
+        begin("run-ups")
+        robots, report["run_ups"] = with_run_ups(cell, plan.robots, job, arms if job.collision.check else None)
         plan = dataclasses.replace(plan, robots=robots)
     if job.timing.enabled:
         from sprayplan.cells.timing import timed_cell

@@ -11,7 +11,9 @@ keeping them apart in space alone is not proven. :func:`schedule_cell` keeps the
    factor, a transfer at ``transfer_speed_mm_s``, but no step faster than the arm's axis speeds (the maker's,
    ``robots.opw``) and the track's speed allow for its largest joint or track move; the joints and the track
    move linearly between waypoints. An unreached waypoint (no joints) holds the last reached configuration (the first reached one
-   before any).
+   before any). A stretch's run-up and run-out (``cells.runups``) are rows of the timeline too, at the timing's
+   times (:func:`with_leads`): the robot is at the run-up's start before its first waypoint, and a wait before
+   a stroke that begins with a run-up is held there.
 2. **Priority by the length of the work** (:func:`scheduled`): the robot whose timeline (step 1, no waits) is
    longest goes first and never waits, then the next longest, and so on (ties in the cell's order): every wait
    adds to the robot that waits, so the robots with the most slack to the cycle wait. (On the BMW in
@@ -329,6 +331,35 @@ class Timeline:
         return _configs(np.asarray(t, dtype=float), self.knot_t, self.knot_q, self.knot_track)
 
 
+def with_leads(work, t0, q, track, starts):
+    """A robot's timeline rows (times ``t0``, joints ``q``, track) with a row where each run-up starts, before
+    its waypoint, and one where each run-out ends, after it (``RobotWork.lead_q``, their times from the timing's
+    ``lead_s``), and the strokes' first rows (``starts``) moved to the run-up that begins a stroke, so that a
+    wait before the stroke is held there (where the programs wait: at the end of the approach). Returns the
+    new rows, starts, and which rows are the waypoints (n,) bool."""
+    n = len(t0)
+    if work.lead_q is None or work.lead_s is None or not n:
+        return t0, q, track, starts, np.ones(n, bool)
+    lead_q = np.asarray(work.lead_q, float)
+    has = np.isfinite(lead_q).all(axis=2) & (np.asarray(work.lead_s, float) > 0)
+    if not has.any():
+        return t0, q, track, starts, np.ones(n, bool)
+    dof = q.shape[1]
+    before = has[:, 0].astype(int)
+    row = np.arange(n) + np.cumsum(before) + np.r_[0, np.cumsum(has[:-1, 1])]  # each waypoint's new row
+    size = n + int(has.sum())
+    times, joints, tracks = np.zeros(size), np.zeros((size, dof)), np.zeros(size)
+    keep = np.zeros(size, bool)
+    times[row], joints[row], tracks[row], keep[row] = t0, q, track, True
+    for side, sign in ((0, -1), (1, 1)):
+        at = np.flatnonzero(has[:, side])
+        where = row[at] + sign
+        times[where] = t0[at] + sign * np.asarray(work.lead_s, float)[at, side]
+        joints[where] = lead_q[at, side, :dof]
+        tracks[where] = np.asarray(work.lead_track_mm, float)[at, side]
+    return times, joints, tracks, row[starts] - before[starts], keep
+
+
 def _knots(t0, q, track, starts, waits):
     """Knots of a timeline: waypoint ``i`` at ``t0[i]`` plus the waits of the strokes up to its own, each wait
     held at its stroke's first waypoint."""
@@ -551,6 +582,9 @@ def schedule_cell(
             t0 = waypoint_times(w, speed_mm_s, transfer_speed_mm_s, arm.params.max_speed, track_speed)
         q, track = _held(np.asarray(w.q, dtype=float), np.asarray(w.track_mm, dtype=float), w.reachable)
         starts = np.cumsum([0] + [len(s) for s in w.strokes])[:-1]
+        keep = np.ones(len(t0), bool)
+        if times is not None:  # the run-ups' times are the timing's (none on the path-length timeline)
+            t0, q, track, starts, keep = with_leads(w, t0, q, track, starts)
         chosen = np.zeros(len(starts))
         parked = False  # the robot starts parked, its first move the approach (the first stroke's hold fails)
         if rank and len(t0):
@@ -596,6 +630,7 @@ def schedule_cell(
         if parked:  # the park at the start is not a waypoint; its wait is the first stroke's
             knots[3] = knots[3][1:]
             chosen = np.r_[chosen[0], chosen[2:]]
+        knots[3] = knots[3][keep]  # the waypoints' arrivals, without the run-ups' and run-outs' rows
         line = Timeline(knots[0], knots[1], knots[2], knots[3], chosen)
         timelines[k] = line
         g = _grid(0.0, line.end_s) if len(t0) else np.zeros(1, dtype=int)

@@ -9,9 +9,13 @@ configuration (time 0) it runs its strokes in order:
   the axes' speeds and accelerations and never faster than the planned gun-tip speed (its time factors
   included): :func:`sprayplan.timing.path.time_paths`, toppra with the dense check, every stretch of every robot
   of the cell together;
+- a stretch's run-up and run-out (``cells.runups``, ``[timing] run_up_mm``) are part of its path: it starts at
+  rest where the run-up starts, passes its first waypoint at speed, and comes to rest where its run-out ends;
+  the run-up at the stretch's first planned speed, the run-out at its last;
 - between them, a point-to-point joint move from rest to rest (ruckig, :func:`sprayplan.timing.moves.
-  point_to_point`): to the first waypoint of each stretch, and for a transfer to its last reached waypoint (its
-  waypoints stamped at their share of its length, as the programs' joint moves run them).
+  point_to_point`): to the first waypoint (or the run-up's start) of each stretch, and for a transfer to its
+  last reached waypoint (its waypoints stamped at their share of its length, as the programs' joint moves run
+  them).
 
 A waypoint the robot does not reach gets the time at which it passes on (it holds its last configuration), so
 that every waypoint has a time, as the schedule needs.
@@ -56,8 +60,8 @@ class WorkTiming:
     speed_mm_s : (n,) float
         The gun tip's timed speed at each spray waypoint it follows (NaN elsewhere).
     spray_s, move_s : float
-        Time along the spray stretches, and in the joint moves between them (transfers, moves across unreached
-        waypoints and joint jumps).
+        Time along the spray stretches (their run-ups and run-outs included), and in the joint moves between
+        them (transfers, moves across unreached waypoints and joint jumps).
     cycle_s : float
         The whole work's time (its last waypoint's).
     slowed : int
@@ -66,6 +70,8 @@ class WorkTiming:
     worst : dict
         The largest ratio to each limit over the stretches (velocity, acceleration, tip speed) and how many
         stretches were slowed uniformly to hold them (``stretched``).
+    lead_s : (n, 2) float or None
+        How long the run-up into each waypoint and the run-out after it take (0 without one), s.
     """
 
     t_s: np.ndarray
@@ -75,12 +81,14 @@ class WorkTiming:
     cycle_s: float
     slowed: int
     worst: dict
+    lead_s: np.ndarray | None = None
 
     def summary(self) -> dict:
         return {
             "cycle_time_s": round(self.cycle_s, 3),
             "spray_s": round(self.spray_s, 3),
             "moves_s": round(self.move_s, 3),
+            "run_ups_s": round(float(self.lead_s.sum()), 3) if self.lead_s is not None else 0.0,
             "slowed_spray_waypoints": self.slowed,
             "worst_ratio": {k: (round(v, 4) if isinstance(v, float) else v) for k, v in self.worst.items()},
         }
@@ -136,11 +144,31 @@ class _Axes:
         return out
 
 
+def _leads(work, axes: _Axes) -> tuple[np.ndarray, np.ndarray]:
+    """(n, 2, axes) the run-up start before and the run-out end after every waypoint on the timing's axes
+    (joints, then the track), and (n, 2) bool: where there is one (``cells.runups``; none without them)."""
+    n = len(work.reachable)
+    width = axes.dof + (axes.axis is not None)
+    if work.lead_q is None:
+        return np.full((n, 2, width), np.nan), np.zeros((n, 2), bool)
+    lead = np.asarray(work.lead_q, float)[:, :, : axes.dof]
+    if axes.axis is not None:
+        lead = np.concatenate([lead, np.asarray(work.lead_track_mm, float)[:, :, None]], axis=2)
+    return lead, np.isfinite(lead).all(axis=2)
+
+
 def _stretches(work, axes: _Axes, q: np.ndarray, motion, jump_rad: float):
     """Every stretch the timing follows along its joint path, in the order :func:`_timed` takes them:
-    (waypoint indices, planned tip speeds of its segments)."""
+    (its path's rows on the timing's axes, the planned tip speeds of its segments, its waypoint indices, whether
+    it has a run-up and a run-out). A run-up is the path's first segment and takes the stretch's first planned
+    speed; a run-out its last, at the last planned speed."""
+    lead, has = _leads(work, axes)
     for _, idx, cap, run in stroke_runs(work.strokes, work.reachable, q[:, : axes.dof], motion, jump_rad):
-        yield idx[run], cap[run[:-1]]
+        way, speeds = idx[run], cap[run[:-1]]
+        up, out = bool(has[way[0], 0]), bool(has[way[-1], 1])
+        rows = [lead[way[0], 0][None]] * up + [q[way]] + [lead[way[-1], 1][None]] * out
+        speeds = np.r_[speeds[:1]] if up else np.zeros(0), speeds, np.r_[speeds[-1:]] if out else np.zeros(0)
+        yield np.vstack(rows), np.concatenate(speeds), way, up, out
 
 
 def time_cell(cell, robots, job) -> list[WorkTiming]:
@@ -154,25 +182,32 @@ def time_cell(cell, robots, job) -> list[WorkTiming]:
         q = axes.of(work)
         stretches = list(_stretches(work, axes, q, motion, jump))
         timed = time_paths(
-            [(q[idx], cap) for idx, cap in stretches],
+            [(path, cap) for path, cap, *_ in stretches],
             limits,
             axes.tip,
             check_steps=timing.check_steps,
             max_rounds=timing.max_rounds,
         ) if stretches else []  # fmt: skip
-        plans.append(_timed(work, q, axes, limits, dict(zip((int(i[0]) for i, _ in stretches), timed)), motion, jump))
+        by_first = {int(way[0]): (tm, up, out) for (_, _, way, up, out), tm in zip(stretches, timed)}
+        plans.append(_timed(work, q, axes, limits, by_first, motion, jump))
     return plans
 
 
 def _timed(work, q, axes: _Axes, limits, timed: dict, motion, jump_rad: float) -> WorkTiming:
-    """The time stamps of one robot's work, given its stretches' timings by their first waypoint."""
+    """The time stamps of one robot's work, given its stretches' timings by their first waypoint (each with
+    whether it has a run-up and a run-out: the robot moves to the run-up's start, and on from the run-out's
+    end)."""
     n = len(q)
     t = np.full(n, np.nan)
     speed = np.full(n, np.nan)
+    lead_s = np.zeros((n, 2))
+    lead, _ = _leads(work, axes)
     reached = np.flatnonzero(work.reachable)
     clock, spray, moves, slowed = 0.0, 0.0, 0.0, 0
     worst = {"velocity": 0.0, "acceleration": 0.0, "tip_speed": 0.0, "stretched": 0}
     current = q[reached[0]] if len(reached) else None
+    if len(reached) and np.isfinite(lead[reached[0], 0]).all():
+        current = lead[reached[0], 0]  # the work starts where the first waypoint's run-up does
     start = 0
     for s in work.strokes:
         idx = np.arange(start, start + len(s))
@@ -195,27 +230,36 @@ def _timed(work, q, axes: _Axes, limits, timed: dict, motion, jump_rad: float) -
         )
         bound = np.minimum(np.r_[cap[:1], cap], np.r_[cap, cap[-1:]]) if len(cap) else np.full(len(s), np.inf)
         for run in joint_runs(ok, q[idx, : axes.dof], jump_rad):
-            move = point_to_point(current, q[idx[run[0]]], limits).duration_s
+            found = timed.get(int(idx[run[0]])) if len(run) >= 2 else None
+            stretch, up, out = found if found is not None else (None, False, False)
+            first, last = int(idx[run[0]]), int(idx[run[-1]])
+            move = point_to_point(current, lead[first, 0] if up else q[first], limits).duration_s
             clock += move
             moves += move
-            stretch = timed.get(int(idx[run[0]])) if len(run) >= 2 else None
+            current = q[last]
             if stretch is None:
                 t[idx[run]] = clock
-            else:
-                t[idx[run]] = clock + stretch.t_s
-                speed[idx[run]] = stretch.speed_mm_s
-                slowed += int((stretch.speed_mm_s < SLOWED_SHARE * bound[run]).sum())
-                clock += stretch.duration_s
-                spray += stretch.duration_s
-                for key in ("velocity", "acceleration", "tip_speed"):
-                    worst[key] = max(worst[key], float(stretch.worst[key]))
-                worst["stretched"] += int(stretch.stretch > 1.0)
-            current = q[idx[run[-1]]]
+                continue
+            inner = slice(int(up), len(stretch.t_s) - int(out))  # the waypoints' samples, without run-up and -out
+            t[idx[run]] = clock + stretch.t_s[inner]
+            speed[idx[run]] = stretch.speed_mm_s[inner]
+            if up:
+                lead_s[first, 0] = stretch.t_s[1] - stretch.t_s[0]
+            if out:
+                lead_s[last, 1] = stretch.t_s[-1] - stretch.t_s[-2]
+                current = lead[last, 1]
+            slowed += int((stretch.speed_mm_s[inner] < SLOWED_SHARE * bound[run]).sum())
+            clock += stretch.duration_s
+            spray += stretch.duration_s
+            for key in ("velocity", "acceleration", "tip_speed"):
+                worst[key] = max(worst[key], float(stretch.worst[key]))
+            worst["stretched"] += int(stretch.stretch > 1.0)
     # unreached waypoints: when the robot passes on (its last time before them; 0 before any)
     filled = np.where(np.isnan(t), -np.inf, t)
     t = np.maximum.accumulate(filled) if n else filled
     t = np.where(np.isfinite(t), t, 0.0)
-    return WorkTiming(t, speed, float(spray), float(moves), float(t[-1]) if n else 0.0, slowed, worst)
+    end = max(float(t[-1]) if n else 0.0, clock if n else 0.0)  # a last stretch's run-out ends after its waypoint
+    return WorkTiming(t, speed, float(spray), float(moves), end, slowed, worst, lead_s)
 
 
 def timed_cell(cell, robots, job, report: dict, timed: list | None = None) -> tuple:
@@ -239,9 +283,16 @@ def timed_cell(cell, robots, job, report: dict, timed: list | None = None) -> tu
 
 
 def with_times(robots, timed) -> tuple:
-    """The robots' work with the time stamps of their timings (``WorkTiming``), no waits."""
+    """The robots' work with the time stamps of their timings (``WorkTiming``), no waits; the run-ups' and
+    run-outs' times where they have them."""
     return tuple(
-        dataclasses.replace(r, t_s=tm.t_s.copy(), wait_s=np.zeros(len(r.strokes))) for r, tm in zip(robots, timed)
+        dataclasses.replace(
+            r,
+            t_s=tm.t_s.copy(),
+            wait_s=np.zeros(len(r.strokes)),
+            lead_s=None if r.lead_q is None or tm.lead_s is None else tm.lead_s.copy(),
+        )
+        for r, tm in zip(robots, timed)
     )
 
 

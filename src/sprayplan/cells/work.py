@@ -46,6 +46,14 @@ class RobotWork:
         end there. None unscheduled.
     ends_track_mm : (2,) float or None
         The track positions of ``ends_q``, mm.
+    lead_q : (n, 2, dof) float or None
+        The joints where the run-up into each waypoint starts (``[:, 0]``) and where the run-out after it ends
+        (``[:, 1]``), rad: NaN but at a spray stretch's first (last) waypoint that has one (``cells.runups``).
+        None: no run-ups made.
+    lead_track_mm : (n, 2) float or None
+        The track positions there (the waypoint's own), mm.
+    lead_s : (n, 2) float or None
+        How long the run-up into each waypoint and the run-out after it take in the timing (0 without), s.
     """
 
     name: str
@@ -61,6 +69,9 @@ class RobotWork:
     wait_s: np.ndarray | None = None
     ends_q: np.ndarray | None = None
     ends_track_mm: np.ndarray | None = None
+    lead_q: np.ndarray | None = None
+    lead_track_mm: np.ndarray | None = None
+    lead_s: np.ndarray | None = None
 
     @property
     def waypoints(self) -> int:

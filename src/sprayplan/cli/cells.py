@@ -326,8 +326,8 @@ def cmd_plan_cell(args, job, cell=None) -> int:
     for data in summaries:
         motions = data["counts"].get("program_motions")
         checked = (
-            f", {motions['motions_in_collision']} of {motions['motions_checked']} joint moves, approaches and "
-            "retracts in collision"
+            f", {motions['motions_in_collision']} of {motions['motions_checked']} joint moves, approaches, "
+            "retracts, run-ups and run-outs in collision"
             if motions
             else ""
         )

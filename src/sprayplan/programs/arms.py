@@ -265,6 +265,7 @@ class ArmStation:
     method: np.ndarray
     wait_s: np.ndarray | None = None
     collides: np.ndarray | None = None
+    leads: np.ndarray | None = None  # (n, 2, 6 + axes): the run-ups' starts and run-outs' ends (NaN: none)
 
 
 @dataclass(frozen=True)
@@ -316,6 +317,11 @@ def arm_plan(work, cell: ArmCell, name: str = "") -> ArmPlan:
     colliding = np.zeros(n, bool) if work.collides is None else np.asarray(work.collides, bool) & reachable
     home = q9[0, 6:].copy() if n else np.zeros(cell.external_axes)
     waits = None if work.wait_s is None else np.asarray(work.wait_s, float)
+    leads = None
+    if getattr(work, "lead_q", None) is not None:
+        leads = np.asarray(work.lead_q, float)[:, :, :6]
+        if cell.external_axes:
+            leads = np.concatenate([leads, np.asarray(work.lead_track_mm, float)[:, :, None]], axis=2)
     station = ArmStation(
         0,
         tuple(work.strokes),
@@ -326,6 +332,7 @@ def arm_plan(work, cell: ArmCell, name: str = "") -> ArmPlan:
         np.full(n, "analytic"),
         waits,
         colliding,
+        leads,
     )
     ends_q, ends_mm = None, None
     if getattr(work, "ends_q", None) is not None:
@@ -381,14 +388,14 @@ MOTION_STEP_RAD = 0.02
 def motions_checked(arm, moves) -> dict:
     """The program's motions that the plan did not check, sampled and checked with the collision model
     (``collision.arms.ArmCollision.collides``): every joint move (home, transfers between runs, routes) and
-    every approach and retract, each from the move before it, its joints interpolated linearly (what a joint
-    move does; an approach or retract is a straight line a few centimetres long, which the joints follow closely)
+    every approach, retract, run-up and run-out, each from the move before it, its joints interpolated linearly
+    (what a joint move does; the others are straight lines a few centimetres long, which the joints follow closely)
     at most :data:`MOTION_STEP_RAD` apart, the track with them. Spray moves are the plan's own waypoints and
     motions (checked by ``cells.collide``). Returns the counts and the first motions in collision."""
     rows, owners = [], []
     for k in range(1, len(moves)):
         move = moves[k]
-        if move.kind == "linear" and move.role not in ("approach", "retract"):
+        if move.kind == "linear" and move.role not in ("approach", "retract", "run-up", "run-out"):
             continue
         a, b = moves[k - 1], move
         steps = max(1, int(np.ceil(np.abs(b.joints - a.joints).max() / MOTION_STEP_RAD)))

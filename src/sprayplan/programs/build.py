@@ -13,6 +13,11 @@ the program reaches (docs/programs.md, "What the programs do"):
   ``blend_share`` of the shorter neighbouring segment; 0 at the run's ends), the gun switched off
   ``lead_off_s`` before the last;
 - a linear ``retract`` back along the gun axis;
+- where a cell robot's plan has a run-up into the run's first waypoint (``cells.runups``), the transfer and the
+  approach go to the run-up's start instead, and a linear ``run-up`` at the first segment's speed, blended
+  into the first waypoint, follows the approach; where it has a run-out after the last waypoint, the last spray
+  move is blended and a linear ``run-out`` at the last segment's speed comes before the retract, which backs
+  off from the run-out's end (the gun is off on both);
 - where the collision stage re-routed the transfer before a stroke (``collision.transfers``), a joint move
   (``route``) to each inner waypoint of the route before the stroke's first run.
 
@@ -242,7 +247,8 @@ def build_program(plan, job, fmt: str, strict: bool | None = None, cell=None) ->
     cell = cell or Cell(gantry_for(job.kinematics))
     runs, report = spray_runs(plan, job, fmt, cell)
     report.update({"unapproachable_waypoints": [], "shortened_approaches": 0, "single_waypoint_runs": 0,
-                   "clipped_leads": 0, "unswitched_runs": 0})  # fmt: skip
+                   "clipped_leads": 0, "unswitched_runs": 0, "run_ups": 0, "run_outs": 0,
+                   "run_ups_left_out": 0})  # fmt: skip
     lead_on, lead_off = (0.0, 0.0) if fmt == "rapid" and cfg.rapid_paint else (cfg.lead_on_s, cfg.lead_off_s)
     stations = []
     for order, (st, st_runs) in enumerate(zip(plan.stations, runs)):
@@ -254,9 +260,10 @@ def build_program(plan, job, fmt: str, strict: bool | None = None, cell=None) ->
         routed: set = set()
         waits = getattr(st, "wait_s", None)  # a cell robot's schedule: the wait before each stroke
         waited: set = set()
+        leads = getattr(st, "leads", None)  # a cell robot's run-ups and run-outs (cells.runups)
         for run in st_runs:
             moves += route_moves(st, run, data, poses, q9, routed)
-            run_moves = _run_moves(cell, cfg, run, data, poses, q9, lead_on, lead_off, report)
+            run_moves = _run_moves(cell, cfg, run, data, poses, q9, lead_on, lead_off, report, leads)
             if waits is not None and run_moves and run.stroke not in waited:
                 waited.add(run.stroke)
                 if waits[run.stroke] > 0:
@@ -355,16 +362,38 @@ def line_joints(cell: Cell, start: np.ndarray, end: np.ndarray, external_mm, q_s
 def _back_off(cell: Cell, cfg, poses, q9, k: int):
     """(distance, pose, joints) of the point ``approach_mm`` (or half, a quarter, an eighth of it) back along the
     gun axis from waypoint k that a straight line from k reaches on its branch; None when none does."""
+    return _back_off_from(cell, cfg, poses[k], q9[k])
+
+
+def _back_off_from(cell: Cell, cfg, pose, q9):
+    """:func:`_back_off` from ``pose`` with the axes ``q9`` (joints, then the external axes) there."""
     for share in APPROACH_TRIES:
         distance = cfg.approach_mm * share
-        pose = offset_along_z(poses[k], distance)
-        q = line_joints(cell, poses[k], pose, q9[k, 6:], q9[k, :6])
+        back = offset_along_z(pose, distance)
+        q = line_joints(cell, pose, back, q9[6:], q9[:6])
         if q is not None:
-            return distance, pose, q
+            return distance, back, q
     return None
 
 
-def _run_moves(cell, cfg, run: Run, data, poses, q9, lead_on, lead_off, report) -> list[Move]:
+def _lead(cell: Cell, cfg, leads, k: int, side: int, report, usable: bool = True):
+    """``(pose, axes, back-off)`` of the run-up into waypoint k (side 0) or the run-out after it (side 1) where
+    the plan has one (``cells.runups``) and the arm backs off from its end along the gun axis; else None. One
+    the plan has but the program does not make (no back-off reaches it, or not ``usable``: its waypoint left
+    out unapproachable, a run of one waypoint) is counted in ``run_ups_left_out``: the run then starts or ends
+    at rest, as without."""
+    if leads is None or not np.isfinite(leads[k, side]).all():
+        return None
+    axes = np.asarray(leads[k, side], float)
+    pose = cell.poses(axes[:6], axes[6:])[0]
+    back = _back_off_from(cell, cfg, pose, axes) if usable else None
+    if back is None:
+        report["run_ups_left_out"] += 1
+        return None
+    return pose, axes, back
+
+
+def _run_moves(cell, cfg, run: Run, data, poses, q9, lead_on, lead_off, report, leads=None) -> list[Move]:
     """The moves of a run: transfer, approach, spray moves, retract. Waypoints at the run's ends from which the
     arm cannot back off along the gun axis are left out (``unapproachable_waypoints``); [] when none can."""
     index = run.index
@@ -386,44 +415,78 @@ def _run_moves(cell, cfg, run: Run, data, poses, q9, lead_on, lead_off, report) 
     if start is None or end is None:
         return []
     index = index[j : jend + 1]
-    first, last = int(index[0]), int(index[-1])
+    first = int(index[0])
+    up = _lead(cell, cfg, leads, int(run.index[0]), 0, report, j == 0 and len(index) > 1)
+    out = _lead(cell, cfg, leads, int(run.index[-1]), 1, report, jend == len(run.index) - 1 and len(index) > 1)
+    if up is not None:
+        start = up[2]
+    if out is not None:
+        end = out[2]
     distance, a_pose, q_a = start
     report["shortened_approaches"] += int(distance < cfg.approach_mm) + int(end[0] < cfg.approach_mm)
     v_app = cfg.approach_speed_mm_s if lead_on <= 0 else min(cfg.approach_speed_mm_s, distance / lead_on)
-    moves = [
-        Move(JOINT, "transfer", a_pose, q_a, q9[first, 6:].copy()),
-        Move(LINEAR, "approach", poses[first], q9[first, :6].copy(), q9[first, 6:].copy(), v_app, 0.0,
-             source=(run.order, first)),
-    ]  # fmt: skip
     lengths = np.linalg.norm(np.diff(poses[index, :3, 3], axis=0), axis=1)
+    speeds = []
     for j in range(1, len(index)):
         k, prev = int(index[j]), int(index[j - 1])
         seconds = float(data["seconds"][prev + 1 : k + 1].sum())
         # the plan's time for the segment; where its gun tip stands still (it turns about itself) the plan's speed
         speed = lengths[j - 1] / seconds if seconds > 0 else float(data["speed"][k])
-        blend = 0.0
-        if j < len(index) - 1:
-            cap = min(cfg.blend_mm, cfg.blend_share * lengths[j - 1], cfg.blend_share * lengths[j])
-            blend = max(0.0, cap - BLEND_MARGIN_MM)
-        moves.append(Move(LINEAR, "spray", poses[k], q9[k, :6].copy(), q9[k, 6:].copy(),
-                          max(speed, MIN_SPEED_MM_S), blend, source=(run.order, k)))  # fmt: skip
-    moves.append(Move(LINEAR, "retract", end[1], end[2], q9[last, 6:].copy(), cfg.approach_speed_mm_s, 0.0))
+        speeds.append(max(speed, MIN_SPEED_MM_S))
+    ext = q9[first, 6:].copy()
+    if up is None:
+        moves = [
+            Move(JOINT, "transfer", a_pose, q_a, ext),
+            Move(LINEAR, "approach", poses[first], q9[first, :6].copy(), ext, v_app, 0.0, source=(run.order, first)),
+        ]  # fmt: skip
+    else:  # the approach to the run-up's start, then the run-up at the first segment's speed, blended
+        pose, axes, _ = up
+        run_up = float(np.linalg.norm(poses[first, :3, 3] - pose[:3, 3]))
+        moves = [
+            Move(JOINT, "transfer", a_pose, q_a, axes[6:].copy()),
+            Move(LINEAR, "approach", pose, axes[:6].copy(), axes[6:].copy(), v_app, 0.0),
+            Move(LINEAR, "run-up", poses[first], q9[first, :6].copy(), ext, speeds[0],
+                 _blend(cfg, run_up, lengths[0]), source=(run.order, first)),
+        ]  # fmt: skip
+        report["run_ups"] += 1
+    for j in range(1, len(index)):
+        k = int(index[j])
+        after = lengths[j] if j < len(index) - 1 else None
+        if after is None and out is not None:
+            after = float(np.linalg.norm(out[0][:3, 3] - poses[k, :3, 3]))
+        blend = 0.0 if after is None else _blend(cfg, lengths[j - 1], after)
+        moves.append(Move(LINEAR, "spray", poses[k], q9[k, :6].copy(), q9[k, 6:].copy(), speeds[j - 1], blend,
+                          source=(run.order, k)))  # fmt: skip
+    if out is not None:
+        pose, axes, _ = out
+        moves.append(Move(LINEAR, "run-out", pose, axes[:6].copy(), axes[6:].copy(), speeds[-1], 0.0))
+        report["run_outs"] += 1
+    moves.append(Move(LINEAR, "retract", end[1], end[2], moves[-1].external_mm.copy(), cfg.approach_speed_mm_s, 0.0))
     if len(index) < 2:
         report["single_waypoint_runs"] += 1
         return moves
-    return _with_gun_events(moves, distance, lead_on, lead_off, report)
+    return _with_gun_events(moves, distance, lead_on, lead_off, report, int(up is not None), int(out is not None))
 
 
-def _with_gun_events(moves: list[Move], approach_mm: float, lead_on: float, lead_off: float, report) -> list[Move]:
-    """The run's moves with the gun's on signal on the approach and its off signal where, ``lead_off`` before
-    the last spray waypoint, the program's timing puts it (moves: transfer, approach, spray..., retract)."""
-    chain = moves[1:-1]  # approach and spray moves: the gun switches on these
+def _blend(cfg, before_mm: float, after_mm: float) -> float:
+    """The blend radius at a waypoint between segments of these lengths (module docstring)."""
+    cap = min(cfg.blend_mm, cfg.blend_share * before_mm, cfg.blend_share * after_mm)
+    return max(0.0, cap - BLEND_MARGIN_MM)
+
+
+def _with_gun_events(
+    moves: list[Move], approach_mm: float, lead_on: float, lead_off: float, report, run_up: int = 0, run_out: int = 0
+) -> list[Move]:
+    """The run's moves with the gun's on signal ``lead_on`` before the first spray waypoint (on the approach or
+    the run-up) and its off signal where, ``lead_off`` before the last spray waypoint, the program's timing puts
+    it (moves: transfer, approach, the run-up if ``run_up``, spray..., the run-out if ``run_out``, retract)."""
+    chain = moves[1:-1]  # approach, run-up, spray moves and run-out: the gun switches on these
     lengths = [approach_mm] + [
         float(np.linalg.norm(b.pose[:3, 3] - a.pose[:3, 3])) for a, b in itertools.pairwise(chain)
     ]
     ends = np.cumsum([length / m.speed_mm_s for length, m in zip(lengths, chain)])
-    t_on = ends[0] - lead_on
-    t_off = ends[-1] - lead_off
+    t_on = ends[run_up] - lead_on
+    t_off = ends[len(chain) - 1 - run_out] - lead_off
     if t_off < 0:
         report["clipped_leads"] += 1
         t_off = 0.0

@@ -318,9 +318,25 @@ def _check_run(station, transfer, chain, fmt, cfg, cell, job, result, matched, p
         result.fail(chain[0], "the approach does not end at a reachable spray waypoint of the station (in order)")
         return None
     stroke = station.data["stroke"][first]
-    _check_wait(station, transfer, chain, a, int(stroke), result)
+    up = _lead_of(station, cell, first, 0)
+    if up is not None and not (a >= 1 and _same_pose(chain[a - 1].pose, up[0])):
+        up = None  # the program makes no run-up here (the plan's has no back-off: build's run_ups_left_out)
+    _check_wait(station, transfer, chain, a - 1 if up is not None else a, int(stroke), result)
     targets, indices, previous = [_PoseOnly(start_pose), *chain[: a + 1]], [-2] + [-1] * a + [first], first
-    for move in chain[a + 1 : -1]:
+    if up is not None:
+        indices[a] = RUN_UP_START
+        station.pending.append((chain[a - 1], up[1][:6], int(cell.branches(up[1][:6])[0]), up[1][6:], up[0]))
+    body = chain[a + 1 : -1]
+    out = None
+    for n, move in enumerate(body):
+        if n == len(body) - 1 and n > 0:
+            out = _lead_of(station, cell, previous, 1)
+            if out is not None and _same_pose(move.pose, out[0]):
+                indices.append(RUN_OUT_END)
+                targets.append(move)
+                station.pending.append((move, out[1][:6], int(cell.branches(out[1][:6])[0]), out[1][6:], out[0]))
+                break
+            out = None
         k = _match(station, move.pose, previous + 1, stroke)
         if k is not None and _only_duplicates(station, previous, k):
             indices.append(k)
@@ -335,7 +351,7 @@ def _check_run(station, transfer, chain, fmt, cfg, cell, job, result, matched, p
             matched[k] = True
             previous = k
         targets.append(move)
-    if indices[-1] < 0:
+    if indices[-1] == -1:
         result.fail(chain[-2], "a run must end at a plan waypoint, not a via point")
         return None
     result.vias += sum(i == -1 for i in indices)
@@ -347,20 +363,45 @@ def _check_run(station, transfer, chain, fmt, cfg, cell, job, result, matched, p
     _check_targets(station, targets, indices, fmt, cell, result)
     _check_vias(targets, indices, result)
     _check_speeds(station, targets, indices, a + 1, cfg, fmt, result)
-    _check_blends(targets[1:] + [chain[-1]], a, cfg, result)
-    _check_backoff(station, transfer, first, cfg, cell, fmt, result, is_approach=True)
-    _check_backoff(station, chain[-1], indices[-1], cfg, cell, fmt, result, is_approach=False)
+    moves = targets[1:] + [chain[-1]]
+    stops = {a - 1 if up is not None else a, len(moves) - 2, len(moves) - 1}  # where the robot must stop
+    _check_blends(moves, stops, cfg, result)
+    _check_backoff(station, transfer, first, cfg, cell, fmt, result, is_approach=True, lead=up)
+    last = previous if out is not None else indices[-1]
+    _check_backoff(station, chain[-1], last, cfg, cell, fmt, result, is_approach=False, lead=out)
     if abs(chain[-1].speed_mm_s - cfg.approach_speed_mm_s) > SPEED_MM_S:
         result.fail(chain[-1], f"the retract's speed is not approach_speed_mm_s ({cfg.approach_speed_mm_s:g} mm/s)")
     if chain[-1].events:
         result.fail(chain[-1], "the gun must not switch on the retract")
-    _check_gun([start_pose, *(m.pose for m in chain[:-1])], chain[:-1], a, indices, cfg, fmt, result, transfer.events)
+    _check_gun([start_pose, *(m.pose for m in chain[:-1])], chain[:-1], a, indices, cfg, fmt, result, transfer.events,
+               off_at=len(chain) - 2 - (out is not None))  # fmt: skip
     return previous  # a run split for a file's size starts again at the waypoint this one ends at
+
+
+#: ``indices`` of a run's targets that are not plan waypoints: the approach's end at a run-up's start, a
+#: run-out's end (``cells.runups``; -1 is a via point, -2 the approach pose).
+RUN_UP_START, RUN_OUT_END = -3, -4
+
+
+def _lead_of(station, cell, k: int, side: int):
+    """``(pose, axes)`` of the plan's run-up into waypoint k (side 0) or run-out after it (side 1), the pose by
+    the plan's own chain; None where it has none."""
+    leads = getattr(station.st, "leads", None)
+    if leads is None or k < 0 or not np.isfinite(leads[k, side]).all():
+        return None
+    axes = np.asarray(leads[k, side], float)
+    return cell.target_poses(axes[None])[0], axes
+
+
+def _same_pose(a, b) -> bool:
+    return bool(
+        np.linalg.norm(a[:3, 3] - b[:3, 3]) <= POSITION_MM and angle_between_deg(a[:3, :3], b[:3, :3]) <= ANGLE_DEG
+    )
 
 
 def _check_wait(station, transfer, chain, a: int, stroke: int, result) -> None:
     """The schedule's wait before a stroke (a cell robot's, ``wait_s`` of its station) on the approach of the
-    stroke's first run (0.001 s, as written); no wait anywhere else."""
+    stroke's first run (``chain[a]``, 0.001 s, as written); no wait anywhere else."""
     waits = getattr(station.st, "wait_s", None)
     expected = 0.0
     if waits is not None and stroke not in station.waited:
@@ -491,13 +532,16 @@ def _check_speeds(station, targets, indices, first, cfg, fmt, result) -> None:
     """The approach (and its via points) at ``approach_speed_mm_s``, slowed so that the gun's opening lead fits
     on it; the move into each further waypoint (and the via points before it) at the TCP's path over the plan's
     time for the segment (``targets[first]`` is the run's first waypoint)."""
-    measured = float(np.linalg.norm(targets[first].pose[:3, 3] - targets[0].pose[:3, 3]))
+    up = first >= 1 and indices[first - 1] == RUN_UP_START  # the approach ends at a run-up's start
+    approach_end = first - 1 if up else first
+    measured = float(np.linalg.norm(targets[approach_end].pose[:3, 3] - targets[0].pose[:3, 3]))
     approach = min((cfg.approach_mm * t for t in APPROACH_TRIES), key=lambda d: abs(d - measured))
     lead = 0.0 if fmt == "rapid" and cfg.rapid_paint else cfg.lead_on_s
     v_app = cfg.approach_speed_mm_s if lead <= 0 else min(cfg.approach_speed_mm_s, approach / lead)
-    for m in targets[1 : first + 1]:
+    for m in targets[1 : approach_end + 1]:
         _speed(m, v_app, result)
-    previous, pending = indices[first], []
+    # a run-up at the first segment's speed, a run-out at the last's
+    previous, pending, expected = indices[first], [targets[first]] if up else [], None
     for move, i in zip(targets[first + 1 :], indices[first + 1 :]):
         pending.append(move)
         if i < 0:
@@ -509,6 +553,9 @@ def _check_speeds(station, targets, indices, first, cfg, fmt, result) -> None:
         for m in pending:
             _speed(m, expected, result)
         pending, previous = [], i
+    if indices[-1] == RUN_OUT_END and expected is not None:
+        for m in pending:
+            _speed(m, expected, result)
 
 
 def _speed(move, expected: float, result) -> None:
@@ -518,13 +565,14 @@ def _speed(move, expected: float, result) -> None:
         result.fail(move, f"speed {move.speed_mm_s:.4f} mm/s, the plan's is {expected:.4f} mm/s")
 
 
-def _check_blends(moves, approach: int, cfg, result) -> None:
+def _check_blends(moves, stops: set, cfg, result) -> None:
     """``moves``: the run's linear moves from the first (a via point on the approach, or the approach) to the
-    retract; the robot stops at the approach's end (index ``approach``), the last waypoint and the retract."""
+    retract; the robot stops at the moves of index ``stops`` (the approach's end, the last waypoint or the
+    run-out's end, the retract)."""
     positions = [m.pose[:3, 3] for m in moves]
     lengths = [float(np.linalg.norm(b - a)) for a, b in itertools.pairwise(positions)]
     for j, move in enumerate(moves):
-        if j in (approach, len(moves) - 2, len(moves) - 1):
+        if j in stops:
             if move.blend_mm != 0:
                 result.fail(move, f"blend {move.blend_mm} mm where the robot must stop (a run's end)")
             continue
@@ -538,13 +586,14 @@ def _check_blends(moves, approach: int, cfg, result) -> None:
             )
 
 
-def _check_backoff(station, move, i, cfg, cell, fmt, result, is_approach: bool) -> None:
+def _check_backoff(station, move, i, cfg, cell, fmt, result, is_approach: bool, lead=None) -> None:
     """An approach pose (the transfer's joints) or a retract target: ``approach_mm`` (or a fraction of it)
-    back along the gun axis from waypoint ``i``, with the joints of the plan's branch there."""
-    base = station.poses[i]
+    back along the gun axis from waypoint ``i`` (or from ``lead``'s pose, a run-up's start or run-out's end
+    there: ``(pose, axes)``), with the joints of the plan's branch there."""
+    base, axes = (station.poses[i], station.q9[i]) if lead is None else lead
     if is_approach:
-        pose = cell.poses(move.joints, station.q9[i, 6:])[0]
-        if move.external_mm is not None and np.abs(move.external_mm - station.q9[i, 6:]).max(initial=0.0) > EXTERNAL_MM:
+        pose = cell.poses(move.joints, axes[6:])[0]
+        if move.external_mm is not None and np.abs(move.external_mm - axes[6:]).max(initial=0.0) > EXTERNAL_MM:
             result.fail(move, "the joint move's external axes are not the gantry's at its run")
     else:
         pose = move.pose
@@ -557,22 +606,23 @@ def _check_backoff(station, move, i, cfg, cell, fmt, result, is_approach: bool) 
         return
     if angle_between_deg(pose[:3, :3], base[:3, :3]) > ANGLE_DEG:
         result.fail(move, "an approach or retract must keep the waypoint's orientation")
-    branch = int(station.branch[i])
+    branch = int(station.branch[i]) if lead is None else int(cell.branches(axes[:6])[0])
     distance = min(tries, key=lambda d: abs(distance - d))  # the back-off the program means, not as read back
-    q, ok = cell.joints_on_branch(offset_along_z(base, distance)[None], station.q9[i, 6:], branch, station.q9[i, :6])
+    q, ok = cell.joints_on_branch(offset_along_z(base, distance)[None], axes[6:], branch, axes[:6])
     if is_approach:
         error = float(np.abs(move.joints - q[0]).max())
         result.max_joint_rad = max(result.max_joint_rad, error)
         if not ok[0] or error > JOINT_RAD:
             result.fail(move, f"the joint target is {error:.3g} rad from the plan's branch at the approach pose")
     elif fmt in ("rapid", "krl"):
-        station.pending.append((move, q[0], branch, station.q9[i, 6:], offset_along_z(base, distance)))
+        station.pending.append((move, q[0], branch, axes[6:], offset_along_z(base, distance)))
 
 
-def _check_gun(poses, chain, approach: int, indices, cfg, fmt, result, at_start=()) -> None:
+def _check_gun(poses, chain, approach: int, indices, cfg, fmt, result, at_start=(), off_at: int = -1) -> None:
     """With its leads, the gun is open from the run's first waypoint (``chain[approach]``'s target) to its last
-    (``chain[-1]``'s), nowhere else. ``poses``: the approach pose, then each move's target; ``at_start``: the
-    events of the joint move before the chain (URScript: at its end, where the robot stands)."""
+    (``chain[off_at]``'s: the last move's, or the one before a run-out), nowhere else. ``poses``: the approach
+    pose, then each move's target; ``at_start``: the events of the joint move before the chain (URScript: at
+    its end, where the robot stands)."""
     paint = fmt == "rapid" and cfg.rapid_paint
     lead = {True: 0.0 if paint else cfg.lead_on_s, False: 0.0 if paint else cfg.lead_off_s}
     positions = [p[:3, 3] for p in poses]
@@ -598,7 +648,8 @@ def _check_gun(poses, chain, approach: int, indices, cfg, fmt, result, at_start=
             return ends[-1] + (t - times[-1]) * chain[-1].speed_mm_s
         return float(np.interp(t, times, ends))
 
-    for (t, _, move), target in ((ons[0], times[approach + 1]), (offs[0], times[-1])):
+    last = off_at % len(chain)
+    for (t, _, move), target in ((ons[0], times[approach + 1]), (offs[0], times[last + 1])):
         error = abs(path(t) - path(target))
         result.max_gun_mm = max(result.max_gun_mm, error)
         if error > POSITION_MM:

@@ -1,0 +1,146 @@
+"""Run-ups and run-outs of a cell robot's spray stretches (``[timing] run_up_mm``).
+
+A stretch of a spray stroke (its consecutive waypoints the robot reaches and paints free of the body) that
+starts and ends at rest has its gun slow near both ends, where it leaves more paint than the plan predicts:
+on the BMW body in ``line3`` the robots took 1.34 to 1.42 times the planned time within 100 mm of a stretch's
+ends, against 1.02 to 1.08 inside (``bench/bench_timed_speeds.py``, session 23), and most stretches end
+inside the surface (at a seam between two areas, beside waypoints cut away in collision), not past an edge. A
+painter's program runs the gun up to speed before the trigger and out after it. So every stretch gets:
+
+- a **run-up**: the gun's pose at its first waypoint moved ``run_up_mm`` straight back along the stretch's
+  first segment (the spray target's line, the orientation kept), spray off, so that the timing passes the
+  first waypoint at speed;
+- a **run-out**: the pose at its last waypoint moved as far on along its last segment.
+
+Each is a straight line the arm makes on the branch of the stretch's end waypoint with the track held there
+(``programs.build.line_joints``: every 5 mm within reach and limits, no joint jumping): the programs move it
+with a linear move. With the collision model (``[collision] check``) the line's joints are checked against the
+part and the floor (sampled at most ``MOTION_STEP_RAD`` apart, as the programs' own motions are). Where the
+full length cannot be made, a half and a quarter are tried; where none can, the end has none and its stretch
+starts (or stops) there at rest, as without run-ups. Stretches are cut as the programs cut their runs: at
+unreached waypoints and waypoints left in collision; a stretch the timing cuts at a joint jump has no run-up
+or run-out at the cut (the programs move across it).
+
+Only six-axis arms of a cell get them (the arms the programs drive; a five-axis R5150 or a gantry in a cell
+makes none).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+#: The run-up's length tried: the set one, then a half and a quarter of it.
+RUN_UP_TRIES = (1.0, 0.5, 0.25)
+#: The largest joint step (rad) between two samples of a run-up checked for collisions.
+MOTION_STEP_RAD = 0.02
+#: A segment shorter than this (mm) gives no direction: its end gets no run-up.
+MIN_SEGMENT_MM = 1e-6
+
+
+def stretch_ends(work) -> list[tuple[int, int, int]]:
+    """Every end of every stretch of ``work``'s spray strokes (runs of consecutive reached waypoints not in
+    collision, at least two long): ``(waypoint, its neighbour inside the stretch, side)``, side 0 for a
+    stretch's first waypoint (its run-up), 1 for its last (its run-out)."""
+    ok = np.asarray(work.reachable, bool).copy()
+    if work.collides is not None:
+        ok &= ~np.asarray(work.collides, bool)
+    out = []
+    start = 0
+    for s in work.strokes:
+        idx = np.arange(start, start + len(s))
+        start += len(s)
+        if not s.spray_on:
+            continue
+        where = idx[ok[idx]]
+        if len(where) < 2:
+            continue
+        for run in np.split(where, np.flatnonzero(np.diff(where) > 1) + 1):
+            if len(run) >= 2:
+                out.append((int(run[0]), int(run[1]), 0))
+                out.append((int(run[-1]), int(run[-2]), 1))
+    return out
+
+
+def _line_samples(q_a: np.ndarray, q_b: np.ndarray) -> np.ndarray:
+    """Joints from ``q_a`` to ``q_b`` linearly, at most :data:`MOTION_STEP_RAD` apart, both ends included."""
+    steps = max(1, int(np.ceil(np.abs(q_b - q_a).max() / MOTION_STEP_RAD)))
+    t = np.linspace(0.0, 1.0, steps + 1)[:, None]
+    return q_a + t * (q_b - q_a)
+
+
+def robot_run_ups(cell_robot, work, length_mm: float, standoff_mm: float, arm=None):
+    """``(lead_q, lead_track_mm, counts)`` of one robot's work (``RobotWork``; module docstring): the joints and
+    track position where each run-up starts and each run-out ends (NaN elsewhere), and how many ends got their
+    full length, a shortened one, or none. ``arm``: the robot's ``collision.arms.ArmCollision``, or None
+    (not checked)."""
+    from sprayplan.programs.arms import ArmCell
+    from sprayplan.programs.build import line_joints
+
+    n, dof = np.asarray(work.q).shape if work.waypoints else (0, 6)
+    lead_q = np.full((n, 2, dof), np.nan)
+    lead_track = np.full((n, 2), np.nan)
+    counts = {"full": 0, "shortened": 0, "none": 0, "in_collision": 0}
+    ends = stretch_ends(work)
+    if not ends or length_mm <= 0:
+        counts["none"] = len(ends)
+        return lead_q, lead_track, counts
+    cell = ArmCell(cell_robot, standoff_mm)
+    q = np.asarray(work.q, float)
+    track = np.asarray(work.track_mm, float)
+    external = track[:, None] if cell.external_axes else np.zeros((n, 0))
+    index = np.array([e[0] for e in ends] + [e[1] for e in ends])
+    poses = cell.target_poses(np.column_stack([q[index], track[index]]) if cell.external_axes else q[index])
+    here, there = poses[: len(ends)], poses[len(ends) :]
+    for (k, _, side), pose, other in zip(ends, here, there):
+        direction = pose[:3, 3] - other[:3, 3]
+        norm = float(np.linalg.norm(direction))
+        if norm < MIN_SEGMENT_MM:
+            counts["none"] += 1
+            continue
+        direction /= norm
+        found = None
+        for share in RUN_UP_TRIES:
+            end = pose.copy()
+            end[:3, 3] += share * length_mm * direction
+            got = line_joints(cell, pose, end, external[k], q[k])
+            if got is None:
+                continue
+            if arm is not None and arm.collides(_line_samples(q[k], got), track[k]).any():
+                counts["in_collision"] += 1
+                continue
+            found = share, got
+            break
+        if found is None:
+            counts["none"] += 1
+            continue
+        counts["full" if found[0] == 1.0 else "shortened"] += 1
+        lead_q[k, side] = found[1]
+        lead_track[k, side] = track[k]
+    return lead_q, lead_track, counts
+
+
+def with_run_ups(cell, robots: tuple, job, arms=None) -> tuple[tuple, dict]:
+    """The robots' work (``RobotWork``, in the cell's order) with their run-ups and run-outs
+    (:func:`robot_run_ups`; ``arms``: their collision models, or None), and the report's entry: the length and
+    per robot the counts. Robots that are not six-axis arms keep none."""
+    length = float(job.timing.run_up_mm)
+    report: dict = {"run_up_mm": length, "tries": list(RUN_UP_TRIES), "robots": {}}
+    out = []
+    for k, (cr, work) in enumerate(zip(cell.robots, robots)):
+        arm = None if arms is None else arms[k]
+        if cr.is_gantry or cr.robot(0.0).dof != 6 or length <= 0:
+            out.append(work)
+            continue
+        lead_q, lead_track, counts = robot_run_ups(cr, work, length, job.paths.standoff_mm, arm)
+        report["robots"][cr.name] = counts
+        out.append(dataclasses.replace(work, lead_q=lead_q, lead_track_mm=lead_track))
+        log.info(
+            "run-ups of %s: %d full, %d shortened, %d none (%d tries in collision)",
+            cr.name, counts["full"], counts["shortened"], counts["none"], counts["in_collision"],
+        )  # fmt: skip
+    return tuple(out), report
