@@ -192,3 +192,31 @@ def test_a_bad_run_up_length_names_its_key(bad, tmp_path, capsys):
     assert main(["plan", str(part), "--cell", "sides2", "--config", str(config), "-o", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "run_up_mm" in err[0] and not out.exists()
+
+
+def test_with_collisions_every_run_up_and_its_back_off_is_free(planned):
+    """Planned with ``[collision] check`` (the box and the floor): every run-up's line (its joints sampled as
+    the check samples them) is free, and so is the programs' back-off from its far end (``CellRouter.backs_free``,
+    the approach or retract the programs make there); a back-off check that refuses every end leaves none."""
+    pytest.importorskip("coal")
+    from sprayplan.cells.collide import cell_arms
+    from sprayplan.cells.routes import CellRouter
+    from sprayplan.cells.runups import _line_samples
+
+    job = planned["job"].replace(collision={"check": True})
+    plan = plan_cell(load_part(str(planned["folder"] / "box.stl")), planned["cell"], job)
+    arms = cell_arms(plan.cell, plan.part, plan.job.collision)
+    checked = 0
+    for cr, work, arm in zip(plan.cell.robots, plan.robots, arms):
+        router = CellRouter(cr, arm, plan.part, plan.job.collision)
+        for w, side in zip(*np.nonzero(np.isfinite(work.lead_q).all(axis=2))):
+            lead, t = work.lead_q[w, side], work.lead_track_mm[w, side]
+            assert not arm.collides(_line_samples(work.q[w], lead), t).any()
+            assert router.backs_free(lead[None], np.array([t]), plan.job.export.approach_mm)[0]
+            checked += 1
+    assert checked > 0
+    cr, work = plan.cell.robots[1], plan.robots[1]
+    _, _, counts = robot_run_ups(
+        cr, work, job.timing.run_up_mm, plan.job.paths.standoff_mm, arms[1], lambda q, t: np.zeros(len(q), bool)
+    )
+    assert counts["full"] == counts["shortened"] == 0 and counts["back_off_not_free"] > 0

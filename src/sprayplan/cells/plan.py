@@ -701,7 +701,9 @@ def plan_cell(
         from sprayplan.cells.runups import with_run_ups
 
         begin("run-ups")
-        robots, report["run_ups"] = with_run_ups(cell, plan.robots, job, arms if job.collision.check else None)
+        robots, report["run_ups"] = with_run_ups(
+            cell, plan.robots, job, arms if job.collision.check else None, painted if job.collision.check else None
+        )
         plan = dataclasses.replace(plan, robots=robots)
     if job.timing.enabled:
         from sprayplan.cells.timing import timed_cell

@@ -15,8 +15,10 @@ painter's program runs the gun up to speed before the trigger and out after it. 
 Each is a straight line the arm makes on the branch of the stretch's end waypoint with the track held there
 (``programs.build.line_joints``: every 5 mm within reach and limits, no joint jumping): the programs move it
 with a linear move. With the collision model (``[collision] check``) the line's joints are checked against the
-part and the floor (sampled at most ``MOTION_STEP_RAD`` apart, as the programs' own motions are). Where the
-full length cannot be made, a half and a quarter are tried; where none can, the end has none and its stretch
+part and the floor (sampled at most ``MOTION_STEP_RAD`` apart, as the programs' own motions are), and, with
+``[collision] repair``, the programs' approach to the run-up's start and retract from the run-out's end too
+(the back-offs the collision step asks of a run's ends). Where the full length cannot be made, a half and a
+quarter are tried; where none can, the end has none and its stretch
 starts (or stops) there at rest, as without run-ups. Stretches are cut as the programs cut their runs: at
 unreached waypoints and waypoints left in collision; a stretch the timing cuts at a joint jump has no run-up
 or run-out at the cut (the programs move across it).
@@ -73,18 +75,19 @@ def _line_samples(q_a: np.ndarray, q_b: np.ndarray) -> np.ndarray:
     return q_a + t * (q_b - q_a)
 
 
-def robot_run_ups(cell_robot, work, length_mm: float, standoff_mm: float, arm=None):
+def robot_run_ups(cell_robot, work, length_mm: float, standoff_mm: float, arm=None, backs=None):
     """``(lead_q, lead_track_mm, counts)`` of one robot's work (``RobotWork``; module docstring): the joints and
     track position where each run-up starts and each run-out ends (NaN elsewhere), and how many ends got their
     full length, a shortened one, or none. ``arm``: the robot's ``collision.arms.ArmCollision``, or None
-    (not checked)."""
+    (not checked); ``backs(q (m, dof), track (m,)) -> (m,) bool``: whether the programs' approach or retract
+    from there is free (``cells.routes.CellRouter.backs_free``), or None (not checked)."""
     from sprayplan.programs.arms import ArmCell
     from sprayplan.programs.build import line_joints
 
     n, dof = np.asarray(work.q).shape if work.waypoints else (0, 6)
     lead_q = np.full((n, 2, dof), np.nan)
     lead_track = np.full((n, 2), np.nan)
-    counts = {"full": 0, "shortened": 0, "none": 0, "in_collision": 0}
+    counts = {"full": 0, "shortened": 0, "none": 0, "in_collision": 0, "back_off_not_free": 0}
     ends = stretch_ends(work)
     if not ends or length_mm <= 0:
         counts["none"] = len(ends)
@@ -113,6 +116,9 @@ def robot_run_ups(cell_robot, work, length_mm: float, standoff_mm: float, arm=No
             if arm is not None and arm.collides(_line_samples(q[k], got), track[k]).any():
                 counts["in_collision"] += 1
                 continue
+            if backs is not None and not backs(got[None], track[k : k + 1])[0]:
+                counts["back_off_not_free"] += 1
+                continue
             found = share, got
             break
         if found is None:
@@ -124,11 +130,17 @@ def robot_run_ups(cell_robot, work, length_mm: float, standoff_mm: float, arm=No
     return lead_q, lead_track, counts
 
 
-def with_run_ups(cell, robots: tuple, job, arms=None) -> tuple[tuple, dict]:
+def with_run_ups(cell, robots: tuple, job, arms=None, part=None) -> tuple[tuple, dict]:
     """The robots' work (``RobotWork``, in the cell's order) with their run-ups and run-outs
     (:func:`robot_run_ups`; ``arms``: their collision models, or None), and the report's entry: the length and
-    per robot the counts. Robots that are not six-axis arms keep none."""
+    per robot the counts. Robots that are not six-axis arms keep none. With ``arms``, ``part`` (the painted
+    surface in the cell frame) and ``[collision] repair``, a run-up's start and a run-out's end also need the
+    programs' approach or retract from there free, as the collision step asks of a run's end waypoints
+    (``cells.collide.freed_cell``'s back-offs)."""
+    from sprayplan.cells.routes import CellRouter
+
     length = float(job.timing.run_up_mm)
+    approach = float(job.export.approach_mm)
     report: dict = {"run_up_mm": length, "tries": list(RUN_UP_TRIES), "robots": {}}
     out = []
     for k, (cr, work) in enumerate(zip(cell.robots, robots)):
@@ -136,11 +148,19 @@ def with_run_ups(cell, robots: tuple, job, arms=None) -> tuple[tuple, dict]:
         if cr.is_gantry or cr.robot(0.0).dof != 6 or length <= 0:
             out.append(work)
             continue
-        lead_q, lead_track, counts = robot_run_ups(cr, work, length, job.paths.standoff_mm, arm)
+        backs = None
+        if arm is not None and part is not None and job.collision.repair and approach > 0:
+            router = CellRouter(cr, arm, part, job.collision)
+
+            def backs(q, t, router=router):
+                return router.backs_free(q, t, approach)
+
+        lead_q, lead_track, counts = robot_run_ups(cr, work, length, job.paths.standoff_mm, arm, backs)
         report["robots"][cr.name] = counts
         out.append(dataclasses.replace(work, lead_q=lead_q, lead_track_mm=lead_track))
         log.info(
-            "run-ups of %s: %d full, %d shortened, %d none (%d tries in collision)",
+            "run-ups of %s: %d full, %d shortened, %d none (%d tries in collision, %d without a free back-off)",
             cr.name, counts["full"], counts["shortened"], counts["none"], counts["in_collision"],
+            counts["back_off_not_free"],
         )  # fmt: skip
     return tuple(out), report
