@@ -220,3 +220,43 @@ def test_with_collisions_every_run_up_and_its_back_off_is_free(planned):
         cr, work, job.timing.run_up_mm, plan.job.paths.standoff_mm, arms[1], lambda q, t: np.zeros(len(q), bool)
     )
     assert counts["full"] == counts["shortened"] == 0 and counts["back_off_not_free"] > 0
+
+
+@pytest.mark.parametrize("change", ["start moved", "run-up speed", "run-out left out"])
+def test_a_program_that_does_not_make_the_plans_run_up_fails_the_check(planned, tmp_path, change):
+    """The right robot's RAPID built from the plan passes the read-back check; with a run-up's start moved by
+    0.5 mm, a run-up at another speed, or a run-out left out (the retract then from the last waypoint's pose
+    backed off from the run-out's end), it fails."""
+    from sprayplan.programs.arms import arm_plan
+    from sprayplan.programs.check import check_program
+    from sprayplan.programs.rapid import write_rapid
+    from sprayplan.programs.stage import build, configurations, read_programs
+
+    plan = planned["plan"]
+    arm = _arm(planned, 1)
+    robot_plan = arm_plan(plan.robots[1], arm)
+    built = build(robot_plan, plan.job, "rapid", False, arm)
+    program = built.program
+
+    def checked(prog, name):
+        folder = tmp_path / name
+        folder.mkdir()
+        for file, text in write_rapid(prog, plan.job, configurations(prog, plan.job, "rapid", arm)).items():
+            (folder / file).write_text(text)
+        return check_program(read_programs(folder, plan.job, "rapid", 0), robot_plan, plan.job, arm)
+
+    assert checked(program, "good").ok
+    moves = list(program.stations[0].moves)
+    k = next(i for i, m in enumerate(moves) if m.role == "run-up")
+    if change == "start moved":
+        pose = moves[k - 1].pose.copy()
+        pose[0, 3] += 0.5
+        moves[k - 1] = dataclasses.replace(moves[k - 1], pose=pose)
+    elif change == "run-up speed":
+        moves[k] = dataclasses.replace(moves[k], speed_mm_s=moves[k].speed_mm_s * 1.1)
+    else:
+        j = next(i for i, m in enumerate(moves) if m.role == "run-out")
+        del moves[j]
+    station = dataclasses.replace(program.stations[0], moves=tuple(moves))
+    bad = checked(dataclasses.replace(program, stations=(station,)), "bad")
+    assert not bad.ok
