@@ -260,3 +260,45 @@ def test_a_program_that_does_not_make_the_plans_run_up_fails_the_check(planned, 
     station = dataclasses.replace(program.stations[0], moves=tuple(moves))
     bad = checked(dataclasses.replace(program, stations=(station,)), "bad")
     assert not bad.ok
+
+
+class _Router:
+    """A stand-in for ``CellRouter``: backs off to the joints themselves with the track, and finds a move in
+    collision exactly when either end differs from the waypoints' own joints (``plain``)."""
+
+    def __init__(self, plain):
+        self.plain = plain
+
+    def _programs_back(self, q, t, distance_mm):
+        return np.r_[q, t]
+
+    def _edges_free(self, a, b):
+        known = lambda s: any(np.array_equal(s[:-1], p) for p in self.plain)
+        return np.array([known(x) and known(y) for x, y in zip(a, b)])
+
+
+def test_a_move_between_runs_that_the_run_ups_put_in_collision_drops_them(planned):
+    """``freed_junctions``: where the move between two stretches is free from the plain ends and not from
+    their run-out and run-up, both are dropped (every such junction, counted); where the plain ends' move is
+    not free either, the run-ups stay (they are not what puts it in collision)."""
+    from sprayplan.cells.runups import freed_junctions
+
+    work = planned["plan"].robots[1]
+    ends = stretch_ends(work)
+    plain = [work.q[k] for k, _, _ in ends]
+    lead_q, dropped = freed_junctions(work, work.lead_q, _Router(plain), 50.0)
+    junctions = [
+        (a, b)
+        for (a, _, sa), (b, _, sb) in zip(ends[1::2], ends[2::2])
+        if np.isfinite(work.lead_q[a, 1]).all() or np.isfinite(work.lead_q[b, 0]).all()
+    ]
+    assert dropped == len(junctions) > 0  # (no routed transfer without the collision model)
+    for a, b in junctions:
+        assert not np.isfinite(lead_q[a, 1]).any() and not np.isfinite(lead_q[b, 0]).any()
+    # the first stretch's run-up and the last's run-out are no junction's: they stay
+    first, last = ends[0][0], ends[-1][0]
+    assert np.array_equal(np.isfinite(lead_q[first, 0]), np.isfinite(work.lead_q[first, 0]))
+    assert np.array_equal(np.isfinite(lead_q[last, 1]), np.isfinite(work.lead_q[last, 1]))
+    # the plain ends' moves in collision too: nothing dropped
+    kept, none = freed_junctions(work, work.lead_q, _Router([]), 50.0)
+    assert none == 0 and np.array_equal(np.isnan(kept), np.isnan(work.lead_q))

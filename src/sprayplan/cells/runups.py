@@ -18,7 +18,9 @@ with a linear move. With the collision model (``[collision] check``) the line's 
 part and the floor (sampled at most ``MOTION_STEP_RAD`` apart, as the programs' own motions are), and, with
 ``[collision] repair``, the programs' approach to the run-up's start and retract from the run-out's end too
 (the back-offs the collision step asks of a run's ends). Where the full length cannot be made, a half and a
-quarter are tried; where none can, the end has none and its stretch
+quarter are tried; where none can, the end has none (and with the collision model, the run-out and run-up
+either side of the programs' joint move between two runs are dropped where their back-offs put that move in
+collision and the plain ends' do not: :func:`freed_junctions`) and its stretch
 starts (or stops) there at rest, as without run-ups. Stretches are cut as the programs cut their runs: at
 unreached waypoints and waypoints left in collision; a stretch the timing cuts at a joint jump has no run-up
 or run-out at the cut (the programs move across it).
@@ -130,6 +132,42 @@ def robot_run_ups(cell_robot, work, length_mm: float, standoff_mm: float, arm=No
     return lead_q, lead_track, counts
 
 
+def freed_junctions(work, lead_q, router, approach_mm: float) -> tuple[np.ndarray, int]:
+    """``lead_q`` without the run-out and the run-up on either side of a move between two stretches that their
+    back-offs put in collision where the plain ends' did not, and how many such moves. The programs move from
+    one run's retract to the next run's approach by a joint move; with run-ups those are the back-offs of the
+    run-out's end and the run-up's start, which the collision step (checking the plan's transfers waypoint to
+    waypoint) does not see. Checked here as ``CellRouter._edges_free`` between the states
+    ``CellRouter._programs_back`` gives; moves through a routed transfer's waypoints, and ends the programs
+    cannot back off from, are left to the collision step and the programs."""
+    from sprayplan.programs.arms import routed_rows
+
+    ends = stretch_ends(work)
+    routed = routed_rows(work.strokes) != ""
+    q, track = np.asarray(work.q, float), np.asarray(work.track_mm, float)
+    lead_q = lead_q.copy()
+    dropped = 0
+
+    def free(a, qa, b, qb) -> bool | None:
+        sa = router._programs_back(qa, float(track[a]), approach_mm)
+        sb = router._programs_back(qb, float(track[b]), approach_mm)
+        if sa is None or sb is None:
+            return None
+        return bool(router._edges_free(sa[None], sb[None])[0])
+
+    for (a, _, side_a), (b, _, side_b) in zip(ends[1::2], ends[2::2]):
+        if side_a != 1 or side_b != 0 or routed[a + 1 : b].any():
+            continue
+        has = np.isfinite(lead_q[a, 1]).all(), np.isfinite(lead_q[b, 0]).all()
+        if not any(has) or free(a, lead_q[a, 1] if has[0] else q[a], b, lead_q[b, 0] if has[1] else q[b]) is not False:
+            continue
+        if free(a, q[a], b, q[b]):
+            lead_q[a, 1] = np.nan
+            lead_q[b, 0] = np.nan
+            dropped += 1
+    return lead_q, dropped
+
+
 def with_run_ups(cell, robots: tuple, job, arms=None, part=None) -> tuple[tuple, dict]:
     """The robots' work (``RobotWork``, in the cell's order) with their run-ups and run-outs
     (:func:`robot_run_ups`; ``arms``: their collision models, or None), and the report's entry: the length and
@@ -148,7 +186,7 @@ def with_run_ups(cell, robots: tuple, job, arms=None, part=None) -> tuple[tuple,
         if cr.is_gantry or cr.robot(0.0).dof != 6 or length <= 0:
             out.append(work)
             continue
-        backs = None
+        backs = router = None
         if arm is not None and part is not None and job.collision.repair and approach > 0:
             router = CellRouter(cr, arm, part, job.collision)
 
@@ -156,6 +194,9 @@ def with_run_ups(cell, robots: tuple, job, arms=None, part=None) -> tuple[tuple,
                 return router.backs_free(q, t, approach)
 
         lead_q, lead_track, counts = robot_run_ups(cr, work, length, job.paths.standoff_mm, arm, backs)
+        if router is not None:
+            lead_q, counts["dropped_at_moves_between_runs"] = freed_junctions(work, lead_q, router, approach)
+            lead_track = np.where(np.isfinite(lead_q).all(axis=2), lead_track, np.nan)
         report["robots"][cr.name] = counts
         out.append(dataclasses.replace(work, lead_q=lead_q, lead_track_mm=lead_track))
         log.info(
