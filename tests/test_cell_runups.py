@@ -69,7 +69,7 @@ def test_every_run_up_starts_straight_back_along_its_stretchs_first_segment(plan
             assert arm.within_limits(work.lead_q[w, side][None])[0]
             assert work.lead_track_mm[w, side] == work.track_mm[w]
     counts = plan.report["run_ups"]["robots"].values()
-    assert made > 0 and made == sum(c["full"] + c["shortened"] for c in counts)
+    assert made > 0 and made == sum(c["full"] + c["shortened"] for c in counts) == sum(c["made"] for c in counts)
     assert made + sum(c["none"] for c in counts) == sum(len(stretch_ends(w)) for w in plan.robots)
     assert plan.report["run_ups"]["robots"]["left"]["full"] > 0
 
@@ -214,7 +214,7 @@ def test_with_collisions_every_run_up_and_its_back_off_is_free(planned):
             assert not arm.collides(_line_samples(work.q[w], lead), t).any()
             assert router.backs_free(lead[None], np.array([t]), plan.job.export.approach_mm)[0]
             checked += 1
-    assert checked > 0
+    assert checked > 0 and checked == sum(c["made"] for c in plan.report["run_ups"]["robots"].values())
     cr, work = plan.cell.robots[1], plan.robots[1]
     _, _, counts = robot_run_ups(
         cr, work, job.timing.run_up_mm, plan.job.paths.standoff_mm, arms[1], lambda q, t: np.zeros(len(q), bool)

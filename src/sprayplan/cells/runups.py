@@ -194,14 +194,16 @@ def with_run_ups(cell, robots: tuple, job, arms=None, part=None) -> tuple[tuple,
                 return router.backs_free(q, t, approach)
 
         lead_q, lead_track, counts = robot_run_ups(cr, work, length, job.paths.standoff_mm, arm, backs)
-        if router is not None:
+        if router is not None:  # (full and shortened count the ends before these drops)
             lead_q, counts["dropped_at_moves_between_runs"] = freed_junctions(work, lead_q, router, approach)
             lead_track = np.where(np.isfinite(lead_q).all(axis=2), lead_track, np.nan)
+        counts["made"] = int(np.isfinite(lead_q).all(axis=2).sum())
         report["robots"][cr.name] = counts
         out.append(dataclasses.replace(work, lead_q=lead_q, lead_track_mm=lead_track))
         log.info(
-            "run-ups of %s: %d full, %d shortened, %d none (%d tries in collision, %d without a free back-off)",
-            cr.name, counts["full"], counts["shortened"], counts["none"], counts["in_collision"],
-            counts["back_off_not_free"],
+            "run-ups of %s: %d made (%d full, %d shortened, %d none; %d tries in collision, %d without a free "
+            "back-off, %d pairs dropped at moves between runs)",
+            cr.name, counts["made"], counts["full"], counts["shortened"], counts["none"], counts["in_collision"],
+            counts["back_off_not_free"], counts.get("dropped_at_moves_between_runs", 0),
         )  # fmt: skip
     return tuple(out), report
