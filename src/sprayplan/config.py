@@ -852,6 +852,10 @@ class CollisionConfig(Section):
     cloud_radius_mm : float or None
         A point-cloud part's collision body is a ball of this radius about every point; None: from the cloud's
         spacing (``collision.spheres.cloud_radius_mm``).
+    workers : int or None
+        A cell plan's collision work (checks, repairs, routes, run-ups) runs one robot a process, this many at a
+        time (``cells.each``; None: the cores; 1: one robot after the other in the planner's process). The
+        results are the same either way.
     """
 
     SECTION = "collision"
@@ -878,6 +882,7 @@ class CollisionConfig(Section):
     cell_detour_iterations: int = 200
     seed: int = 0
     cloud_radius_mm: float | None = None
+    workers: int | None = None
 
     def _check(self):
         value = self.retract_mm
@@ -912,6 +917,7 @@ class CollisionConfig(Section):
             )
         _at_least(CollisionConfig, "platform_raise_mm", self.platform_raise_mm, 0)
         _at_least(CollisionConfig, "cloud_radius_mm", self.cloud_radius_mm, 0, strict=True)
+        _within(CollisionConfig, "workers", self.workers, 1, 256)
         if self.clearance_mm > 0 and self.motion_step_mm > 2 * self.clearance_mm:
             raise _fail(
                 CollisionConfig,

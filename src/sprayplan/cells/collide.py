@@ -142,68 +142,85 @@ def freed_cell(
     either side joined by a new transfer, routed in turn, up to :data:`DROP_ROUNDS` times: a program makes every
     transfer of its plan, so one that no route frees would be a motion into the body. Returns the robots and
     per robot the repairs', the cut's, the routes' and the drops' counts."""
-    from sprayplan.cells.repair import free_work, piece_tilts, resolved_piece
+    from sprayplan.cells.each import each_robot
+    from sprayplan.cells.repair import piece_tilts
+
+    tilts = piece_tilts(config.piece_tilt_deg) if standoff_mm > 0 else ()
+    calls, sizes = [], []
+    for cell_robot, work, arm in zip(cell.robots, robots, arms):
+        first = 0 if since is None else int(since.get(work.name, 0))
+        mine = None if failed is None else set(failed.get(work.name, set()))
+        calls.append(
+            (_freed_robot, (cell_robot, work, arm, config, repair, part, standoff_mm, mine, first, approach_mm, tilts))
+        )
+        sizes.append(sum(len(s) for s in work.strokes[first:]))  # the waypoints it checks
+    out, counts = [], {}
+    for work, entry, mine in each_robot(calls, config.workers, sizes):
+        out.append(work)
+        counts[work.name] = entry
+        if failed is not None and mine is not None:
+            failed[work.name] = mine
+    return tuple(out), counts
+
+
+def _freed_robot(cell_robot, work, arm, config, repair, part, standoff_mm, mine, first, approach_mm, tilts):
+    """One robot's share of :func:`freed_cell`: its work repaired, checked, cut, routed and its unroutable runs
+    dropped; returns the work, its counts and ``mine`` (the transfers no route freed, grown)."""
+    from sprayplan.cells.repair import free_work, resolved_piece
     from sprayplan.cells.routes import CellRouter, routed_work
     from sprayplan.cells.work import without_strokes
 
-    out, counts = [], {}
-    tilts = piece_tilts(config.piece_tilt_deg) if standoff_mm > 0 else ()
-    for cell_robot, work, arm in zip(cell.robots, robots, arms):
-        repairs, routes = {}, {}
-        first = 0 if since is None else int(since.get(work.name, 0))
-        if repair is not None and config.repair:
-            work, repairs = repair(cell_robot, work, arm)
-        if first:
-            found = _tail_checked(arm, work, first)
-        else:
-            found = check_robot(arm, work.q, work.track_mm, work.reachable)
-        resolve = None
-        if config.repair:
+    repairs, routes = {}, {}
+    if repair is not None and config.repair:
+        work, repairs = repair(cell_robot, work, arm)
+    if first:
+        found = _tail_checked(arm, work, first)
+    else:
+        found = check_robot(arm, work.q, work.track_mm, work.reachable)
+    resolve = None
+    if config.repair:
 
-            def resolve(piece, seed, cell_robot=cell_robot, arm=arm):
-                return resolved_piece(cell_robot, arm, piece, seed, standoff_mm, tilts)
+        def resolve(piece, seed):
+            return resolved_piece(cell_robot, arm, piece, seed, standoff_mm, tilts)
 
-        backs = None
-        if config.repair and part is not None and approach_mm > 0:
-            router = CellRouter(cell_robot, arm, part, config)
+    backs = None
+    if config.repair and part is not None and approach_mm > 0:
+        router = CellRouter(cell_robot, arm, part, config)
 
-            def backs(q, t, router=router):
-                return router.backs_free(q, t, approach_mm)
+        def backs(q, t):
+            return router.backs_free(q, t, approach_mm)
 
-        work, left = free_work(work, found, resolve, backs, since=first)
-        if config.repair and part is not None:
-            mine = None if failed is None else failed.setdefault(work.name, set())
+    work, left = free_work(work, found, resolve, backs, since=first)
+    if config.repair and part is not None:
 
-            def route(work_, only=None, cell_robot=cell_robot, arm=arm, mine=mine, first=first):
-                return routed_work(
-                    cell_robot, work_, arm, part, config, standoff_mm, failed=mine, since=first,
-                    approach_mm=approach_mm, only=only,
-                )  # fmt: skip
+        def route(work_, only=None):
+            return routed_work(
+                cell_robot, work_, arm, part, config, standoff_mm, failed=mine, since=first,
+                approach_mm=approach_mm, only=only,
+            )  # fmt: skip
 
-            work, routes = route(work)
-            routes.pop("transfers_in_collision")  # the check after the film counts what is left
-            # a run no route reaches free is dropped, its neighbours joined and the new transfer routed: in a
-            # touch-up round only touch-ups, else any run
-            dropped, blamed = 0, set()
-            for _ in range(DROP_ROUNDS):
-                drop = unrouted_runs(work, mine if mine is not None else set(), first, bool(first), blamed)
-                if not drop:
-                    break
-                dropped += len(drop)
-                old = work.strokes  # kept alive, so that no new stroke takes an old one's id
-                before = {id(s) for s in old}
-                work = without_strokes(work, drop)
-                # only the transfers the drops made are routed again (the others were routed or failed)
-                joined = {i for i, s in enumerate(work.strokes) if not s.spray_on and id(s) not in before}
-                del old
-                work, more = route(work, joined)
-                for key, value in more.items():
-                    if key != "transfers_in_collision":
-                        routes[key] = routes.get(key, 0) + value
-            routes["touch_ups_dropped" if first else "runs_dropped"] = dropped
-        out.append(work)
-        counts[work.name] = {**repairs, **left, **routes}
-    return tuple(out), counts
+        work, routes = route(work)
+        routes.pop("transfers_in_collision")  # the check after the film counts what is left
+        # a run no route reaches free is dropped, its neighbours joined and the new transfer routed: in a
+        # touch-up round only touch-ups, else any run
+        dropped, blamed = 0, set()
+        for _ in range(DROP_ROUNDS):
+            drop = unrouted_runs(work, mine if mine is not None else set(), first, bool(first), blamed)
+            if not drop:
+                break
+            dropped += len(drop)
+            old = work.strokes  # kept alive, so that no new stroke takes an old one's id
+            before = {id(s) for s in old}
+            work = without_strokes(work, drop)
+            # only the transfers the drops made are routed again (the others were routed or failed)
+            joined = {i for i, s in enumerate(work.strokes) if not s.spray_on and id(s) not in before}
+            del old
+            work, more = route(work, joined)
+            for key, value in more.items():
+                if key != "transfers_in_collision":
+                    routes[key] = routes.get(key, 0) + value
+        routes["touch_ups_dropped" if first else "runs_dropped"] = dropped
+    return work, {**repairs, **left, **routes}, mine
 
 
 def check_cell(plan, config, repair=None, arms=None) -> tuple[tuple, dict]:
@@ -221,15 +238,16 @@ def check_cell(plan, config, repair=None, arms=None) -> tuple[tuple, dict]:
     """
     if arms is None:
         arms = cell_arms(plan.cell, plan.part, config)
+    from sprayplan.cells.each import each_robot
+
     robots, sweeps, per_robot = [], [], {}
-    for cell_robot, work, arm in zip(plan.cell.robots, plan.robots, arms):
-        repairs = {}
-        if repair is not None and config.repair:
-            work, repairs = repair(cell_robot, work, arm)
-        found = check_robot(arm, work.q, work.track_mm, work.reachable)
-        per_robot[work.name] = {**found.summary(), **repairs}
-        robots.append(dataclasses.replace(work, collides=found.waypoint.collides.copy()))
-        sweeps.append(swept_points(arm, work.q, work.track_mm, work.reachable))
+    calls = [
+        (_checked_robot, (cr, work, arm, config, repair)) for cr, work, arm in zip(plan.cell.robots, plan.robots, arms)
+    ]
+    for work, entry, sweep in each_robot(calls, config.workers, [len(w.q) for w in plan.robots]):
+        per_robot[work.name] = entry
+        robots.append(work)
+        sweeps.append(sweep)
     gaps = {}
     for (i, a), (j, b) in itertools.combinations(enumerate(sweeps), 2):
         gap = separation(a, b)
@@ -245,3 +263,14 @@ def check_cell(plan, config, repair=None, arms=None) -> tuple[tuple, dict]:
         "robots_kept_apart": "in space (the swept spaces do not meet)" if apart else "not proven: work spaces overlap",
     }
     return tuple(robots), report
+
+
+def _checked_robot(cell_robot, work, arm, config, repair):
+    """One robot's share of :func:`check_cell`: its work (repaired, with its ``collides`` flags), its counts and
+    the space it sweeps (``collision.arms.swept_points``)."""
+    repairs = {}
+    if repair is not None and config.repair:
+        work, repairs = repair(cell_robot, work, arm)
+    found = check_robot(arm, work.q, work.track_mm, work.reachable)
+    sweep = swept_points(arm, work.q, work.track_mm, work.reachable)
+    return dataclasses.replace(work, collides=found.waypoint.collides.copy()), {**found.summary(), **repairs}, sweep

@@ -174,32 +174,23 @@ def with_run_ups(cell, robots: tuple, job, arms=None, part=None) -> tuple[tuple,
     per robot the counts. Robots that are not six-axis arms keep none. With ``arms``, ``part`` (the painted
     surface in the cell frame) and ``[collision] repair``, a run-up's start and a run-out's end also need the
     programs' approach or retract from there free, as the collision step asks of a run's end waypoints
-    (``cells.collide.freed_cell``'s back-offs)."""
-    from sprayplan.cells.routes import CellRouter
+    (``cells.collide.freed_cell``'s back-offs). With ``arms`` the robots are worked on side by side
+    (``cells.each``, ``[collision] workers``)."""
+    from sprayplan.cells.each import each_robot
 
     length = float(job.timing.run_up_mm)
-    approach = float(job.export.approach_mm)
     report: dict = {"run_up_mm": length, "tries": list(RUN_UP_TRIES), "robots": {}}
+    calls = [
+        (_robot_leads, (cr, work, job, None if arms is None else arms[k], part))
+        for k, (cr, work) in enumerate(zip(cell.robots, robots))
+    ]
+    workers = job.collision.workers if arms is not None else 1
     out = []
-    for k, (cr, work) in enumerate(zip(cell.robots, robots)):
-        arm = None if arms is None else arms[k]
-        if cr.is_gantry or cr.robot(0.0).dof != 6 or length <= 0:
-            out.append(work)
+    for cr, (work, counts) in zip(cell.robots, each_robot(calls, workers, [len(w.q) for w in robots])):
+        out.append(work)
+        if counts is None:
             continue
-        backs = router = None
-        if arm is not None and part is not None and job.collision.repair and approach > 0:
-            router = CellRouter(cr, arm, part, job.collision)
-
-            def backs(q, t, router=router):
-                return router.backs_free(q, t, approach)
-
-        lead_q, lead_track, counts = robot_run_ups(cr, work, length, job.paths.standoff_mm, arm, backs)
-        if router is not None:  # (full and shortened count the ends before these drops)
-            lead_q, counts["dropped_at_moves_between_runs"] = freed_junctions(work, lead_q, router, approach)
-            lead_track = np.where(np.isfinite(lead_q).all(axis=2), lead_track, np.nan)
-        counts["made"] = int(np.isfinite(lead_q).all(axis=2).sum())
         report["robots"][cr.name] = counts
-        out.append(dataclasses.replace(work, lead_q=lead_q, lead_track_mm=lead_track))
         log.info(
             "run-ups of %s: %d made (%d full, %d shortened, %d none; %d tries in collision, %d without a free "
             "back-off, %d pairs dropped at moves between runs)",
@@ -207,3 +198,27 @@ def with_run_ups(cell, robots: tuple, job, arms=None, part=None) -> tuple[tuple,
             counts["back_off_not_free"], counts.get("dropped_at_moves_between_runs", 0),
         )  # fmt: skip
     return tuple(out), report
+
+
+def _robot_leads(cr, work, job, arm, part):
+    """One robot's share of :func:`with_run_ups`: its work with its run-ups and their counts (None for a robot
+    that gets none)."""
+    from sprayplan.cells.routes import CellRouter
+
+    length = float(job.timing.run_up_mm)
+    approach = float(job.export.approach_mm)
+    if cr.is_gantry or cr.robot(0.0).dof != 6 or length <= 0:
+        return work, None
+    backs = router = None
+    if arm is not None and part is not None and job.collision.repair and approach > 0:
+        router = CellRouter(cr, arm, part, job.collision)
+
+        def backs(q, t):
+            return router.backs_free(q, t, approach)
+
+    lead_q, lead_track, counts = robot_run_ups(cr, work, length, job.paths.standoff_mm, arm, backs)
+    if router is not None:  # (full and shortened count the ends before these drops)
+        lead_q, counts["dropped_at_moves_between_runs"] = freed_junctions(work, lead_q, router, approach)
+        lead_track = np.where(np.isfinite(lead_q).all(axis=2), lead_track, np.nan)
+    counts["made"] = int(np.isfinite(lead_q).all(axis=2).sum())
+    return dataclasses.replace(work, lead_q=lead_q, lead_track_mm=lead_track), counts
