@@ -216,14 +216,22 @@ def _timed(work, q, axes: _Axes, limits, timed: dict, motion, jump_rad: float) -
         if current is None or not ok.any():
             continue
         if not s.spray_on:
-            last = idx[ok][-1]
-            move = point_to_point(current, q[last], limits).duration_s
-            along = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(s.tcp, axis=0), axis=1))]
-            share = along / along[-1] if along[-1] > 0 else np.linspace(0.0, 1.0, len(s))
-            t[idx[ok]] = clock + move * share[ok]
-            clock += move
-            moves += move
-            current = q[last]
+            # a joint move to every row after the first, in turn, from rest to rest (the programs' routes are
+            # joint moves to fine points, ``programs.build.route_moves``); the first row is where the stroke
+            # before ended, the robot there or at its run-out's end (``current``); the last is the next
+            # stroke's first waypoint, and where that has a run-up the move ends at the run-up's start
+            rows = idx[ok]
+            legs = rows[1:] if len(rows) > 1 else rows
+            t[rows[0]] = clock
+            for r in legs:
+                goal = q[r]
+                if r == rows[-1] and start < n and np.isfinite(lead[start, 0]).all():
+                    goal = lead[start, 0]
+                move = point_to_point(current, goal, limits).duration_s
+                clock += move
+                moves += move
+                t[r] = clock
+                current = goal
             continue
         cap = segment_speeds(
             s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio, s.dwell

@@ -1,0 +1,141 @@
+"""How a cell robot moves between its runs, in the timing and in the schedule: a routed transfer timed leg by
+leg from rest to rest (the programs stop at every route node), the move into a run with a run-up ending at the
+run-up's start, no axis faster than its limit anywhere along a scheduled timeline (no jump), and the schedule's
+wait search giving the wait-by-wait answer."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from sprayplan.cells import load_cell
+from sprayplan.cells import schedule as sched
+from sprayplan.cells.collide import cell_arms
+from sprayplan.cells.plan import plan_cell
+from sprayplan.cells.timing import _Axes, _leads, cell_limits, time_cell, with_times
+from sprayplan.config import JobConfig
+from sprayplan.timing.moves import point_to_point
+from tests.helpers import grid_box
+from tests.test_cell_plan import CELL, SIZE
+
+pytest.importorskip("coal")
+
+
+@pytest.fixture(scope="module")
+def routed(tmp_path_factory):
+    """The two-robot box planned with ``[collision] check`` (its left robot's transfers routed round the box)
+    and a 50 um target; each robot's timing."""
+    folder = tmp_path_factory.mktemp("moves")
+    (folder / "small2.toml").write_text(CELL)
+    cell = load_cell(folder / "small2.toml")
+    job = JobConfig().replace(coating={"thickness_um": 50.0}, collision={"check": True})
+    plan = plan_cell(grid_box(n=8, size=SIZE), cell, job)
+    return plan, time_cell(plan.cell, plan.robots, plan.job)
+
+
+def _transfers(work):
+    start = 0
+    for s in work.strokes:
+        rows = np.arange(start, start + len(s))
+        start += len(s)
+        if not s.spray_on:
+            yield rows[work.reachable[rows]], start
+
+
+def test_a_routed_transfer_is_timed_leg_by_leg_and_ends_at_the_next_run_up(routed):
+    """Every transfer row after the first is reached by a rest-to-rest move from the row before (the first:
+    from where the robot is, its run-out's end if it has one), so the rows' times step by those moves'
+    durations; the last move ends at the next run's run-up start where it has one. Some transfers are routed
+    (more than two rows), and a run-up follows some."""
+    plan, timed = routed
+    legs = ups = 0
+    for cr, work, tm in zip(plan.cell.robots, plan.robots, timed):
+        axes, limits = _Axes(cr), cell_limits(cr, plan.job.timing)
+        q = axes.of(work)
+        lead, _ = _leads(work, axes)
+        for rows, after in _transfers(work):
+            if len(rows) < 3:
+                continue
+            for a, b in itertools.pairwise(rows[1:]):
+                goal = q[b]
+                if b == rows[-1] and after < len(q) and np.isfinite(lead[after, 0]).all():
+                    goal, ups = lead[after, 0], ups + 1
+                expected = point_to_point(q[a], goal, limits).duration_s
+                assert tm.t_s[b] - tm.t_s[a] == pytest.approx(expected, rel=1e-9, abs=1e-9)
+                legs += 1
+    assert legs > 0 and ups > 0
+
+
+def test_no_axis_moves_faster_than_its_limit_along_the_scheduled_timelines(routed):
+    """Between any two knots of every robot's scheduled timeline (its runs, run-ups, routed transfers, waits
+    and park), no joint and no track moves faster than its velocity limit: the timeline never jumps."""
+    plan, timed = routed
+    robots = with_times(plan.robots, timed)
+    arms = cell_arms(plan.cell, plan.part, plan.job.collision)
+    tracks = [None if r.track is None else r.track.speed_mm_s for r in plan.cell.robots]
+    ranges = [None if r.track is None else tuple(r.track.range_mm) for r in plan.cell.robots]
+    motion = plan.job.motion
+    schedule = sched.schedule_cell(
+        robots, arms, motion.gun_speed_mm_s, motion.transfer_speed_mm_s, plan.job.collision.clearance_mm, tracks,
+        times=[r.t_s for r in robots], track_ranges=ranges,
+    )  # fmt: skip
+    for cr, line in zip(plan.cell.robots, schedule.timelines):
+        limits = cell_limits(cr, plan.job.timing)
+        axes = line.knot_q if cr.track is None else np.column_stack([line.knot_q, line.knot_track])
+        dt = np.diff(line.knot_t)
+        assert (dt > 0).all()
+        speed = np.abs(np.diff(axes, axis=0)) / dt[:, None]
+        assert (speed <= limits.velocity * (1 + 1e-6) + 1e-9).all(), cr.name
+
+
+def _wait_by_wait(stroke, hold, earlier, clearance_mm):
+    """The reference: every wait in turn, the hold checked over all its samples, the stroke over all of its."""
+    per = round(sched.WAIT_STEP_S / sched.DT_S)
+    g0, m = stroke.first, len(stroke.segments)
+    for k in range(int(sched.MAX_WAIT_S / sched.WAIT_STEP_S) + 1):
+        held = np.arange(g0, g0 + k * per)
+        for other in earlier:
+            if (
+                len(held)
+                and (sched._gaps(hold, np.zeros(len(held), int), other, other.rows(held), clearance_mm) < 0).any()
+            ):
+                return None
+        rows = np.arange(m)
+        if not any((sched._gaps(stroke, rows, other, other.rows(g0 + k * per + rows), clearance_mm) < 0).any()
+                   for other in earlier):  # fmt: skip
+            return k * per * sched.DT_S
+    return None
+
+
+def _path(rng, arm, keys: int, samples: int, centre) -> tuple[np.ndarray, np.ndarray]:
+    """Joints (samples, 6) straight between ``keys`` random configurations about ``centre``, track 0."""
+    frames = centre + rng.uniform(-0.8, 0.8, (keys, 6))
+    t = np.linspace(0.0, keys - 1, samples)
+    q = np.array([np.interp(t, np.arange(keys), frames[:, j]) for j in range(6)]).T
+    return q, np.zeros(samples)
+
+
+def test_the_wait_search_gives_the_wait_by_wait_answer(routed, monkeypatch):
+    """On random motions of the two box robots reaching over the box towards each other, the windowed search
+    (:func:`cells.schedule._wait_for`) finds the same least wait as trying every wait in turn, or None with it;
+    the cases cover no wait, a wait, and none found."""
+    plan, _ = routed
+    monkeypatch.setattr(sched, "MAX_WAIT_S", 15.0)
+    arms = cell_arms(plan.cell, plan.part, plan.job.collision)
+    left, right = arms
+    rng = np.random.default_rng(3)
+    reach = np.array([0.0, 0.6, 0.3, 0.0, 0.5, 0.0])  # leaning forward, over the box
+    answers = []
+    for _ in range(24):
+        q, t = _path(rng, right, 6, 400, reach)
+        earlier = [sched._Sampled.of(right, q, t)]
+        first = int(rng.integers(0, 200))
+        qs, ts = _path(rng, left, 3, int(rng.integers(20, 120)), reach)
+        stroke = sched._Sampled.of(left, qs, ts, first=first)
+        hold = sched._Sampled.of(left, qs[:1], ts[:1])
+        got = sched._wait_for(stroke, hold, earlier, 30.0)
+        assert got == _wait_by_wait(stroke, hold, earlier, 30.0)
+        answers.append(got)
+    assert None in answers and 0.0 in answers and any(a not in (None, 0.0) for a in answers)
