@@ -118,9 +118,10 @@ def _path(rng, arm, keys: int, samples: int, centre) -> tuple[np.ndarray, np.nda
 
 
 def test_the_wait_search_gives_the_wait_by_wait_answer(routed, monkeypatch):
-    """On random motions of the two box robots reaching over the box towards each other, the windowed search
-    (:func:`cells.schedule._wait_for`) finds the same least wait as trying every wait in turn, or None with it;
-    the cases cover no wait, a wait, and none found."""
+    """On random motions of the two box robots reaching over the box towards each other, the search
+    (:func:`cells.schedule._wait_for`: the hold's new samples per wait, the stroke by chunks, the chunk that
+    refused the last wait first) finds the same least wait as checking every sample at every wait, or None
+    with it; the cases cover no wait, a wait, and none found."""
     plan, _ = routed
     monkeypatch.setattr(sched, "MAX_WAIT_S", 15.0)
     arms = cell_arms(plan.cell, plan.part, plan.job.collision)

@@ -82,8 +82,6 @@ MAX_WAIT_S = 600.0
 #: A block's samples are checked this many at a time (:func:`_wait_for`: a wait is refused at its first chunk
 #: too close).
 WAIT_CHUNK = 64
-#: At most this many waits are tried together (:func:`_wait_for`).
-WAIT_BATCH = 64
 #: How many strokes back a wait is tried, stroke by stroke, when none before the stroke itself frees it.
 BACKTRACK = 6
 #: Past those, the strokes back tried grow this much each time (:func:`_backtrack`).
@@ -502,55 +500,27 @@ class Schedule:
 def _wait_for(stroke: _Sampled, hold: _Sampled, earlier, clearance_mm: float) -> float | None:
     """The least wait (a whole number of WAIT_STEP_S up to MAX_WAIT_S) before a stroke sampled at grid samples
     ``stroke.first ..`` that keeps it and the hold before it clear of every ``earlier`` robot; None if none
-    does. The hold only grows with the wait, so the search ends at the first wait whose hold is not clear.
-
-    The waits are taken in windows (1, 2, 4, .. up to :data:`WAIT_BATCH` of them). In a window, the hold's new
-    samples are checked at once, which bounds the waits open; then the chunk of the stroke's samples that
-    refused the last wait tried (a conflict most often lasts over several waits) is checked at every open
-    wait in one call, and the first wait it leaves is checked chunk by chunk; the chunk that refuses it is the
-    next to check at the rest. A conflict that lasts many waits so costs a few calls rather than one per wait,
-    and the answer is the one a wait-by-wait search gives (the least wait clear, before the first whose hold
-    is not)."""
+    does. The hold only grows with the wait, so the search ends at the first wait whose hold is not clear."""
     per = round(WAIT_STEP_S / DT_S)
     g0, m = stroke.first, len(stroke.segments)
+    zero = np.zeros(1, dtype=int)
     chunks = [np.arange(c, min(c + WAIT_CHUNK, m)) for c in range(0, m, WAIT_CHUNK)]
-
-    def clear(c: int, ks: np.ndarray) -> np.ndarray:
-        """(len(ks),) bool: chunk ``c`` clear of every earlier robot at each wait ``ks`` (in WAIT_STEP_S)."""
-        rows = chunks[c]
-        mine = np.tile(rows, len(ks))
-        g = g0 + np.repeat(ks * per, len(rows)) + mine
-        hit = np.zeros(len(g), bool)
-        for other in earlier:
-            hit |= _gaps(stroke, mine, other, other.rows(g), clearance_mm) < 0
-        return ~hit.reshape(len(ks), len(rows)).any(axis=1)
-
-    last = 0  # the chunk that refused the last wait tried
-    top = int(MAX_WAIT_S / WAIT_STEP_S)
-    k0, size = 0, 1
-    while k0 <= top:
-        ks = np.arange(k0, min(k0 + size, top + 1))
-        limit = ks[-1] + 1  # the first wait whose hold is not clear (past the window: all are)
-        new = np.arange(g0 + max(ks[0] - 1, 0) * per, g0 + ks[-1] * per)  # the hold's new samples, waits >= 1
-        if len(new):
-            bad = np.zeros(len(new), bool)
+    last = 0  # the chunk that failed last: a conflict most often lasts over several waits, so it is tried first
+    for k in range(int(MAX_WAIT_S / WAIT_STEP_S) + 1):
+        shift = k * per
+        if shift:  # the hold's new samples, g0 + shift - per .. g0 + shift - 1
+            new = np.arange(g0 + shift - per, g0 + shift)
             for other in earlier:
-                bad |= _gaps(hold, np.zeros(len(new), dtype=int), other, other.rows(new), clearance_mm) < 0
-            if bad.any():
-                limit = int((new[np.argmax(bad)] - g0) // per) + 1
-        open_ = ks[ks < limit]
-        while len(open_):
-            open_ = open_[clear(last, open_)]
-            if not len(open_):
+                if (_gaps(hold, np.repeat(zero, len(new)), other, other.rows(new), clearance_mm) < 0).any():
+                    return None
+        for c in [last, *range(last), *range(last + 1, len(chunks))]:
+            rows = chunks[c]
+            g = g0 + shift + rows
+            if any((_gaps(stroke, rows, other, other.rows(g), clearance_mm) < 0).any() for other in earlier):
+                last = c
                 break
-            k = open_[:1]
-            refused = next((c for c in [*range(last), *range(last + 1, len(chunks))] if not clear(c, k)[0]), None)
-            if refused is None:
-                return int(k[0]) * per * DT_S
-            last, open_ = refused, open_[1:]
-        if limit <= ks[-1]:
-            return None
-        k0, size = ks[-1] + 1, min(2 * size, WAIT_BATCH)
+        else:
+            return shift * DT_S
     return None
 
 
