@@ -1,6 +1,6 @@
 """How a cell robot moves between its runs, in the timing and in the schedule: a routed transfer timed leg by
-leg from rest to rest (the programs stop at every route node), the move into a run with a run-up ending at the
-run-up's start, no axis faster than its limit anywhere along a scheduled timeline (no jump), and the schedule's
+leg from rest to rest (the programs stop at every route node), the move into a run ending with the programs'
+approach to its start (the run-up's start where it has one), no axis faster than its limit anywhere along a scheduled timeline (no jump), and the schedule's
 wait search giving the wait-by-wait answer."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from sprayplan.cells import load_cell
 from sprayplan.cells import schedule as sched
 from sprayplan.cells.collide import cell_arms
 from sprayplan.cells.plan import plan_cell
-from sprayplan.cells.timing import _Axes, _leads, cell_limits, time_cell, with_times
+from sprayplan.cells.timing import _Axes, _back_offs, _leads, cell_limits, time_cell, with_times
 from sprayplan.config import JobConfig
 from sprayplan.timing.moves import point_to_point
 from tests.helpers import grid_box
@@ -44,25 +44,51 @@ def _transfers(work):
             yield rows[work.reachable[rows]], start
 
 
-def test_a_routed_transfer_is_timed_leg_by_leg_and_ends_at_the_next_run_up(routed):
-    """Every transfer row after the first is reached by a rest-to-rest move from the row before (the first:
-    from where the robot is, its run-out's end if it has one), so the rows' times step by those moves'
-    durations; the last move ends at the next run's run-up start where it has one. Some transfers are routed
-    (more than two rows), and a run-up follows some."""
+def _checked_back_off(cr, arm, axes, job, limits):
+    """The programs' back-off from a run's end at ``axes`` as the timing takes it (``cells.timing._back_offs``),
+    checked here on its own terms: the gun tip moved straight back along the gun axis by approach_mm or a
+    half, quarter or eighth of it, the orientation and the track kept; and its seconds: the longer of the joint
+    move and the line at the approach speed. Returns (backed-off axes, seconds)."""
+    from sprayplan.programs.build import APPROACH_TRIES
+
+    moved, seconds = _back_offs(cr, job, limits)(axes)
+    here, there = arm.target_poses(np.vstack([axes, moved]))
+    step = there[:3, 3] - here[:3, 3]
+    distance = float(np.linalg.norm(step))
+    assert min(abs(distance - share * job.export.approach_mm) for share in APPROACH_TRIES) < 1e-6
+    assert np.allclose(step, -distance * here[:3, 2], atol=1e-6)
+    assert np.allclose(there[:3, :3], here[:3, :3], atol=1e-9) and np.array_equal(moved[6:], axes[6:])
+    line = distance / job.export.approach_speed_mm_s
+    assert seconds == pytest.approx(max(point_to_point(axes, moved, limits).duration_s, line), rel=1e-12)
+    return moved, seconds
+
+
+def test_a_routed_transfer_is_timed_leg_by_leg_and_ends_with_the_approach(routed):
+    """Every transfer row after the first is reached by a rest-to-rest move from the row before (the
+    programs stop at every route node), so the rows' times step by those moves' durations; the last move goes
+    to the approach pose of the next run's start (its run-up's start where it has one) and on along the
+    approach line, as the programs move. Some transfers are routed (more than two rows), and a run-up follows
+    some."""
+    from sprayplan.programs.arms import ArmCell
+
     plan, timed = routed
     legs = ups = 0
     for cr, work, tm in zip(plan.cell.robots, plan.robots, timed):
         axes, limits = _Axes(cr), cell_limits(cr, plan.job.timing)
+        arm = ArmCell(cr, plan.job.paths.standoff_mm)
         q = axes.of(work)
         lead, _ = _leads(work, axes)
         for rows, after in _transfers(work):
             if len(rows) < 3:
                 continue
             for a, b in itertools.pairwise(rows[1:]):
-                goal = q[b]
-                if b == rows[-1] and after < len(q) and np.isfinite(lead[after, 0]).all():
-                    goal, ups = lead[after, 0], ups + 1
-                expected = point_to_point(q[a], goal, limits).duration_s
+                expected = point_to_point(q[a], q[b], limits).duration_s
+                if b == rows[-1]:
+                    goal = q[b]
+                    if after < len(q) and np.isfinite(lead[after, 0]).all():
+                        goal, ups = lead[after, 0], ups + 1
+                    moved, seconds = _checked_back_off(cr, arm, goal, plan.job, limits)
+                    expected = point_to_point(q[a], moved, limits).duration_s + seconds
                 assert tm.t_s[b] - tm.t_s[a] == pytest.approx(expected, rel=1e-9, abs=1e-9)
                 legs += 1
     assert legs > 0 and ups > 0

@@ -12,10 +12,14 @@ configuration (time 0) it runs its strokes in order:
 - a stretch's run-up and run-out (``cells.runups``, ``[timing] run_up_mm``) are part of its path: it starts at
   rest where the run-up starts, passes its first waypoint at speed, and comes to rest where its run-out ends;
   the run-up at the stretch's first planned speed, the run-out at its last;
-- between them, a point-to-point joint move from rest to rest (ruckig, :func:`sprayplan.timing.moves.
-  point_to_point`): to the first waypoint (or the run-up's start) of each stretch, and for a transfer to its
-  last reached waypoint (its waypoints stamped at their share of its length, as the programs' joint moves run
-  them).
+- between them, the moves the programs make (``programs.build``), each from rest to rest: the retract from a
+  run's end (its last waypoint, or its run-out's end), the gun backed off along its axis by ``[export]
+  approach_mm`` (or the first shorter share the arm reaches, as the programs back off); a point-to-point joint
+  move (ruckig, :func:`sprayplan.timing.moves.point_to_point`) to every row of a transfer in turn (a routed
+  transfer's nodes are joint moves to fine points); then to the approach pose of the next run's start (its
+  first waypoint or its run-up's start) and the approach along the gun axis. A back-off line takes the longer
+  of its rest-to-rest joint move and its length at ``[export] approach_speed_mm_s`` (:func:`_back_offs`). A
+  transfer's rows are stamped when the robot reaches them.
 
 A waypoint the robot does not reach gets the time at which it passes on (it holds its last configuration), so
 that every waypoint has a time, as the schedule needs.
@@ -189,14 +193,48 @@ def time_cell(cell, robots, job) -> list[WorkTiming]:
             max_rounds=timing.max_rounds,
         ) if stretches else []  # fmt: skip
         by_first = {int(way[0]): (tm, up, out) for (_, _, way, up, out), tm in zip(stretches, timed)}
-        plans.append(_timed(work, q, axes, limits, by_first, motion, jump))
+        back = _back_offs(robot, job, limits)
+        plans.append(_timed(work, q, axes, limits, by_first, motion, jump, back))
     return plans
 
 
-def _timed(work, q, axes: _Axes, limits, timed: dict, motion, jump_rad: float) -> WorkTiming:
+def _back_offs(robot, job, limits):
+    """``back(axes) -> (axes backed off, seconds) or None``: the programs' approach to (or retract from) a run's
+    end at ``axes`` (joints, then the track): the gun moved straight back along its axis by ``[export]
+    approach_mm`` or the first shorter share of it the arm reaches on the same branch
+    (``programs.build._back_off_from``, the programs' own), and the time of that line: the longer of the
+    rest-to-rest joint move and the line's length at ``[export] approach_speed_mm_s``. None for a robot that
+    is not a six-axis arm, or with ``approach_mm`` 0."""
+    if job.export.approach_mm <= 0 or robot.is_gantry or robot.robot(0.0).dof != 6:
+        return None
+    from sprayplan.programs.arms import ArmCell
+    from sprayplan.programs.build import _back_off_from
+
+    cell = ArmCell(robot, job.paths.standoff_mm)
+    speed = float(job.export.approach_speed_mm_s)
+    cache: dict = {}
+
+    def back(axes):
+        key = np.asarray(axes, float).tobytes()
+        if key not in cache:
+            pose = cell.target_poses(np.asarray(axes, float)[None])[0]
+            found = _back_off_from(cell, job.export, pose, np.asarray(axes, float))
+            if found is None:
+                cache[key] = None
+            else:
+                distance, _, joints = found
+                moved = np.r_[joints, np.asarray(axes, float)[6:]]
+                cache[key] = moved, max(point_to_point(axes, moved, limits).duration_s, distance / speed)
+        return cache[key]
+
+    return back
+
+
+def _timed(work, q, axes: _Axes, limits, timed: dict, motion, jump_rad: float, back=None) -> WorkTiming:
     """The time stamps of one robot's work, given its stretches' timings by their first waypoint (each with
     whether it has a run-up and a run-out: the robot moves to the run-up's start, and on from the run-out's
-    end)."""
+    end). ``back`` (:func:`_back_offs`): the programs' approach and retract at every run's ends, timed as part
+    of the moves between runs."""
     n = len(q)
     t = np.full(n, np.nan)
     speed = np.full(n, np.nan)
@@ -209,6 +247,31 @@ def _timed(work, q, axes: _Axes, limits, timed: dict, motion, jump_rad: float) -
     if len(reached) and np.isfinite(lead[reached[0], 0]).all():
         current = lead[reached[0], 0]  # the work starts where the first waypoint's run-up does
     start = 0
+    at_end = False  # the robot stands at a run's end (it retracts before it moves on)
+
+    def leave() -> float:
+        """The retract from the run's end the robot stands at (``back``): its seconds; ``current`` moved."""
+        nonlocal current, at_end
+        found = back(current) if back is not None and at_end else None
+        at_end = False
+        if found is None:
+            return 0.0
+        current = found[0]
+        return found[1]
+
+    def enter(goal) -> float:
+        """A joint move from ``current`` to the approach pose of the run starting at ``goal``, then the
+        approach (``back``; without a back-off the joint move to ``goal``): its seconds; ``current`` at goal."""
+        nonlocal current
+        found = back(goal) if back is not None else None
+        seconds = 0.0
+        if found is not None:
+            seconds += point_to_point(current, found[0], limits).duration_s + found[1]
+        else:
+            seconds += point_to_point(current, goal, limits).duration_s
+        current = goal
+        return seconds
+
     for s in work.strokes:
         idx = np.arange(start, start + len(s))
         start += len(s)
@@ -218,20 +281,24 @@ def _timed(work, q, axes: _Axes, limits, timed: dict, motion, jump_rad: float) -
         if not s.spray_on:
             # a joint move to every row after the first, in turn, from rest to rest (the programs' routes are
             # joint moves to fine points, ``programs.build.route_moves``); the first row is where the stroke
-            # before ended, the robot there or at its run-out's end (``current``); the last is the next
-            # stroke's first waypoint, and where that has a run-up the move ends at the run-up's start
+            # before ended, the robot there or at its run-out's end (``current``), from where it retracts;
+            # the last is the next stroke's first waypoint (where that has a run-up, the run-up's start),
+            # reached by the approach
             rows = idx[ok]
             legs = rows[1:] if len(rows) > 1 else rows
             t[rows[0]] = clock
+            move = leave()
             for r in legs:
-                goal = q[r]
-                if r == rows[-1] and start < n and np.isfinite(lead[start, 0]).all():
-                    goal = lead[start, 0]
-                move = point_to_point(current, goal, limits).duration_s
+                if r == rows[-1]:
+                    goal = lead[start, 0] if start < n and np.isfinite(lead[start, 0]).all() else q[r]
+                    move += enter(goal)
+                else:
+                    move += point_to_point(current, q[r], limits).duration_s
+                    current = q[r]
                 clock += move
                 moves += move
+                move = 0.0
                 t[r] = clock
-                current = goal
             continue
         cap = segment_speeds(
             s.tcp, s.points, motion.gun_speed_mm_s, motion.speed_along, motion.max_speed_ratio, s.dwell
@@ -241,10 +308,15 @@ def _timed(work, q, axes: _Axes, limits, timed: dict, motion, jump_rad: float) -
             found = timed.get(int(idx[run[0]])) if len(run) >= 2 else None
             stretch, up, out = found if found is not None else (None, False, False)
             first, last = int(idx[run[0]]), int(idx[run[-1]])
-            move = point_to_point(current, lead[first, 0] if up else q[first], limits).duration_s
+            goal = lead[first, 0] if up else q[first]
+            move = 0.0
+            if np.abs(goal - current).max(initial=0.0) > 0:  # (after a transfer the robot is there already)
+                move = leave() + enter(goal)
+            at_end = False
             clock += move
             moves += move
             current = q[last]
+            at_end = True
             if stretch is None:
                 t[idx[run]] = clock
                 continue
