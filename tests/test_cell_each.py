@@ -81,3 +81,20 @@ def test_a_cell_plan_with_collisions_is_the_same_on_one_process_and_on_two(tmp_p
     assert one.report["run_ups"] == two.report["run_ups"]
     assert one.report["collisions"]["robots"]["left"]["strokes_in_collision"] > 0  # the repairs had work
     assert one.report["film"]["whole"]["share_in_spec"] == two.report["film"]["whole"]["share_in_spec"]
+
+
+def _killed(x):
+    if os.getpid() != PARENT[0]:
+        os.kill(os.getpid(), 9)  # a child killed, as by the kernel's out-of-memory killer
+    return x + 1
+
+
+PARENT = [os.getpid()]
+
+
+@pytest.mark.skipif(not FORK, reason="the robots run side by side only where processes fork")
+def test_a_killed_robot_process_has_its_work_done_again_in_the_planner(caplog):
+    PARENT[0] = os.getpid()
+    out = each_robot([(_killed, (1,)), (_killed, (2,))], workers=2)
+    assert out == [2, 3]
+    assert "ended abruptly" in caplog.text

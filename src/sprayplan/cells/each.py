@@ -9,7 +9,9 @@ numpy and coal calls made from Python, which hold the interpreter lock, so threa
 models (coal's BVH and the surface samples, which do not pickle) as they are, and only each call's result is
 sent back. Each call is the same function on the same inputs as in one process, so the results are the same
 (``tests/test_cell_each.py``). Where the platform cannot fork (Windows), or one worker is asked for, the calls
-run one after the other in this process.
+run one after the other in this process; so they do, with a warning, when a child is killed (out of memory,
+say). The memory a plan takes is then the planner's and its children's together: each child holds its copy of
+what it changes of the planner's memory, and its robot's work.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import logging
 import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 
 log = logging.getLogger(__name__)
 
@@ -62,5 +65,9 @@ def each_robot(calls: list, workers: int | None = None, sizes=None) -> list:
         with ProcessPoolExecutor(count, mp_context=multiprocessing.get_context("fork")) as pool:
             futures = {i: pool.submit(_run, i) for i in order}
             return [futures[i].result() for i in range(len(calls))]
+    except BrokenProcessPool:
+        # a child was killed (out of memory, a signal): the robots' work again, one after the other, here
+        log.warning("a robot's process ended abruptly; its work is done again in the planner's process")
+        return [fn(*args) for fn, args in calls]
     finally:
         _CALLS.clear()
