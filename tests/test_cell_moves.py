@@ -166,3 +166,23 @@ def test_the_wait_search_gives_the_wait_by_wait_answer(routed, monkeypatch):
         assert got == _wait_by_wait(stroke, hold, earlier, 30.0)
         answers.append(got)
     assert None in answers and 0.0 in answers and any(a not in (None, 0.0) for a in answers)
+
+
+def test_back_offs_kept_between_timings_at_other_speeds_time_the_same(routed):
+    """Timed at another gun speed (as the flow fit times every share) with the back-offs of a first timing
+    kept (``time_cell``'s ``back_offs``), every time stamp equals a timing that solves them afresh, and the
+    second timing solves none more."""
+    from sprayplan.cells.fit import scaled_job
+
+    plan, timed = routed
+    kept: dict = {}
+    first = time_cell(plan.cell, plan.robots, plan.job, kept)
+    assert all(np.array_equal(a.t_s, b.t_s) for a, b in zip(first, timed))
+    solved = {name: len(found) for name, found in kept.items()}
+    assert sum(solved.values()) > 0
+    slower = scaled_job(plan.job, 0.5, 100.0)
+    again = time_cell(plan.cell, plan.robots, slower, kept)
+    fresh = time_cell(plan.cell, plan.robots, slower)
+    assert all(np.array_equal(a.t_s, b.t_s) for a, b in zip(again, fresh))
+    assert {name: len(found) for name, found in kept.items()} == solved
+    assert max(a.cycle_s for a in again) > max(a.cycle_s for a in first)

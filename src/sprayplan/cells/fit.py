@@ -100,7 +100,8 @@ def fit_cell_flow(plan, job: JobConfig, tuning, owners, everything, coating, rep
         film_ = film_at_timed_speeds(at, owners, tuning, everything, process_for(job_), coating)
         return weighted_stats(film_.thickness_um, film_.area_mm2, target - tol, target + tol)["share_in_spec"]
 
-    job, timed, report["flow_fit"] = fit_flow(job, lambda job_: time_cell(plan.cell, robots, job_), in_spec_at)
+    backs: dict = {}  # the programs' back-offs, the same at every speed
+    job, timed, report["flow_fit"] = fit_flow(job, lambda job_: time_cell(plan.cell, robots, job_, backs), in_spec_at)
     process = process_for(job)
     chosen = report.get("chosen_for_thickness") or {}
     chosen.update(

@@ -720,9 +720,10 @@ def plan_cell(
             from sprayplan.cells.timing import time_cell
             from sprayplan.refine.tuning import tuned_film
 
+            backs: dict = {}  # the programs' back-offs, the same in every round
             robots, timed_work, tuning, report["within_limits"] = tune_cell_within_limits(
                 painted, robots, tuning, film_owners, job, process, coating,
-                lambda robots_: time_cell(cell, robots_, job), timed_work,
+                lambda robots_: time_cell(cell, robots_, job, backs), timed_work,
             )  # fmt: skip
             film = tuned_film(tuning, process, coating)
             plan = dataclasses.replace(plan, robots=robots, film=film)

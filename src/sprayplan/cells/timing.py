@@ -175,9 +175,12 @@ def _stretches(work, axes: _Axes, q: np.ndarray, motion, jump_rad: float):
         yield np.vstack(rows), np.concatenate(speeds), way, up, out
 
 
-def time_cell(cell, robots, job) -> list[WorkTiming]:
+def time_cell(cell, robots, job, back_offs: dict | None = None) -> list[WorkTiming]:
     """Each robot's work (``RobotWork``, in the cell's order) timed within its limits (module docstring); the
-    spray stretches of all robots go to toppra's analysis together."""
+    spray stretches of all robots go to toppra's analysis together. ``back_offs``: a dict kept by the caller
+    between timings of the same plan at other speeds (``cells.fit``): the programs' back-offs found
+    (:func:`_back_offs`, which depend on the joints, the limits and ``[export]`` alone) are kept in it per
+    robot and not solved again."""
     timing, motion = job.timing, job.motion
     jump = math.radians(timing.joint_jump_deg)
     plans = []
@@ -193,18 +196,18 @@ def time_cell(cell, robots, job) -> list[WorkTiming]:
             max_rounds=timing.max_rounds,
         ) if stretches else []  # fmt: skip
         by_first = {int(way[0]): (tm, up, out) for (_, _, way, up, out), tm in zip(stretches, timed)}
-        back = _back_offs(robot, job, limits)
+        back = _back_offs(robot, job, limits, None if back_offs is None else back_offs.setdefault(robot.name, {}))
         plans.append(_timed(work, q, axes, limits, by_first, motion, jump, back))
     return plans
 
 
-def _back_offs(robot, job, limits):
+def _back_offs(robot, job, limits, cache: dict | None = None):
     """``back(axes) -> (axes backed off, seconds) or None``: the programs' approach to (or retract from) a run's
     end at ``axes`` (joints, then the track): the gun moved straight back along its axis by ``[export]
     approach_mm`` or the first shorter share of it the arm reaches on the same branch
     (``programs.build._back_off_from``, the programs' own), and the time of that line: the longer of the
     rest-to-rest joint move and the line's length at ``[export] approach_speed_mm_s``. None for a robot that
-    is not a six-axis arm, or with ``approach_mm`` 0."""
+    is not a six-axis arm, or with ``approach_mm`` 0. ``cache``: the answers by joints, kept between calls."""
     if job.export.approach_mm <= 0 or robot.is_gantry or robot.robot(0.0).dof != 6:
         return None
     from sprayplan.programs.arms import ArmCell
@@ -212,7 +215,7 @@ def _back_offs(robot, job, limits):
 
     cell = ArmCell(robot, job.paths.standoff_mm)
     speed = float(job.export.approach_speed_mm_s)
-    cache: dict = {}
+    cache = {} if cache is None else cache
 
     def back(axes):
         key = np.asarray(axes, float).tobytes()
