@@ -80,6 +80,9 @@ def test_a_cell_plan_with_collisions_is_the_same_on_one_process_and_on_two(tmp_p
     assert one.report["collisions"] == two.report["collisions"]
     assert one.report["run_ups"] == two.report["run_ups"]
     assert one.report["collisions"]["robots"]["left"]["strokes_in_collision"] > 0  # the repairs had work
+    for entry in one.report["collisions"]["robots"].values():  # a dropped run had a spray path to lose
+        assert (entry["runs_dropped"] > 0) == (entry["runs_dropped_mm"] > 0)
+        assert (entry["touch_ups_dropped"] > 0) == (entry["touch_ups_dropped_mm"] > 0)
     assert one.report["film"]["whole"]["share_in_spec"] == two.report["film"]["whole"]["share_in_spec"]
 
 

@@ -203,12 +203,14 @@ def _freed_robot(cell_robot, work, arm, config, repair, part, standoff_mm, mine,
         routes.pop("transfers_in_collision")  # the check after the film counts what is left
         # a run no route reaches free is dropped, its neighbours joined and the new transfer routed: in a
         # touch-up round only touch-ups, else any run
-        dropped, blamed = 0, set()
+        dropped, dropped_mm, blamed = 0, 0.0, set()
         for _ in range(DROP_ROUNDS):
             drop = unrouted_runs(work, mine if mine is not None else set(), first, bool(first), blamed)
             if not drop:
                 break
             dropped += len(drop)
+            # the spray path those runs would have painted, mm (what the drops cost the film)
+            dropped_mm += sum(float(np.linalg.norm(np.diff(work.strokes[k].tcp, axis=0), axis=1).sum()) for k in drop)
             old = work.strokes  # kept alive, so that no new stroke takes an old one's id
             before = {id(s) for s in old}
             work = without_strokes(work, drop)
@@ -220,6 +222,7 @@ def _freed_robot(cell_robot, work, arm, config, repair, part, standoff_mm, mine,
                 if key != "transfers_in_collision":
                     routes[key] = routes.get(key, 0) + value
         routes["touch_ups_dropped" if first else "runs_dropped"] = dropped
+        routes["touch_ups_dropped_mm" if first else "runs_dropped_mm"] = round(dropped_mm, 1)
     return work, {**repairs, **left, **routes}, mine
 
 
