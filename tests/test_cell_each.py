@@ -4,6 +4,7 @@ two."""
 
 from __future__ import annotations
 
+import logging
 import multiprocessing
 import os
 
@@ -97,6 +98,7 @@ PARENT = [os.getpid()]
 
 @pytest.mark.skipif(not FORK, reason="the robots run side by side only where processes fork")
 def test_a_killed_robot_process_has_its_work_done_again_in_the_planner(caplog):
+    caplog.set_level(logging.WARNING, logger="sprayplan.cells.each")  # (a CLI test before may quieten the root)
     PARENT[0] = os.getpid()
     out = each_robot([(_killed, (1,)), (_killed, (2,))], workers=2)
     assert out == [2, 3]
