@@ -100,14 +100,22 @@ def test_the_timing_passes_a_run_ups_waypoint_at_speed(planned):
 
 class _Hits:
     """A collision model that finds a run-up in collision where its line (the gun tip's first sample to its
-    last, by forward kinematics) is longer than ``longest`` mm."""
+    last, by forward kinematics) is longer than ``longest`` mm. The lines of many ends may come in one call,
+    one after the other; each starts at its waypoint's own joints (a row equal to one of ``work``'s)."""
 
-    def __init__(self, arm, longest):
+    def __init__(self, arm, longest, work):
         self.arm, self.longest = arm, longest
+        self.starts = {row.tobytes() for row in np.asarray(work.q, float)}
 
     def collides(self, q, track):
-        ends = self.arm.poses(q[[0, -1]], [])[:, :3, 3]
-        return np.full(len(q), np.linalg.norm(ends[1] - ends[0]) > self.longest)
+        q = np.asarray(q, float)
+        first = [i for i, row in enumerate(q) if row.tobytes() in self.starts]
+        assert first and first[0] == 0
+        out = np.zeros(len(q), bool)
+        for a, b in zip(first, [*first[1:], len(q)]):
+            ends = self.arm.poses(q[[a, b - 1]], [])[:, :3, 3]
+            out[a:b] = np.linalg.norm(ends[1] - ends[0]) > self.longest
+        return out
 
 
 class _All:
@@ -124,7 +132,7 @@ def test_a_run_up_in_collision_is_shortened_or_left_out(planned):
     arm = _arm(planned, 1)
     length = job.timing.run_up_mm
     free_q, _, free = robot_run_ups(cr, work, length, plan.job.paths.standoff_mm)
-    q, _, counts = robot_run_ups(cr, work, length, plan.job.paths.standoff_mm, _Hits(arm, 0.75 * length))
+    q, _, counts = robot_run_ups(cr, work, length, plan.job.paths.standoff_mm, _Hits(arm, 0.75 * length, work))
     assert counts["full"] == 0 and counts["in_collision"] == free["full"]
 
     def made(leads, w, side):

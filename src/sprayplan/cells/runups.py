@@ -101,34 +101,48 @@ def robot_run_ups(cell_robot, work, length_mm: float, standoff_mm: float, arm=No
     index = np.array([e[0] for e in ends] + [e[1] for e in ends])
     poses = cell.target_poses(np.column_stack([q[index], track[index]]) if cell.external_axes else q[index])
     here, there = poses[: len(ends)], poses[len(ends) :]
+    pending = []  # (k, side, pose, direction) of the ends still to place
     for (k, _, side), pose, other in zip(ends, here, there):
         direction = pose[:3, 3] - other[:3, 3]
         norm = float(np.linalg.norm(direction))
         if norm < MIN_SEGMENT_MM:
             counts["none"] += 1
             continue
-        direction /= norm
-        found = None
-        for share in RUN_UP_TRIES:
+        pending.append((k, side, pose, direction / norm))
+    # each length in turn for every end still without a run-up; the collision and back-off checks of all the
+    # lines of a length in one call each (an end takes the first length whose line passes all three)
+    for share in RUN_UP_TRIES:
+        tried = []
+        for entry in pending:
+            k, _, pose, direction = entry
             end = pose.copy()
             end[:3, 3] += share * length_mm * direction
             got = line_joints(cell, pose, end, external[k], q[k])
-            if got is None:
-                continue
-            if arm is not None and arm.collides(_line_samples(q[k], got), track[k]).any():
-                counts["in_collision"] += 1
-                continue
-            if backs is not None and not backs(got[None], track[k : k + 1])[0]:
-                counts["back_off_not_free"] += 1
-                continue
-            found = share, got
-            break
-        if found is None:
-            counts["none"] += 1
-            continue
-        counts["full" if found[0] == 1.0 else "shortened"] += 1
-        lead_q[k, side] = found[1]
-        lead_track[k, side] = track[k]
+            if got is not None:
+                tried.append((entry, got))
+        if arm is not None and tried:
+            lines = [_line_samples(q[entry[0]], got) for entry, got in tried]
+            tracks = np.concatenate([np.full(len(line), track[entry[0]]) for (entry, _), line in zip(tried, lines)])
+            hit = arm.collides(np.concatenate(lines), tracks)
+            owner = np.repeat(np.arange(len(tried)), [len(line) for line in lines])
+            bad = np.zeros(len(tried), bool)
+            bad[owner[hit]] = True
+            counts["in_collision"] += int(bad.sum())
+            tried = [t for t, b in zip(tried, bad) if not b]
+        if backs is not None and tried:
+            free = np.asarray(
+                backs(np.array([got for _, got in tried]), np.array([track[entry[0]] for entry, _ in tried])), bool
+            )
+            counts["back_off_not_free"] += int((~free).sum())
+            tried = [t for t, f in zip(tried, free) if f]
+        placed = set()
+        for (k, side, _, _), got in tried:
+            counts["full" if share == 1.0 else "shortened"] += 1
+            lead_q[k, side] = got
+            lead_track[k, side] = track[k]
+            placed.add((k, side))
+        pending = [entry for entry in pending if (entry[0], entry[1]) not in placed]
+    counts["none"] += len(pending)
     return lead_q, lead_track, counts
 
 
