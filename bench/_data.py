@@ -53,3 +53,31 @@ def builds_at_once(argv: list[str], base: str | None):
     for build, proc in running.items():
         out, _ = proc.communicate()
         yield build, json.loads(out.strip().splitlines()[-1])
+
+
+#: The two car bodies of the cell benchmarks: their file under testdata and their up axis.
+CAR_BODIES = {"bmw": ("meshes/bmw_m6_body_m_yup.ply", "y"), "suv": ("meshes/gazebo_suv_body_m.ply", "z")}
+
+
+def cell_plan_model(folder, part: str):
+    """A cell plan folder written with ``--collisions`` read back (``cells.files.cell_plan_from_file``), its body
+    (``part``: a key of :data:`CAR_BODIES`) placed in the plan's cell again, the painted surface and the
+    collision model built as ``cells.plan.plan_cell`` builds them: ``(plan, placed, painted, config, arms)``,
+    ``config`` the plan's ``[collision]`` settings with the check on."""
+    import dataclasses
+
+    from sprayplan.cells.collide import cell_arms
+    from sprayplan.cells.files import cell_plan_from_file
+    from sprayplan.cells.plan import area_surface
+    from sprayplan.cells.spec import load_cell, place_part
+    from sprayplan.io.load import load_part
+    from sprayplan.surface.normals import oriented_part
+    from sprayplan.surface.region import painted_surface
+
+    plan = cell_plan_from_file(Path(folder) / "cell_plan.json")
+    path, up = CAR_BODIES[part]
+    placed = place_part(load_part(testdata_dir() / path, units="m", up=up), load_cell(plan.cell.name))
+    painted, _ = painted_surface(oriented_part(placed.part), plan.job.collision)
+    painted, _ = area_surface(painted)
+    config = dataclasses.replace(plan.job.collision, check=True)
+    return plan, placed, painted, config, cell_arms(plan.cell, painted, config)

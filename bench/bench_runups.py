@@ -16,7 +16,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import importlib.util
 import json
 import sys
@@ -26,27 +25,19 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-PARTS = {"bmw": ("meshes/bmw_m6_body_m_yup.ply", "y"), "suv": ("meshes/gazebo_suv_body_m.ply", "z")}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("folder", help="a cell plan folder written with --collisions")
-    parser.add_argument("--part", default="bmw", choices=sorted(PARTS))
+    parser.add_argument("--part", default="bmw", choices=("bmw", "suv"))
     parser.add_argument("--base", help="another checkout whose src/sprayplan/cells/runups.py to compare with")
     args = parser.parse_args()
     sys.path.insert(0, str(HERE))
-    from _data import testdata_dir
+    from _data import cell_plan_model
 
     from sprayplan.cells import runups
-    from sprayplan.cells.collide import cell_arms
-    from sprayplan.cells.files import cell_plan_from_file
-    from sprayplan.cells.plan import area_surface
     from sprayplan.cells.routes import CellRouter
-    from sprayplan.cells.spec import load_cell, place_part
-    from sprayplan.io.load import load_part
-    from sprayplan.surface.normals import oriented_part
-    from sprayplan.surface.region import painted_surface
 
     builds = [("this", runups)]
     if args.base:
@@ -56,13 +47,7 @@ def main() -> None:
         base = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(base)
         builds += [("base", base), ("this again", runups)]
-    plan = cell_plan_from_file(Path(args.folder) / "cell_plan.json")
-    path, up = PARTS[args.part]
-    placed = place_part(load_part(testdata_dir() / path, units="m", up=up), load_cell(plan.cell.name))
-    painted, _ = painted_surface(oriented_part(placed.part), plan.job.collision)
-    painted, _ = area_surface(painted)
-    config = dataclasses.replace(plan.job.collision, check=True)
-    arms = cell_arms(plan.cell, painted, config)
+    plan, _, painted, config, arms = cell_plan_model(args.folder, args.part)
     job = plan.job
     for cell_robot, work, arm in zip(plan.cell.robots, plan.robots, arms):
         router = CellRouter(cell_robot, arm, painted, config)

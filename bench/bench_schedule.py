@@ -28,25 +28,12 @@ PARTS = {"bmw": ("meshes/bmw_m6_body_m_yup.ply", "y"), "suv": ("meshes/gazebo_su
 
 def child(folder: str, name: str) -> None:
     sys.path.insert(0, str(HERE))
-    from _data import testdata_dir
+    from _data import cell_plan_model
 
-    from sprayplan.cells.collide import cell_arms
-    from sprayplan.cells.files import cell_plan_from_file
-    from sprayplan.cells.plan import area_surface
     from sprayplan.cells.schedule import scheduled
-    from sprayplan.cells.spec import load_cell, place_part
     from sprayplan.cells.timing import timed_cell
-    from sprayplan.io.load import load_part
-    from sprayplan.surface.normals import oriented_part
-    from sprayplan.surface.region import painted_surface
 
-    plan = cell_plan_from_file(Path(folder) / "cell_plan.json")
-    path, up = PARTS[name]
-    placed = place_part(load_part(testdata_dir() / path, units="m", up=up), load_cell(plan.cell.name))
-    painted, _ = painted_surface(oriented_part(placed.part), plan.job.collision)
-    painted, _ = area_surface(painted)
-    config = dataclasses.replace(plan.job.collision, check=True)
-    arms = cell_arms(plan.cell, painted, config)
+    plan, _, _, _, arms = cell_plan_model(folder, name)
     unscheduled = {"t_s": None, "wait_s": None}
     if hasattr(plan.robots[0], "ends_q"):  # a build that keeps the schedule's ends
         unscheduled.update(ends_q=None, ends_track_mm=None)
