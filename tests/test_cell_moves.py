@@ -186,3 +186,24 @@ def test_back_offs_kept_between_timings_at_other_speeds_time_the_same(routed):
     assert all(np.array_equal(a.t_s, b.t_s) for a, b in zip(again, fresh))
     assert {name: len(found) for name, found in kept.items()} == solved
     assert max(a.cycle_s for a in again) > max(a.cycle_s for a in first)
+
+
+def test_a_timeline_with_run_ups_has_one_configuration_at_each_time(routed):
+    """The schedule's rows with the run-ups added (``cells.schedule.with_leads``): a transfer's last row, which
+    the robot reaches at the run-up's start, holds the run-up's joints and track, so that the timeline (which
+    keeps the first of rows at one time, ``_knots``) goes through the run-up rather than skipping it; and some
+    run-ups follow a transfer. (At a run-out's end the run-out's row comes first and is the one kept.)"""
+    plan, timed = routed
+    robots = with_times(plan.robots, timed)
+    checked = 0
+    for w in robots:
+        starts = np.cumsum([0] + [len(s) for s in w.strokes])[:-1]
+        t0, q, track, _, keep = sched.with_leads(
+            w, np.asarray(w.t_s, float), np.asarray(w.q, float), np.asarray(w.track_mm, float), starts
+        )
+        same = np.flatnonzero(np.abs(np.diff(t0)) <= 1e-9)
+        for i in same:
+            if keep[i] and not keep[i + 1]:  # a waypoint's row, then a run-up's row at its time
+                assert np.allclose(q[i], q[i + 1], atol=1e-12) and track[i] == track[i + 1], (w.name, i)
+                checked += 1
+    assert checked > 0
