@@ -956,3 +956,73 @@ def test_touch_ups_no_route_reaches_free_are_dropped_and_their_neighbours_joined
                     np.testing.assert_array_equal(out.q[mine], out.q[theirs])
     assert len(out.q) == len(out.track_mm) == len(out.reachable) == new_starts[-1] and len(out.area) == len(out.strokes)
     assert without_strokes(work, []) is work
+
+
+def _run_chain(n: int):
+    """A one-robot work of ``n`` spray runs of two waypoints in a row, joined by transfers; run ``k``'s joints
+    start at ``[k, 0, ...]`` and end at ``[k + 0.5, 0, ...]``, so a transfer's ends tell which runs it joins."""
+    from sprayplan.cells.work import RobotWork, joined_transfers, transfer_stroke
+    from sprayplan.types import Stroke
+
+    strokes, area, q = [], [], []
+    for k in range(n):
+        tcp = np.array([[100.0 * k, 0.0, 0.0], [100.0 * k + 50.0, 0.0, 0.0]])
+        run = Stroke(
+            tcp - [0, 0, 200.0], np.tile([0.0, 0.0, 1.0], (2, 1)), tcp, spray_on=True, on_part=np.ones(2, bool)
+        )
+        if strokes:
+            strokes.append(transfer_stroke(strokes[-1], run))
+            area.append(-1)
+            q += [np.zeros(6), np.zeros(6)]
+        strokes.append(run)
+        area.append(0)
+        q += [np.r_[k, np.zeros(5)], np.r_[k + 0.5, np.zeros(5)]]
+    m = len(q)
+    work = RobotWork(
+        "r", "stub", tuple(strokes), np.array(area), np.zeros(m), np.zeros(m), np.array(q), np.ones(m, bool)
+    )
+    return joined_transfers(work)
+
+
+def test_runs_are_dropped_until_no_transfer_no_route_frees_is_left():
+    """``dropped_unrouted`` goes on round after round until no transfer of the plan is one no route frees (it
+    stopped after 10 rounds up to session 25, and the SUV kept 12 transfers in collision). The stub routes
+    free a transfer between neighbouring runs only (every transfer a drop makes fails), and the one from run 5
+    into run 6 fails from the start: the drops then alternate after and before (``unrouted_runs``' blame) until
+    the runs before run 12 are gone, 12 rounds (at 10, the transfer from run 0 into run 11 was left); what is left is runs 12..19 in order, every transfer free."""
+    from sprayplan.cells.collide import dropped_unrouted
+
+    work = _run_chain(20)
+
+    def ends(w, i):
+        starts = np.r_[0, np.cumsum([len(s) for s in w.strokes])]
+        return w.q[starts[i], 0], w.q[starts[i] + 1, 0]  # the run before's end, the run after's start
+
+    def key(w, i):
+        starts = np.r_[0, np.cumsum([len(s) for s in w.strokes])]
+        return np.column_stack([w.q, w.track_mm])[starts[i] : starts[i] + 2].tobytes()
+
+    calls = []
+
+    def route(w, only):
+        calls.append(sorted(only))
+        for i in only:
+            a, b = ends(w, i)
+            if b - np.floor(a) != 1:  # not neighbours
+                failed.add(key(w, i))
+        return w, {"transfers_routed": 1, "transfers_in_collision": 1}
+
+    into_6 = 2 * 6 - 1
+    assert ends(work, into_6) == (5.5, 6.0)
+    failed = {key(work, into_6)}
+    out, counts, dropped, dropped_mm, rounds = dropped_unrouted(work, route, failed)
+    assert rounds == len(calls) == 12 and dropped == 12  # runs 6, 5, 7, 4, ..., 11, 0
+    assert dropped_mm == pytest.approx(12 * 50.0)
+    assert counts == {"transfers_routed": 12}  # summed over the rounds, the ones in collision counted after
+    runs = [s for s in out.strokes if s.spray_on]
+    assert [s.tcp[0, 0] for s in runs] == [100.0 * k for k in range(12, 20)]
+    transfers = [i for i, s in enumerate(out.strokes) if not s.spray_on]
+    assert all(key(out, i) not in failed for i in transfers)
+    # in a touch-up round (``first`` > 0) only touch-ups go: here none is, so nothing is dropped
+    same, _, none, _, no_rounds = dropped_unrouted(work, route, {key(work, into_6)}, first=3)
+    assert same is work and none == no_rounds == 0

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import logging
 import math
 
 import numpy as np
@@ -28,6 +29,8 @@ from sprayplan.collision.arms import (
     separation,
     swept_points,
 )
+
+log = logging.getLogger(__name__)
 
 
 def cell_arms(cell, part, config) -> list:
@@ -75,12 +78,6 @@ def _tail_checked(arm, work, since: int) -> RobotCollisions:
         padded(w.distance_mm, np.nan), padded(w.slack_mm, np.nan),
     )  # fmt: skip
     return RobotCollisions(head, padded(found.motion_collides, False), found.motion_checked)
-
-
-#: How many times the runs no route reaches free are dropped and the new transfers routed (:func:`freed_cell`):
-#: each drop joins the runs either side by a new transfer, which may fail too. At 3 the BMW in ``line3`` kept
-#: 7 transfers between two touch-ups in collision (session 17).
-DROP_ROUNDS = 10
 
 
 def unrouted_runs(work, failed: set, first: int, touch_ups_only: bool = True, blamed: set | None = None) -> list:
@@ -139,8 +136,8 @@ def freed_cell(
     program makes it (``cells.routes.routed_work``), and, with ``config.repair``, each run cut to start and end
     where those lines are free (``free_work``'s ``backs``). With ``config.repair``, a run that a transfer no
     route frees leads into is dropped (:func:`unrouted_runs`; in a touch-up round only the touch-ups), the runs
-    either side joined by a new transfer, routed in turn, up to :data:`DROP_ROUNDS` times: a program makes every
-    transfer of its plan, so one that no route frees would be a motion into the body. Returns the robots and
+    either side joined by a new transfer, routed in turn, until none is left (:func:`dropped_unrouted`): a program
+    makes every transfer of its plan, so one that no route frees would be a motion into the body. Returns the robots and
     per robot the repairs', the cut's, the routes' and the drops' counts."""
     from sprayplan.cells.each import each_robot
     from sprayplan.cells.repair import piece_tilts
@@ -168,7 +165,6 @@ def _freed_robot(cell_robot, work, arm, config, repair, part, standoff_mm, mine,
     dropped; returns the work, its counts and ``mine`` (the transfers no route freed, grown)."""
     from sprayplan.cells.repair import free_work, resolved_piece
     from sprayplan.cells.routes import CellRouter, routed_work
-    from sprayplan.cells.work import without_strokes
 
     repairs, routes = {}, {}
     if repair is not None and config.repair:
@@ -201,29 +197,52 @@ def _freed_robot(cell_robot, work, arm, config, repair, part, standoff_mm, mine,
 
         work, routes = route(work)
         routes.pop("transfers_in_collision")  # the check after the film counts what is left
-        # a run no route reaches free is dropped, its neighbours joined and the new transfer routed: in a
-        # touch-up round only touch-ups, else any run
-        dropped, dropped_mm, blamed = 0, 0.0, set()
-        for _ in range(DROP_ROUNDS):
-            drop = unrouted_runs(work, mine if mine is not None else set(), first, bool(first), blamed)
-            if not drop:
-                break
-            dropped += len(drop)
-            # the spray path those runs would have painted, mm (what the drops cost the film)
-            dropped_mm += sum(float(np.linalg.norm(np.diff(work.strokes[k].tcp, axis=0), axis=1).sum()) for k in drop)
-            old = work.strokes  # kept alive, so that no new stroke takes an old one's id
-            before = {id(s) for s in old}
-            work = without_strokes(work, drop)
-            # only the transfers the drops made are routed again (the others were routed or failed)
-            joined = {i for i, s in enumerate(work.strokes) if not s.spray_on and id(s) not in before}
-            del old
-            work, more = route(work, joined)
-            for key, value in more.items():
-                if key != "transfers_in_collision":
-                    routes[key] = routes.get(key, 0) + value
+        if mine is None:
+            mine = set()
+        work, more, dropped, dropped_mm, rounds = dropped_unrouted(work, route, mine, first)
+        for key, value in more.items():
+            routes[key] = routes.get(key, 0) + value
         routes["touch_ups_dropped" if first else "runs_dropped"] = dropped
         routes["touch_ups_dropped_mm" if first else "runs_dropped_mm"] = round(dropped_mm, 1)
+        if dropped:
+            log.info("%s: %d %s dropped in %d rounds", work.name, dropped, "touch-ups" if first else "runs", rounds)
     return work, {**repairs, **left, **routes}, mine
+
+
+def dropped_unrouted(work, route, failed: set, first: int = 0):
+    """``work`` with every run dropped that a transfer no route frees leads into (:func:`unrouted_runs`; from
+    stroke ``first`` on, and with ``first`` > 0, a touch-up round, only touch-ups), the runs either side joined
+    by a new transfer and that one routed in turn (``route(work, only) -> (work, counts)``:
+    ``cells.routes.routed_work`` for the transfers of index ``only``, adding the keys of those no route frees to
+    ``failed``), round after round until no run is left to drop: a program makes every transfer of its plan, so
+    one that no route frees would be a motion into the body. Each round drops a run at least, so it ends. (Up to
+    session 25 it stopped after 10 rounds; the SUV in ``line3`` kept 12 transfers in collision.)
+
+    Returns the work, the routes' counts summed over the rounds (without ``transfers_in_collision``), how many
+    runs were dropped, the spray path they would have painted (mm: what the drops cost the film) and the
+    rounds."""
+    from sprayplan.cells.work import without_strokes
+
+    counts: dict = {}
+    dropped, dropped_mm, rounds, blamed = 0, 0.0, 0, set()
+    while True:
+        drop = unrouted_runs(work, failed, first, bool(first), blamed)
+        if not drop:
+            break
+        rounds += 1
+        dropped += len(drop)
+        dropped_mm += sum(float(np.linalg.norm(np.diff(work.strokes[k].tcp, axis=0), axis=1).sum()) for k in drop)
+        old = work.strokes  # kept alive, so that no new stroke takes an old one's id
+        before = {id(s) for s in old}
+        work = without_strokes(work, drop)
+        # only the transfers the drops made are routed again (the others were routed or failed)
+        joined = {i for i, s in enumerate(work.strokes) if not s.spray_on and id(s) not in before}
+        del old
+        work, more = route(work, joined)
+        for key, value in more.items():
+            if key != "transfers_in_collision":
+                counts[key] = counts.get(key, 0) + value
+    return work, counts, dropped, dropped_mm, rounds
 
 
 def check_cell(plan, config, repair=None, arms=None) -> tuple[tuple, dict]:
