@@ -182,20 +182,41 @@ def _slice(sols, start: int, n: int):
     )
 
 
+#: A joint step this large between two waypoints of a stroke (rad) is a jump (:func:`solve_strokes`): the
+#: arm turned over, or a first joint at its limit turned back by a whole turn (over the SUV in ``line3`` the
+#: roof robot's first joint turned by 344 deg between two waypoints 6 mm apart where its strokes crossed
+#: the roof's middle).
+JOINT_JUMP_RAD = math.radians(90.0)
+
+
+def _jumps(arm, sols) -> bool:
+    """Whether the branch followed through ``sols`` (``robots.interface.follow_solutions`` from the start
+    joints) steps by more than :data:`JOINT_JUMP_RAD` on a joint between two reached waypoints."""
+    from sprayplan.robots.interface import follow_solutions
+
+    q, branch = follow_solutions(arm, sols, start_joints(arm.dof))
+    q = q[branch >= 0]
+    return bool(len(q) > 1 and np.abs(np.diff(q, axis=0)).max() > JOINT_JUMP_RAD)
+
+
 def solve_strokes(cell_robot, strokes) -> list[tuple[np.ndarray, float, np.ndarray, np.ndarray]]:
     """For each stroke, the first (track positions, roll) try that reaches all its waypoints, else the first
     that reaches the most, and the joints along it (module docstring, step 5): ``(track_mm (n,), roll_deg, q
     (n, 6), reachable (n,))`` a stroke.
 
     The tries go in rounds: round ``k`` solves try ``k`` of every stroke not yet reached whole, all in one
-    call of the IK with the base at track position 0 and the poses moved back along the track instead."""
+    call of the IK with the base at track position 0 and the poses moved back along the track instead. A try
+    whose branch, followed from :data:`~sprayplan.cells.tries.START_JOINTS`, jumps by more than
+    :data:`JOINT_JUMP_RAD` between two waypoints (a first joint at its limit turned back by a whole turn, an arm
+    turned over) is not whole: the next tries are solved, and a try that reaches as many without a jump is kept
+    before it (:func:`_jumps`)."""
     from sprayplan.robots.interface import follow_solutions
 
     arm = cell_robot.robot(0.0)
     axis = np.zeros(3) if cell_robot.track is None else cell_robot.track.axis
     tries = [stroke_tries(cell_robot, s) for s in strokes]
     poses = [stroke_poses(s) for s in strokes]
-    best: list = [None] * len(strokes)  # (count, try index, IKSolutions of the stroke)
+    best: list = [None] * len(strokes)  # ((count, no jump), try index, IKSolutions of the stroke)
     pending = list(range(len(strokes)))
     for k in range(max((len(t) for t in tries), default=0)):
         pending = [i for i in pending if k < len(tries[i])]
@@ -214,9 +235,11 @@ def solve_strokes(cell_robot, strokes) -> list[tuple[np.ndarray, float, np.ndarr
             mine = _slice(sols, start, n)
             start += n
             count = int(mine.reachable.sum())
-            if count and (best[i] is None or count > best[i][0]):
-                best[i] = (count, k, mine)
-            if count < n:
+            # (waypoints reached, no jump): a try is kept over an earlier one that scores less
+            score = (count, count == n and not _jumps(arm, mine))
+            if count and (best[i] is None or score > best[i][0]):
+                best[i] = (score, k, mine)
+            if score != (n, True):
                 still.append(i)
         pending = still
     out = []

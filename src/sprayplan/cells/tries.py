@@ -15,6 +15,9 @@ TRACK_TRIES_MM = (0.0, -300.0, 300.0, -600.0, 600.0)
 ROLL_TRIES_DEG = (0.0, 90.0, 180.0, 270.0)
 #: The joints a six-axis robot starts from (rad): the wrist bent (ABB's zero is a straight, singular wrist).
 START_JOINTS = np.radians([0.0, 0.0, 0.0, 0.0, 30.0, 0.0])
+#: A try whose flange passes nearer than this to the robot's first axis is tried after the others, mm
+#: (:func:`stroke_tries`).
+AXIS_ONE_CLEARANCE_MM = 300.0
 
 
 def start_joints(dof: int) -> np.ndarray:
@@ -41,9 +44,10 @@ def stroke_tries(cell_robot, stroke: Stroke) -> list[tuple[np.ndarray, float]]:
     along it, at an acceleration far below the arm's (``[timing] track_max_acceleration_mm_s2``), which slows
     the whole stroke (docs/benchmarks.md, "Session 23": on the BMW body the film at the timed speeds 62.4 ->
     71.5 % in spec). A stroke longer than the arm reaches from one place (4 m along a car's side) falls to the
-    following tries."""
+    following tries. Tries whose flange passes near the robot's first axis go last
+    (:func:`_off_axis_one_first`)."""
     if cell_robot.track is None:
-        return [(np.zeros(len(stroke)), r) for r in ROLL_TRIES_DEG]
+        return _off_axis_one_first(cell_robot, stroke, [(np.zeros(len(stroke)), r) for r in ROLL_TRIES_DEG])
     lo, hi = cell_robot.track.range_mm
     along = (stroke.tcp - cell_robot.base2cell[:3, 3]) @ cell_robot.track.axis
     middle = 0.5 * (along.min() + along.max()) if len(along) else 0.0
@@ -53,4 +57,36 @@ def stroke_tries(cell_robot, stroke: Stroke) -> list[tuple[np.ndarray, float]]:
             s = np.clip(base + d, lo, hi)
             if not any(np.array_equal(s, t) for t in tracks):
                 tracks.append(s)
-    return [(t, r) for t in tracks for r in ROLL_TRIES_DEG]
+    return _off_axis_one_first(cell_robot, stroke, [(t, r) for t in tracks for r in ROLL_TRIES_DEG])
+
+
+def _off_axis_one_first(cell_robot, stroke: Stroke, tries: list) -> list:
+    """``tries`` with those whose flange passes within :data:`AXIS_ONE_CLEARANCE_MM` of the robot's first axis
+    moved after the others, each group in its order.
+
+    On the first axis (the shoulder singularity) the first joint is not fixed by the pose: a stroke that passes
+    under the base of a robot hung over the roof turns the arm about its first axis by up to half a turn at
+    the crossing, and the stroke's IK branch or roll changes there. Held still at the middle of a stroke across
+    the roof, the track put the roof robot's first axis right over the stroke: over the SUV in ``line3`` 15
+    of the transfers no route freed in the first round were such turns at the roof (the first joint by 180
+    to 330 deg, the gun rolled by 180 deg), and 35 runs were dropped for them (docs/benchmarks.md, "Session 26")."""
+    if cell_robot.is_gantry or not len(stroke) or not tries:
+        return tries
+    from sprayplan.surface.poses import stroke_poses
+
+    robot = cell_robot.robot(0.0)
+    base = np.asarray(robot.base2world, dtype=float)
+    up, origin = base[:3, 2], base[:3, 3]
+    axis = np.zeros(3) if cell_robot.track is None else np.asarray(cell_robot.track.axis, dtype=float)
+    flange2tcp = np.linalg.inv(np.asarray(robot.tcp2flange, dtype=float))
+    poses = stroke_poses(stroke)
+    flanges = {}
+    for _, r in tries:
+        if r not in flanges:
+            flanges[r] = (poses @ rot_z(r) @ flange2tcp)[:, :3, 3]
+    far, near = [], []
+    for t, r in tries:
+        d = flanges[r] - origin - t[:, None] * axis
+        across = d - (d @ up)[:, None] * up
+        (far if np.linalg.norm(across, axis=1).min() >= AXIS_ONE_CLEARANCE_MM else near).append((t, r))
+    return far + near

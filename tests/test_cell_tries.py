@@ -1,0 +1,114 @@
+"""The tries a cell robot makes for a stroke (``cells.tries``): those that pass the robot's first axis go last."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sprayplan.cells import load_cell
+from sprayplan.cells.plan import solve_strokes
+from sprayplan.cells.tries import AXIS_ONE_CLEARANCE_MM, ROLL_TRIES_DEG, TRACK_TRIES_MM, stroke_tries
+from sprayplan.types import Stroke
+
+
+def _across_the_roof(x_mm: float = 500.0, z_mm: float = 2100.0, standoff_mm: float = 200.0) -> Stroke:
+    """A stroke across a flat roof at height ``z_mm``, from y = -900 to 900 mm at ``x_mm``, right under the
+    first axis of line3's roof robot (its base over y = 0)."""
+    y = np.linspace(-900.0, 900.0, 61)
+    points = np.column_stack([np.full_like(y, x_mm), y, np.full_like(y, z_mm)])
+    normals = np.tile([0.0, 0.0, 1.0], (len(y), 1))
+    return Stroke(points, normals, points + standoff_mm * normals, spray_on=True, on_part=np.ones(len(y), bool))
+
+
+def _axis_one_distance(cell_robot, track_mm, q) -> np.ndarray:
+    """(n,) the flange's distance from the first axis at each waypoint, from the forward kinematics, mm."""
+    out = []
+    for t, j in zip(track_mm, q):
+        robot = cell_robot.robot(float(t))
+        flange = (robot.fk(j[None])[0] @ np.linalg.inv(robot.tcp2flange))[:3, 3]
+        base = robot.base2world
+        d = flange - base[:3, 3]
+        out.append(np.linalg.norm(d - (d @ base[:3, 2]) * base[:3, 2]))
+    return np.array(out)
+
+
+def test_a_stroke_under_a_hung_robot_is_solved_off_its_first_axis():
+    """Across the roof right under line3's roof robot, the try held at the stroke's middle (the first in track
+    order) puts the first axis over the stroke, and the arm turns about it by nearly half a turn, fastest at the
+    crossing. The tries are the same ones (a permutation of the track offsets and rolls), those off the axis first: the
+    stroke is solved with its flange at least ``AXIS_ONE_CLEARANCE_MM`` from the first axis all along (the
+    forward kinematics' answer), the first joint's steps under a half of the held try's."""
+    roof = load_cell("line3").robots[0]
+    stroke = _across_the_roof()
+    tries = stroke_tries(roof, stroke)
+    lo, hi = roof.track.range_mm
+    along = (stroke.tcp - roof.base2cell[:3, 3]) @ roof.track.axis
+    plain = []
+    for base in (np.full(len(along), 0.5 * (along.min() + along.max())), along):
+        for d in TRACK_TRIES_MM:
+            t = np.clip(base + d, lo, hi)
+            if not any(np.array_equal(t, u) for u, _ in plain):
+                plain += [(t, r) for r in ROLL_TRIES_DEG]
+    assert sorted((t.tobytes(), r) for t, r in tries) == sorted((t.tobytes(), r) for t, r in plain)
+    assert tries[0][0][0] != plain[0][0][0]  # the middle's tries went back
+
+    ((track, _, q, reach),) = solve_strokes(roof, [stroke])
+    assert reach.all()
+    assert _axis_one_distance(roof, track, q).min() >= AXIS_ONE_CLEARANCE_MM - 1e-6
+    step = np.degrees(np.abs(np.diff(q[:, 0]))).max()  # the first joint's largest step, 30 mm of travel
+    assert step < 10.0
+    # the try held at the middle, as it was first before: the first axis over the stroke, the first joint
+    # turning through 168 deg across it, fastest at the crossing
+    held = [(t, r) for t, r in plain if np.array_equal(t, plain[0][0])]
+    from sprayplan.cells import tries as cell_tries
+
+    first = cell_tries._off_axis_one_first
+    try:
+        cell_tries._off_axis_one_first = lambda cell_robot, s, t: held
+        ((track0, _, q0, reach0),) = solve_strokes(roof, [stroke])
+    finally:
+        cell_tries._off_axis_one_first = first
+    assert reach0.all()
+    assert _axis_one_distance(roof, track0, q0).min() < AXIS_ONE_CLEARANCE_MM / 2
+    assert np.degrees(np.abs(np.diff(q0[:, 0]))).max() > 2.0 * step  # 17.9 against 4.4 deg
+
+
+def test_tries_far_from_the_first_axis_keep_their_order():
+    """A stroke along a car's side, far from every robot's first axis: the tries in their plain order."""
+    left = load_cell("line3").robots[1]
+    x = np.linspace(-1000.0, 1000.0, 41)
+    points = np.column_stack([x, np.full_like(x, 900.0), np.full_like(x, 1000.0)])
+    normals = np.tile([0.0, 1.0, 0.0], (len(x), 1))
+    stroke = Stroke(points, normals, points + 200.0 * normals, spray_on=True, on_part=np.ones(len(x), bool))
+    tries = stroke_tries(left, stroke)
+    assert len(tries) == len({(t.tobytes(), r) for t, r in tries})
+    middle = [t for t, _ in tries[: len(ROLL_TRIES_DEG)]]
+    assert all(np.allclose(t, t[0]) for t in middle)  # held still first, at the middle of the stroke
+    assert [r for _, r in tries[: len(ROLL_TRIES_DEG)]] == list(ROLL_TRIES_DEG)
+
+
+def test_a_try_whose_joints_jump_gives_way_to_one_that_reaches_as_much_without(monkeypatch):
+    """Across the roof with the roof robot 300 mm ahead of the stroke and the gun's roll 0, the first joint meets
+    its limit where the stroke crosses the roof's middle and turns back by a whole turn between two waypoints:
+    every waypoint reached, but the arm would spin at the roof. ``solve_strokes`` keeps a later try that
+    reaches as many without a jump (the first whole one was kept before), and the jumping try alone is what it
+    falls back to."""
+    import sprayplan.cells.plan as cells_plan
+
+    roof = load_cell("line3").robots[0]
+    stroke = _across_the_roof()
+    x = float(stroke.tcp[0, 0])
+    ahead = (np.full(len(stroke), x + 300.0), 0.0)
+    behind = (np.full(len(stroke), x - 300.0), 90.0)
+
+    def solved(tries):
+        monkeypatch.setattr(cells_plan, "stroke_tries", lambda cell_robot, s: tries)
+        ((track, roll, q, reach),) = solve_strokes(roof, [stroke])
+        return track, roll, q, reach
+
+    track, roll, q, reach = solved([ahead])
+    assert reach.all() and np.degrees(np.abs(np.diff(q, axis=0))).max() > 90.0  # the jumping try alone
+    track, roll, q, reach = solved([ahead, behind])
+    assert reach.all() and roll == 90.0 and np.array_equal(track, behind[0])
+    assert np.degrees(np.abs(np.diff(q, axis=0))).max() < 90.0
+    got = np.stack([roof.robot(t).fk(j[None])[0] for t, j in zip(track, q)])  # the gun where the stroke wants it
+    np.testing.assert_allclose(got[:, :3, 3], stroke.tcp, atol=1e-6)
