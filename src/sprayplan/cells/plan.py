@@ -18,8 +18,10 @@ not):
    with the track moving with the gun (a coordinated external axis, as paint lines run their rail robots
    along a car): at every waypoint the base stands at the gun tip's own position along the track plus an
    offset. Offsets 0, then 300 and 600 mm either side, clipped to the track's ends, each with the gun turned
-   about its axis by 0, 90, 180 and 270 degrees; the first try that reaches every waypoint is kept, else the
-   first that reaches the most. Held still the track costs the stroke nothing at the timed speeds (a track
+   about its axis by 0, 90, 180 and 270 degrees; the tries whose flange passes near the robot's first axis
+   (its shoulder singularity: a roof robot over a stroke across the roof) go last. The first try that reaches
+   every waypoint with no joint jumping between two of them is kept, else the first that reaches the most
+   (:func:`solve_strokes`). Held still the track costs the stroke nothing at the timed speeds (a track
    that follows the gun accelerates with every change of its speed, far slower than the arm); one base
    position does not reach both ends of a 4 m stroke along a car's side, which then follows the gun. Along
    the stroke the branch nearest the previous waypoint's joints is followed
