@@ -1026,3 +1026,47 @@ def test_runs_are_dropped_until_no_transfer_no_route_frees_is_left():
     # in a touch-up round (``first`` > 0) only touch-ups go: here none is, so nothing is dropped
     same, _, none, _, no_rounds = dropped_unrouted(work, route, {key(work, into_6)}, first=3)
     assert same is work and none == no_rounds == 0
+
+
+def test_a_home_route_may_go_out_from_the_raised_ends(tmp_path, monkeypatch):
+    """``CellRouter.home`` tries the parks from the ends raised as the ``via`` route raises them (backed off,
+    then up to the safe height) after the ends and the ends backed off: with parks offered only from a pose
+    at the safe height, the route found is ``[A backed off, A raised, P, (P',) B raised, B backed off]``,
+    those poses where the via route puts them (the forward kinematics' answer) and the whole route free."""
+    import dataclasses
+
+    plan, config, robot, arm, _, router, starts, pairs, transfers = _routing_case(tmp_path)
+    config = dataclasses.replace(config, retract_mm=[50.0])
+    from sprayplan.cells.routes import CellRouter
+
+    router = CellRouter(robot, arm, plan.part, config)
+    plain = router._parks
+    raised = []  # the raised poses' joints of the transfer tried: the only places parks are offered from
+
+    def from_raised_only(q, t):
+        return plain(q, t) if any(np.array_equal(q, r) for r in raised) else []
+
+    monkeypatch.setattr(router, "_parks", from_raised_only)
+    found = 0
+    for i in transfers:
+        s = starts[i]
+        (q_a, t_a), (q_b, t_b) = (pairs[s, :-1], pairs[s, -1]), (pairs[s + 1, :-1], pairs[s + 1, -1])
+        ups = [router._raised(q_a, t_a), router._raised(q_b, t_b)]
+        if any(u is None or len(u) != 2 or np.allclose(u[0], u[1]) for u in ups):
+            continue  # an end the via route does not raise (backed off, it is at the safe height already)
+        raised[:] = [u[-1] for u in ups]
+        route = router.home(q_a, t_a, q_b, t_b)
+        if route is None:
+            continue
+        found += 1
+        nodes, tracks = route
+        assert router.free(q_a, t_a, nodes, tracks, q_b, t_b)
+        up_a, up_b = router._raised(q_a, t_a), router._raised(q_b, t_b)
+        np.testing.assert_array_equal(nodes[:2], up_a)
+        np.testing.assert_array_equal(nodes[-2:], up_b[::-1])
+        for q, t, end in ((nodes[1], tracks[1], q_a), (nodes[-2], tracks[-2], q_b)):
+            pose, below = router.pose(q, t), router.pose(end, t)
+            assert pose[2, 3] >= router.safe_z_mm - 1e-6
+            np.testing.assert_allclose(pose[:3, :3], below[:3, :3], atol=1e-9)  # the gun's orientation kept
+        assert len(nodes) in (5, 6)
+    assert found >= 1

@@ -23,8 +23,11 @@ routes tried, in order, are the gantry job's (``collision.transfers``) for an ar
     end free first); the route goes out from ``A`` to one of them at ``A``'s track position, then to one at
     ``B``'s (the same joints: the track moves alone), then into ``B``: nodes ``[P at A's track, P' at B's]``,
     each pair with free moves out and in tried. Then the same from both ends backed off by the first retract
-    length: nodes ``[A backed off, P, P', B backed off]``. (Searching the legs that are not free, one end of
-    each in the open, freed none more on the BMW at 200 iterations, for 1.9 times the time: not done.)
+    length: nodes ``[A backed off, P, P', B backed off]``; then from both ends backed off and raised as the
+    ``via`` route raises them, so that an arm hung over the roof turns over at its park, not at the roof:
+    nodes ``[A backed off, A raised, P, P', B raised, B backed off]``. (Searching the legs that are not free,
+    one end of each in the open, freed none more on the BMW at 200 iterations, for 1.9 times the time: not
+    done.)
 
 A route is *free* when its nodes and every motion of ``A -> nodes -> B`` are (``collision.arms.plan_collides``,
 the check's own answer). What no route frees stays the straight joint move, and the check after flags it.
@@ -133,20 +136,24 @@ class CellRouter:
             last = self._chain([moved(pose_b, -length * z_b)], t_b, q_b)
             if first is not None and last is not None:
                 yield "retract", np.vstack([first, last]), np.array([t_a, t_b], dtype=float)
-        if self.config.via_height_mm is None:
-            return
-        back = self.config.retract_mm[0] if self.config.retract_mm else 0.0
-        ends = [moved(pose_a, -back * z_a), moved(pose_b, -back * z_b)]
-        above = []
-        for end in ends:
-            pose = end.copy()
-            pose[2, 3] = max(self.safe_z_mm, end[2, 3])
-            above.append(pose)
-        first = self._chain([ends[0], above[0]] if back else [above[0]], t_a, q_a)
-        last = self._chain([ends[1], above[1]] if back else [above[1]], t_b, q_b)
+        first, last = self._raised(q_a, t_a), self._raised(q_b, t_b)
         if first is not None and last is not None:
             tracks = np.r_[np.full(len(first), t_a), np.full(len(last), t_b)]
             yield "via", np.vstack([first, last[::-1]]), tracks
+
+    def _raised(self, q, t: float) -> np.ndarray | None:
+        """The ``via`` route's way up from the end ``q`` at track position ``t``: the gun backed off along its
+        axis by the first retract length, then raised, keeping its orientation, to the safe height (nodes
+        ``(k, dof)``, from the end outwards), or None (no via height, or the arm cannot reach them)."""
+        if self.config.via_height_mm is None:
+            return None
+        back = self.config.retract_mm[0] if self.config.retract_mm else 0.0
+        pose = self.pose(q, t)
+        end = pose.copy()
+        end[:3, 3] -= back * pose[:3, 2]  # the gun's axis points from the gun to the surface
+        above = end.copy()
+        above[2, 3] = max(self.safe_z_mm, end[2, 3])
+        return self._chain([end, above] if back else [above], t, q)
 
     def free(self, q_a, t_a, nodes, tracks, q_b, t_b) -> bool:
         """Every node and every motion of ``A -> nodes -> B`` free (``collision.arms.plan_collides``)."""
@@ -276,10 +283,13 @@ class CellRouter:
             first, last = self._back(q_a, t_a, back), self._back(q_b, t_b, back)
             if first is not None and last is not None:
                 ends.append((first[None], last[None]))
+        first, last = self._raised(q_a, t_a), self._raised(q_b, t_b)
+        if first is not None and last is not None:  # out from the via route's raised poses
+            ends.append((first, last[::-1]))
         none = np.zeros((0, len(q_a)))
         for first, last in ends:
             start = first[-1] if len(first) else q_a
-            end = last[-1] if len(last) else q_b
+            end = last[0] if len(last) else q_b  # (the node next to the parks)
             offered = [p for p, _ in self._parks(start, t_a)] + [p for p, _ in self._parks(end, t_b)]
             joints = [p for k, p in enumerate(offered) if not any(np.array_equal(p, o) for o in offered[:k])]
             outs = [p for p in joints if self.free(start, t_a, none, np.zeros(0), p, t_a)]
