@@ -112,3 +112,37 @@ def test_a_try_whose_joints_jump_gives_way_to_one_that_reaches_as_much_without(m
     assert np.degrees(np.abs(np.diff(q, axis=0))).max() < 90.0
     got = np.stack([roof.robot(t).fk(j[None])[0] for t, j in zip(track, q)])  # the gun where the stroke wants it
     np.testing.assert_allclose(got[:, :3, 3], stroke.tcp, atol=1e-6)
+
+
+def test_a_stroke_keeps_the_try_that_goes_on_from_where_the_stroke_before_ends(monkeypatch):
+    """Two strokes across the roof, the second back along the first. Its first try (the track 600 mm behind,
+    the gun rolled 270 deg) reaches every waypoint with no jump along it, but starts with the sixth joint 174
+    deg from where the first stroke ends (a transfer that turns the gun over at the roof); a later try (the
+    same track, roll 90) starts 14 deg or less from it on every joint and is kept. Alone, the first try is
+    kept all the same (nothing better reaches the stroke)."""
+    import dataclasses
+
+    import sprayplan.cells.plan as cells_plan
+
+    roof = load_cell("line3").robots[0]
+    out = _across_the_roof()
+    back = dataclasses.replace(
+        out, points=out.points[::-1].copy(), normals=out.normals[::-1].copy(), tcp=out.tcp[::-1].copy()
+    )
+    x = float(out.tcp[0, 0])
+    n = len(out)
+    behind = (np.full(n, x - 300.0), 90.0)
+    turned, straight = (np.full(n, x - 600.0), 270.0), (np.full(n, x - 600.0), 90.0)
+
+    def solved(second):
+        monkeypatch.setattr(cells_plan, "stroke_tries", lambda cell_robot, s: [behind] if s is out else second)
+        return solve_strokes(roof, [out, back])
+
+    (_, _, q1, reach1), (track, roll, q2, reach2) = solved([turned, straight])
+    assert reach1.all() and reach2.all() and roll == 90.0 and np.array_equal(track, straight[0])
+    assert np.degrees(np.abs(q2[0] - q1[-1])).max() <= 90.0
+    assert np.degrees(np.abs(np.diff(q2, axis=0))).max() <= 90.0
+    got = np.stack([roof.robot(t).fk(j[None])[0] for t, j in zip(track, q2)])
+    np.testing.assert_allclose(got[:, :3, 3], back.tcp, atol=1e-6)
+    (_, _, q1, _), (_, roll, q2, reach2) = solved([turned])
+    assert reach2.all() and roll == 270.0 and np.degrees(np.abs(q2[0] - q1[-1])).max() > 90.0

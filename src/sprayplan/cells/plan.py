@@ -20,8 +20,8 @@ not):
    offset. Offsets 0, then 300 and 600 mm either side, clipped to the track's ends, each with the gun turned
    about its axis by 0, 90, 180 and 270 degrees; the tries whose flange passes near the robot's first axis
    (its shoulder singularity: a roof robot over a stroke across the roof) go last. The first try that reaches
-   every waypoint with no joint jumping between two of them is kept, else the first that reaches the most
-   (:func:`solve_strokes`). Held still the track costs the stroke nothing at the timed speeds (a track
+   every waypoint with no joint jumping, between two of them or from where the stroke before ends, is kept;
+   else the first whole one (:func:`solve_strokes`). Held still the track costs the stroke nothing at the timed speeds (a track
    that follows the gun accelerates with every change of its speed, far slower than the arm); one base
    position does not reach both ends of a 4 m stroke along a car's side, which then follows the gun. Along
    the stroke the branch nearest the previous waypoint's joints is followed
@@ -172,18 +172,6 @@ def _sub_part(part: Part, keep: np.ndarray, name: str) -> Part:
     return dataclasses.replace(keep_faces(part, keep), vertex_normals=None, name=name)
 
 
-def _slice(sols, start: int, n: int):
-    """Poses ``start .. start + n`` of an IKSolutions."""
-    return dataclasses.replace(
-        sols,
-        **{
-            f.name: getattr(sols, f.name)[start : start + n]
-            for f in dataclasses.fields(sols)
-            if isinstance(getattr(sols, f.name), np.ndarray)
-        },
-    )
-
-
 #: A joint step this large between two waypoints of a stroke (rad) is a jump (:func:`solve_strokes`): the
 #: arm turned over, or a first joint at its limit turned back by a whole turn (over the SUV in ``line3`` the
 #: roof robot's first joint turned by 344 deg between two waypoints 6 mm apart where its strokes crossed
@@ -191,70 +179,69 @@ def _slice(sols, start: int, n: int):
 JOINT_JUMP_RAD = math.radians(90.0)
 
 
-def _jumps(arm, sols) -> bool:
-    """Whether the branch followed through ``sols`` (``robots.interface.follow_solutions`` from the start
-    joints) steps by more than :data:`JOINT_JUMP_RAD` on a joint between two reached waypoints."""
-    from sprayplan.robots.interface import follow_solutions
-
-    q, branch = follow_solutions(arm, sols, start_joints(arm.dof))
-    q = q[branch >= 0]
-    return bool(len(q) > 1 and np.abs(np.diff(q, axis=0)).max() > JOINT_JUMP_RAD)
-
-
 def solve_strokes(cell_robot, strokes) -> list[tuple[np.ndarray, float, np.ndarray, np.ndarray]]:
-    """For each stroke, the first (track positions, roll) try that reaches all its waypoints, else the first
-    that reaches the most, and the joints along it (module docstring, step 5): ``(track_mm (n,), roll_deg, q
-    (n, 6), reachable (n,))`` a stroke.
+    """For each stroke a (track positions, roll) try and the joints along it (module docstring, step 5):
+    ``(track_mm (n,), roll_deg, q (n, 6), reachable (n,))`` a stroke.
 
-    The tries go in rounds: round ``k`` solves try ``k`` of every stroke not yet reached whole, all in one
-    call of the IK with the base at track position 0 and the poses moved back along the track instead. A try
-    whose branch, followed from :data:`~sprayplan.cells.tries.START_JOINTS`, jumps by more than
-    :data:`JOINT_JUMP_RAD` between two waypoints (a first joint at its limit turned back by a whole turn, an arm
-    turned over) is not whole: the next tries are solved, and a try that reaches as many without a jump is kept
-    before it (:func:`_jumps`)."""
+    Every try of every stroke is solved, one call of the IK a try index, with the base at track position 0 and
+    the poses moved back along the track instead; then the strokes are taken in order, each followed from the
+    joints where the spray stroke before it ends (``robots.interface.follow_solutions``). A spray stroke keeps
+    the first try that reaches all its waypoints with no joint jumping by more than :data:`JOINT_JUMP_RAD`,
+    neither between two waypoints (a first joint at its limit turned back by a whole turn, an arm turned over)
+    nor from where the stroke before ends (the transfer between them; over the SUV in ``line3`` the roof robot
+    took the same point from two track positions 600 mm apart and turned over at the roof, a transfer no route
+    freed); failing the last, the first whole try with no jump along it; failing that, the first whole try;
+    else the first that reaches the most."""
     from sprayplan.robots.interface import follow_solutions
 
     arm = cell_robot.robot(0.0)
     axis = np.zeros(3) if cell_robot.track is None else cell_robot.track.axis
     tries = [stroke_tries(cell_robot, s) for s in strokes]
     poses = [stroke_poses(s) for s in strokes]
-    best: list = [None] * len(strokes)  # ((count, no jump), try index, IKSolutions of the stroke)
-    pending = list(range(len(strokes)))
+
+    def moved(i: int, k: int) -> np.ndarray:
+        track, roll = tries[i][k]
+        out = poses[i] @ rot_z(roll)
+        out[:, :3, 3] -= track[:, None] * axis
+        return out
+
+    counts = [np.zeros(len(t), int) for t in tries]  # waypoints reached, per stroke and try
     for k in range(max((len(t) for t in tries), default=0)):
-        pending = [i for i in pending if k < len(tries[i])]
-        if not pending:
+        mine = [i for i in range(len(strokes)) if k < len(tries[i]) and len(strokes[i])]
+        if not mine:
             break
-        blocks = []
-        for i in pending:
-            track, roll = tries[i][k]
-            moved = poses[i] @ rot_z(roll)
-            moved[:, :3, 3] -= track[:, None] * axis
-            blocks.append(moved)
-        sols = arm.ik(np.concatenate(blocks))
-        start, still = 0, []
-        for i, block in zip(pending, blocks):
-            n = len(block)
-            mine = _slice(sols, start, n)
-            start += n
-            count = int(mine.reachable.sum())
-            # (waypoints reached, no jump): a try is kept over an earlier one that scores less
-            score = (count, count == n and not _jumps(arm, mine))
-            if count and (best[i] is None or score > best[i][0]):
-                best[i] = (score, k, mine)
-            if score != (n, True):
-                still.append(i)
-        pending = still
+        blocks = [moved(i, k) for i in mine]
+        reached = arm.ik(np.concatenate(blocks)).reachable
+        ends = np.cumsum([0] + [len(b) for b in blocks])
+        for j, i in enumerate(mine):
+            counts[i][k] = int(reached[ends[j] : ends[j + 1]].sum())
     out = []
     seed = start_joints(arm.dof)
+    first = True  # no spray stroke before: the first keeps any start
     for i, s in enumerate(strokes):
-        if best[i] is None:
-            out.append((tries[i][0][0], 0.0, np.zeros((len(s), arm.dof)), np.zeros(len(s), bool)))
+        n = len(s)
+        if not n or not counts[i].any():
+            out.append((tries[i][0][0] if tries[i] else np.zeros(n), 0.0, np.zeros((n, arm.dof)), np.zeros(n, bool)))
             continue
-        _, k, mine = best[i]
-        q, branch = follow_solutions(arm, mine, seed)
-        reach = branch >= 0
-        if reach.any() and s.spray_on:  # a transfer's ends become its neighbours' (joined_transfers)
+        whole = [k for k in range(len(tries[i])) if counts[i][k] == n]
+        chosen = None  # (rank: 0 no jump at all, 1 none along it, 2 whole), try, joints, reached
+        for k in whole:
+            q, branch = follow_solutions(arm, arm.ik(moved(i, k)), seed)
+            along = q[branch >= 0]
+            jumps = len(along) > 1 and np.abs(np.diff(along, axis=0)).max() > JOINT_JUMP_RAD
+            rank = 2 if jumps else 0 if first or np.abs(along[0] - seed).max() <= JOINT_JUMP_RAD else 1
+            if chosen is None or rank < chosen[0]:
+                chosen = (rank, k, q, branch >= 0)
+            if rank == 0 or not s.spray_on:  # (a transfer's ends become its neighbours': joined_transfers)
+                break
+        if chosen is None:  # no try reaches every waypoint: the first that reaches the most
+            k = int(np.argmax(counts[i]))
+            q, branch = follow_solutions(arm, arm.ik(moved(i, k)), seed)
+            chosen = (3, k, q, branch >= 0)
+        _, k, q, reach = chosen
+        if reach.any() and s.spray_on:
             seed = q[np.flatnonzero(reach)[-1]]
+            first = False
         out.append((*tries[i][k], q, reach))
     return out
 
