@@ -750,6 +750,7 @@ def test_a_program_that_reads_back_wrong_is_a_bug_and_writes_nothing(reach_folde
     before = snapshot(tmp_path)
     code, _, err = run(capsys, "export", copy, "--format", "rapid")
     assert code == 1 and "internal error: ProgramCheckError" in err and "blend" in err
+    assert str(copy / "programs" / "rapid") in err  # which program (with a cell: which robot's)
     assert snapshot(tmp_path) == before
 
 

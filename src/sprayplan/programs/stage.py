@@ -234,7 +234,8 @@ def write_built(folder, builts: list[Built], plan, job, source: str | None = Non
             result = check_program(read, plan, job, built.cell)
             if not result.ok:
                 raise ProgramCheckError(
-                    f"the {built.fmt} program read back differs from the plan ({len(result.failures)} differences; "
+                    f"the {built.fmt} program in {Path(folder) / built.fmt} read back differs from the plan "
+                    f"({len(result.failures)} differences; "
                     f"the first: {result.failures[0]}): a defect, please report it"
                 )
             data = summary(built, read, job, plan.name, source, result)
