@@ -1070,3 +1070,49 @@ def test_a_home_route_may_go_out_from_the_raised_ends(tmp_path, monkeypatch):
             np.testing.assert_allclose(pose[:3, :3], below[:3, :3], atol=1e-9)  # the gun's orientation kept
         assert len(nodes) in (5, 6)
     assert found >= 1
+
+
+def test_the_gun_drawn_out_towards_the_base_and_a_park_route_from_it(tmp_path):
+    """``CellRouter.drawn_out``: the gun moved the distance horizontally straight towards the robot's first
+    axis (at its track position), its orientation kept (FK of the joints returned). ``park_route``: its first
+    way is the gun drawn out by ``OUT_MM[0]`` where that node and its moves are free; any way it returns is free
+    by the full check."""
+    from sprayplan.cells.routes import OUT_MM, CellRouter
+    from sprayplan.config import JobConfig
+
+    cell, plan, arms = _box_cell(tmp_path)
+    work, arm, robot = plan.robots[0], arms[0], cell.robots[0]
+    router = CellRouter(robot, arm, plan.part, JobConfig().collision)
+    ok = np.flatnonzero(work.reachable)
+    checked = 0
+    for i in ok[:: max(1, len(ok) // 25)]:
+        q, t = work.q[i], float(work.track_mm[i])
+        pose = router.pose(q, t)
+        base = robot.base2cell[:3, 3] + (0.0 if robot.track is None else t * np.asarray(robot.track.axis, float))
+        out = router.drawn_out(q, t, 200.0)
+        if out is None:
+            continue
+        moved = router.pose(out, t)
+        np.testing.assert_allclose(moved[:3, :3], pose[:3, :3], atol=1e-9)
+        step = moved[:3, 3] - pose[:3, 3]
+        assert step[2] == pytest.approx(0.0, abs=1e-6) and np.linalg.norm(step) == pytest.approx(200.0, abs=1e-6)
+        towards = (base - pose[:3, 3])[:2]
+        assert np.dot(step[:2], towards) / np.linalg.norm(towards) == pytest.approx(200.0, abs=1e-6)
+        checked += 1
+    assert checked >= 10
+    from sprayplan.cells.schedule import park_joints
+
+    kinds = []
+    for i in ok[:: max(1, len(ok) // 12)]:
+        q, t = work.q[i], float(work.track_mm[i])
+        park, at = park_joints(arm, q, t)
+        found = router.park_route(q, t, park, at)
+        if found is None:
+            continue
+        kind, nodes, tracks = found
+        assert router.free(q, t, nodes, tracks, park, at)
+        first = router.drawn_out(q, t, OUT_MM[0])
+        if first is not None and router.free(q, t, first[None], np.r_[t], park, at):
+            assert kind == "out" and np.allclose(nodes, first[None])
+        kinds.append(kind)
+    assert "out" in kinds

@@ -14,7 +14,7 @@ from sprayplan.cells import load_cell
 from sprayplan.cells import schedule as sched
 from sprayplan.cells.collide import cell_arms
 from sprayplan.cells.plan import plan_cell
-from sprayplan.cells.timing import _Axes, _back_offs, _leads, cell_limits, time_cell, with_times
+from sprayplan.cells.timing import _Axes, _leads, cell_limits, program_back_offs, time_cell, with_times
 from sprayplan.config import JobConfig
 from sprayplan.timing.moves import point_to_point
 from tests.helpers import grid_box
@@ -45,13 +45,13 @@ def _transfers(work):
 
 
 def _checked_back_off(cr, arm, axes, job, limits):
-    """The programs' back-off from a run's end at ``axes`` as the timing takes it (``cells.timing._back_offs``),
+    """The programs' back-off from a run's end at ``axes`` as the timing takes it (``cells.timing.program_back_offs``),
     checked here on its own terms: the gun tip moved straight back along the gun axis by approach_mm or a
     half, quarter or eighth of it, the orientation and the track kept; and its seconds: the longer of the joint
     move and the line at the approach speed. Returns (backed-off axes, seconds)."""
     from sprayplan.programs.build import APPROACH_TRIES
 
-    moved, seconds = _back_offs(cr, job, limits)(axes)
+    moved, seconds = program_back_offs(cr, job, limits)(axes)
     here, there = arm.target_poses(np.vstack([axes, moved]))
     step = there[:3, 3] - here[:3, 3]
     distance = float(np.linalg.norm(step))

@@ -612,3 +612,50 @@ def test_a_scheduled_robots_programs_start_and_end_where_the_schedule_has_it(wri
             np.testing.assert_allclose(move.joints, work.ends_q[row], atol=1e-7)
             if axes:
                 assert move.external_mm[0] == pytest.approx(work.ends_track_mm[row], abs=1e-3)
+
+
+def test_a_park_route_is_moved_through_read_back_and_kept_in_cell_plan_json(written, tmp_path):
+    """A robot whose schedule routes it to its end park (``RobotWork.park_route_q``, ``cells.schedule``) moves
+    through the route's nodes (joint moves, with the track) after its last retract and before the park; the
+    plan keeps the route through cell_plan.json, the program reads back equal to it, and a program whose
+    route is not the plan's fails the check."""
+    import dataclasses
+
+    from sprayplan.cells.collide import cell_arms
+    from sprayplan.cells.files import cell_plan_dict, cell_plan_from_file
+    from sprayplan.cells.plan import plan_cell
+    from sprayplan.cells.schedule import scheduled
+    from sprayplan.config import CollisionConfig
+    from sprayplan.io.load import load_part
+    from sprayplan.programs.arms import arm_plan, build_cell_programs, write_cell_programs
+
+    job = JobConfig()
+    plan = plan_cell(load_part(str(written["part"])), written["cell"], job)
+    arms = cell_arms(plan.cell, plan.part, CollisionConfig(check=True))
+    robots, _ = scheduled(plan.cell, plan.robots, arms, plan.job)
+    work = robots[0]
+    nodes = np.vstack([work.q[-1] + 0.1, (work.q[-1] + work.ends_q[1]) / 2])  # two nodes on the way
+    tracks = np.r_[work.track_mm[-1], (work.track_mm[-1] + work.ends_track_mm[1]) / 2]
+    routed = dataclasses.replace(work, park_route_q=nodes, park_route_track_mm=tracks)
+    robots = (routed, *robots[1:])
+    (tmp_path / "cell_plan.json").write_text(json.dumps(cell_plan_dict(dataclasses.replace(plan, robots=robots))))
+    back = cell_plan_from_file(tmp_path / "cell_plan.json")
+    np.testing.assert_allclose(back.robots[0].park_route_q, nodes, atol=1e-11)
+    np.testing.assert_allclose(back.robots[0].park_route_track_mm, tracks, atol=1e-6)
+    assert back.robots[1].park_route_q is None
+    built = build_cell_programs(back, back.job, ("rapid",))
+    write_cell_programs(tmp_path / "programs", built, back.job)  # raises if a program read back is not its plan
+    cr = plan.cell.robots[0]
+    axes = 0 if cr.track is None else 1
+    read = read_programs(tmp_path / "programs" / cr.name / "rapid", back.job, "rapid", axes)
+    *_, retract, one, two, park, end = read.moves  # (the station's end, then the program's: the same park)
+    assert retract.kind == "linear" and [one.kind, two.kind, park.kind, end.kind] == ["joint"] * 4
+    np.testing.assert_allclose([one.joints, two.joints, park.joints], [*nodes, work.ends_q[1]], atol=1e-7)
+    if axes:
+        np.testing.assert_allclose([one.external_mm[0], two.external_mm[0]], tracks, atol=1e-3)
+    # the program of the routed plan against the plan with another route: not its plan
+    arm = ArmCell(cr, back.job.paths.standoff_mm)
+    other = dataclasses.replace(back.robots[0], park_route_q=nodes[::-1].copy())
+    assert check_program(read, arm_plan(back.robots[0], arm), back.job, arm).ok
+    failed = check_program(read, arm_plan(other, arm), back.job, arm)
+    assert not failed.ok and "not the plan's route" in str(failed.failures[0])

@@ -393,3 +393,147 @@ def test_a_later_robot_parks_where_its_move_and_hold_keep_clear_of_the_earlier_r
     assert (
         sched.segment_distances(caps[:, 0], caps[:, 1], ball, ball) - np.asarray(arm.radii, float) - 60.0
     ).min() < 30.0
+
+
+def _drawn_back(dq2: float, seconds: float):
+    """A stand-in for the programs' back-off (``cells.timing.program_back_offs``): axis 2 turned back by
+    ``dq2`` rad, taking ``seconds``; the axes it was given are kept to check the calls."""
+    asked = []
+
+    def back(axes):
+        asked.append(np.array(axes, float))
+        moved = np.array(axes, float)
+        moved[1] -= dq2
+        return moved, seconds
+
+    return back, asked
+
+
+def test_a_robot_retracts_before_it_parks_and_its_park_is_chosen_from_the_retract(box_plan):
+    """With the programs' back-offs (``backs``), each robot's timeline ends with the retract from its last
+    waypoint (a knot at the backed-off joints, the back-off's seconds after the work is done), then the park
+    move from there: the park is the first of ``park_candidates`` from the backed-off joints whose move is
+    clear (the first robot: the first of them), its time from there, the move from there free of the part. A
+    program makes that move (``programs.build``: the retract, then the joint move to the park); the schedule
+    chose the park by the move from the last waypoint before, which the programs never make."""
+    plan, arms = box_plan
+    tracks = [None if r.track is None else r.track.speed_mm_s for r in plan.cell.robots]
+    ranges = [None if r.track is None else tuple(r.track.range_mm) for r in plan.cell.robots]
+    backs = [_drawn_back(0.15, 1.25) for _ in plan.robots]
+    got = sched.schedule_cell(
+        plan.robots,
+        arms,
+        400.0,
+        1000.0,
+        30.0,
+        tracks,
+        track_ranges=ranges,
+        priority=[0, 1],
+        backs=[b for b, _ in backs],
+    )
+    plain = sched.schedule_cell(plan.robots, arms, 400.0, 1000.0, 30.0, tracks, track_ranges=ranges, priority=[0, 1])
+    for k, (work, line) in enumerate(zip(plan.robots, got.timelines)):
+        q, track = sched._held(work.q, work.track_mm, work.reachable)
+        last = q[-1].copy()
+        last[1] -= 0.15
+        assert any(np.allclose(a, np.r_[q[-1], track[-1]]) for a in backs[k][1])  # asked at the last waypoint
+        done = float(line.arrive_s[-1])
+        np.testing.assert_allclose(line.knot_q[-2], last, atol=1e-12)
+        assert line.knot_t[-2] == pytest.approx(done + 1.25)
+        park, at = line.knot_q[-1], float(line.knot_track[-1])
+        if k == 0:
+            first, where = next(sched.park_candidates(arms[0], last, float(track[-1]), _others(plan.robots, arms, 0),
+                                                      ranges[0], tracks[0]))  # fmt: skip
+            np.testing.assert_allclose(park, first)
+            assert at == pytest.approx(where)
+        move = sched._move_s(arms[k], last, park, float(track[-1]), at, tracks[k])
+        assert line.end_s == pytest.approx(done + 1.25 + move)
+        s = np.linspace(0.0, 1.0, 200)
+        assert not arms[k].check(last + s[:, None] * (park - last), track[-1] + s * (at - track[-1])).collides.any()
+        # the same work otherwise: the waypoints' times are the plain schedule's
+        np.testing.assert_allclose(line.arrive_s, plain.timelines[k].arrive_s, atol=1e-9)
+
+
+def test_a_robot_that_starts_parked_comes_in_to_its_first_approach_pose():
+    """With the programs' back-offs, a robot that starts parked has its park chosen for the move to the
+    approach pose of its first waypoint (the backed-off joints), and reaches its first waypoint the move's
+    time plus the approach's after the wait (the program: park, joint move to the approach pose, approach)."""
+    works, arms = _facing_works(from_the_middle=True)
+    back, asked = _drawn_back(0.2, 0.75)
+    got = sched.schedule_cell(works, arms, 400.0, 1000.0, 30.0, backs=[None, back])
+    q, track = works[1].q, works[1].track_mm
+    entry = q[0].copy()
+    entry[1] -= 0.2
+    assert any(np.allclose(a, np.r_[q[0], track[0]]) for a in asked)
+    home, _ = sched.park_joints(arms[1], entry, float(track[0]), _others(works, arms, 1))
+    line = got.timelines[1]
+    np.testing.assert_allclose(line.knot_q[0], home)
+    assert got.conflicts["a-b"] == 0 and line.wait_s[0] > 0
+    assert line.arrive_s[0] == pytest.approx(line.wait_s[0] + sched._move_s(arms[1], home, entry) + 0.75)
+
+
+class _StubRouter:
+    """Stands in for ``cells.routes.CellRouter`` in the schedule: one node, half way between the retract and
+    the park, for every park asked about."""
+
+    def __init__(self):
+        self.asked = []
+
+    def park_route(self, q_a, t_a, park, t_park, seed=0):
+        self.asked.append((np.array(q_a), float(t_a), np.array(park), float(t_park)))
+        return "stub", ((np.asarray(q_a) + np.asarray(park)) / 2)[None], np.r_[(t_a + t_park) / 2]
+
+
+def test_a_park_no_joint_move_reaches_free_is_reached_through_a_route(box_plan, monkeypatch):
+    """Where the joint move from the end of a robot's work to its park is not free (``move_free``, here made
+    to say so), the robot goes there through the route its router gives: the node is a row of its timeline,
+    each leg a joint move at the axis speeds, and the node is what ``Timeline.park_route_q`` hands to the
+    programs; where the move is free, no route is asked for."""
+    plan, arms = box_plan
+    tracks = [None if r.track is None else r.track.speed_mm_s for r in plan.cell.robots]
+    ranges = [None if r.track is None else tuple(r.track.range_mm) for r in plan.cell.robots]
+    routers = [_StubRouter(), _StubRouter()]
+    monkeypatch.setattr(sched, "move_free", lambda arm, *args: arm is not arms[1])
+    got = sched.schedule_cell(
+        plan.robots, arms, 400.0, 1000.0, 30.0, tracks, track_ranges=ranges, priority=[0, 1], routers=routers
+    )
+    assert not routers[0].asked and got.timelines[0].park_route_q is None
+    (q_a, t_a, park, t_park), *_ = routers[1].asked
+    line = got.timelines[1]
+    node = (q_a + park) / 2
+    np.testing.assert_allclose(line.park_route_q, node[None])
+    np.testing.assert_allclose(line.knot_q[-2:], [node, park])
+    assert line.knot_track[-1] == pytest.approx(t_park)
+    done = float(line.arrive_s[-1])
+    legs = sched._move_s(arms[1], q_a, node, t_a, (t_a + t_park) / 2, tracks[1]) + sched._move_s(
+        arms[1], node, park, (t_a + t_park) / 2, t_park, tracks[1]
+    )
+    assert line.end_s == pytest.approx(done + legs)
+    assert line.knot_t[-2] == pytest.approx(
+        done + sched._move_s(arms[1], q_a, node, t_a, (t_a + t_park) / 2, tracks[1])
+    )
+
+
+def test_a_move_is_free_when_no_sample_at_the_programs_step_collides(box_plan):
+    """``move_free`` samples a joint move as the programs' check does (``programs.arms.MOTION_STEP_RAD``): a
+    move through a configuration in collision is not free, one that stays where the work ended is."""
+    from sprayplan.programs.arms import MOTION_STEP_RAD
+
+    assert sched.MOVE_STEP_RAD == MOTION_STEP_RAD
+    plan, arms = box_plan
+    work, arm = plan.robots[0], arms[0]
+    q, track = sched._held(work.q, work.track_mm, work.reachable)
+    t = float(track[-1])
+    assert sched.move_free(arm, q[-1], q[-1], t, t)
+    # the shoulder turned forward, step by step, until the arm is in the box: the move there is not free
+    hit = q[-1].copy()
+    while not arm.collides(hit[None], [t])[0]:
+        hit[1] += 0.05
+        assert hit[1] < arm.params.upper[1]
+    assert not sched.move_free(arm, q[-1], hit, t, t)
+    park, at = sched.park_joints(arm, q[-1], float(track[-1]))
+    assert sched.move_free(arm, q[-1], park, float(track[-1]), at) == (
+        not arm.collides(
+            q[-1] + np.linspace(0, 1, 2001)[:, None] * (park - q[-1]), np.full(2001, float(track[-1]))
+        ).any()
+    )

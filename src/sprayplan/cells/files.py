@@ -135,6 +135,11 @@ def cell_plan_dict(plan) -> dict:
         ends = {}
         if r.ends_q is not None:
             ends = {"schedule_ends": {"q_rad": np.round(r.ends_q, 12), "track_mm": np.round(r.ends_track_mm, 6)}}
+            if r.park_route_q is not None:
+                ends["schedule_ends"]["park_route"] = {
+                    "q_rad": np.round(r.park_route_q, 12),
+                    "track_mm": np.round(r.park_route_track_mm, 6),
+                }
         if r.lead_q is not None:
             ends["leads"] = _leads_entry(r)
         work.append({"name": r.name, "model": r.model, "strokes": strokes, **ends})
@@ -325,6 +330,7 @@ def cell_plan_from_file(path):
                     None if ends is None else np.asarray(ends["q_rad"], float).reshape(2, -1),
                     None if ends is None else np.asarray(ends["track_mm"], float).reshape(2),
                     *leads,
+                    *_park_route_of(ends),
                 )
             )  # fmt: skip
     except (KeyError, TypeError, ValueError, ConfigError) as exc:
@@ -332,6 +338,15 @@ def cell_plan_from_file(path):
     name = data["part"]["name"]
     return CellPlan(cell, None, data["part"]["part2cell"], None, None, tuple(works), None, data["report"], {}, name,
                     job=job)  # fmt: skip
+
+
+def _park_route_of(ends: dict | None) -> tuple:
+    """``(park_route_q, park_route_track_mm)`` of a robot's ``schedule_ends`` (None, None without a route)."""
+    route = None if ends is None else ends.get("park_route")
+    if route is None:
+        return None, None
+    q = np.asarray(route["q_rad"], float)
+    return q.reshape(len(q), -1), np.asarray(route["track_mm"], float).reshape(len(q))
 
 
 def _leads_entry(work) -> dict:

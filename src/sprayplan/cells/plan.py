@@ -755,7 +755,7 @@ def plan_cell(
         begin("schedule")
         from sprayplan.cells.schedule import scheduled
 
-        robots = scheduled(cell, robots, arms, job)
+        robots = scheduled(cell, robots, arms, job, painted)
         report["schedule"] = robots[1]
         robots = robots[0]
         if not report["collisions"]["robots_kept_apart"].startswith("in space"):

@@ -49,6 +49,9 @@ from sprayplan.types import Stroke
 ROUTES = ("retract", "via", "detour", "home")
 #: The parks tried at each end of a transfer for a ``home`` route (module docstring).
 HOME_TRIES = 3
+#: How far a robot's gun is drawn out towards its base, in turn, on its way to its park, mm
+#: (:meth:`CellRouter.park_route`).
+OUT_MM = (300.0, 600.0)
 #: The joints a detour samples reach this far beyond the span of its two ends (within the limits), rad.
 DETOUR_MARGIN_RAD = math.pi / 2
 #: The longest leg a detour grows at once, as a bound on any body point's displacement, mm.
@@ -302,6 +305,32 @@ class CellRouter:
                     if self.free(q_a, t_a, nodes, tracks, q_b, t_b):
                         return nodes, tracks
         return None
+
+    def drawn_out(self, q, t: float, distance_mm: float) -> np.ndarray | None:
+        """The joints of the gun at joints ``q`` (track ``t``) moved ``distance_mm`` horizontally towards the
+        robot's base (its first axis at that track position), orientation kept, on the branch nearest ``q``;
+        None when no branch reaches it (or the gun is over the base)."""
+        pose = self.pose(q, t)
+        base = np.asarray(self.cell_robot.base2cell, dtype=float)[:3, 3]
+        if self.cell_robot.track is not None:
+            base = base + t * np.asarray(self.cell_robot.track.axis, dtype=float)
+        towards = np.r_[(base - pose[:3, 3])[:2], 0.0]
+        length = float(np.linalg.norm(towards))
+        if length < 1e-9:
+            return None
+        pose[:3, 3] += distance_mm * towards / length
+        return self.solve(pose, t, q)
+
+    def park_route(self, q_a, t_a: float, park, t_park: float, seed: int = 0):
+        """``(kind, nodes, tracks)`` of the first free way from ``q_a`` (a robot's last retract) to its park
+        (``cells.schedule``, where the joint move is not free): the gun drawn out towards the base by each of
+        :data:`OUT_MM` (``out``: one node, then the joint move to the park), then the transfers' routes
+        (:meth:`route`); None when none is free."""
+        for distance in OUT_MM:
+            node = self.drawn_out(q_a, t_a, distance)
+            if node is not None and self.free(q_a, t_a, node[None], np.r_[t_a], park, t_park):
+                return "out", node[None], np.r_[float(t_a)]
+        return self.route(q_a, t_a, park, t_park, seed)
 
     def route(self, q_a, t_a: float, q_b, t_b: float, seed: int = 0, search: bool = True):
         """``(kind, nodes, tracks)`` of the first free route (module docstring), at least one node, or None;

@@ -50,7 +50,11 @@ keeping them apart in space alone is not proven. :func:`schedule_cell` keeps the
    and hold, to the end of the earlier robots' work, keep clear of them in time (:func:`_park_clear`): on the
    BMW with the reach check's tilted tries (session 15) the roof robot's first park stood in the way of a
    transfer the right robot made 186 s after the roof robot had finished (12 samples too close), the next one
-   is clear.
+   is clear. The move to the park starts where the program's does, at the retract from the last waypoint
+   (``backs``); where no park's joint move from there is free (:func:`move_free`: on session 26's BMW plan
+   the right robot ended at the sill with its wrist under the body, and every park's move hit the side; its
+   program's last move was in collision), the robot goes there through a route (``routers``,
+   ``cells.routes.CellRouter.park_route``), the programs with it.
 3. **The check** samples the common time axis every ``DT_S`` and measures, at every sample, the least distance
    between any capsule of one robot and any capsule of the other (:func:`segment_distances`, exact for segments;
    the arms' own capsules, ``collision.arms``). Two robots may conflict where that distance is below the sum of
@@ -321,6 +325,8 @@ class Timeline:
     knot_track: np.ndarray  # (k,) mm
     arrive_s: np.ndarray  # (n,) s
     wait_s: np.ndarray  # (strokes,) s
+    park_route_q: np.ndarray | None = None  # (m, dof) rad: the nodes on the way to the park (a route), or None
+    park_route_track: np.ndarray | None = None  # (m,) mm
 
     @property
     def end_s(self) -> float:
@@ -552,6 +558,32 @@ def _block_wait(arm, t0, q, track, starts, chosen, first: int, j: int, earlier, 
     return _wait_for(block, hold, earlier, clearance_mm)
 
 
+#: The largest joint step (rad) between two samples of a move checked by :func:`move_free`: the programs'
+#: check's (``programs.arms.MOTION_STEP_RAD``).
+MOVE_STEP_RAD = 0.02
+
+
+def move_free(arm, q_a, q_b, track_a: float, track_b: float) -> bool:
+    """Whether the joint move from ``q_a`` at ``track_a`` to ``q_b`` at ``track_b`` (joints and track linear
+    together) is free of the part and the floor, sampled at most :data:`MOVE_STEP_RAD` and 25 mm of track
+    apart, as the programs' check samples it."""
+    q_a, q_b = np.asarray(q_a, float), np.asarray(q_b, float)
+    steps = max(
+        1, math.ceil(np.abs(q_b - q_a).max(initial=0.0) / MOVE_STEP_RAD), math.ceil(abs(track_b - track_a) / 25.0)
+    )
+    s = np.linspace(0.0, 1.0, steps + 1)[:, None]
+    return not arm.collides(q_a + s * (q_b - q_a), track_a + s[:, 0] * (track_b - track_a)).any()
+
+
+def _backed(back, q: np.ndarray, track_mm: float) -> tuple[np.ndarray, float]:
+    """The joints the programs back off to from a run's end at ``q`` (``back``, :func:`schedule_cell`) and
+    the line's seconds; ``q`` and 0 without a back-off (none given, or none the arm reaches)."""
+    found = None if back is None else back(np.r_[q, track_mm])
+    if found is None:
+        return np.asarray(q, float), 0.0
+    return np.asarray(found[0], float)[: len(q)], float(found[1])
+
+
 def schedule_cell(
     robots,
     arms,
@@ -562,13 +594,24 @@ def schedule_cell(
     times=None,
     track_ranges=None,
     priority=None,
+    backs=None,
+    routers=None,
 ) -> Schedule:
     """Schedule the robots' work (``RobotWork`` each) with their ``ArmCollision`` models
     (module docstring); ``track_speeds``: each robot's track speed, mm/s (None without a track); ``times``:
     each robot's timed arrival at its waypoints (``cells.timing``), in place of :func:`waypoint_times`;
     ``track_ranges``: each robot's track ends (lo, hi) mm or None, where its park may be too; ``priority``: the
-    robots' indices in the order they are scheduled in (the first never waits; default: as given). The
-    timelines and the summary are in the robots' own order."""
+    robots' indices in the order they are scheduled in (the first never waits; default: as given); ``backs``:
+    each robot's programs' back-off at a run's end (``cells.timing.program_back_offs``: ``back(axes) -> (axes, s)``
+    or None) or None: a robot that starts parked comes in to the approach pose of its first waypoint, and one
+    that has done its work retracts from its last (a row of its timeline) before it parks, as its program
+    does, and its parks are chosen for those moves; ``routers``: each robot's ``cells.routes.CellRouter`` or
+    None: where the joint move from the end of a robot's work to its park is not free of the part (every park
+    is reached only through it: an arm reaching in under the body), the first free way there is taken
+    (``CellRouter.park_route``: the gun drawn out towards the base, then the transfers' routes), its nodes rows
+    of the timeline
+    (``Timeline.park_route_q``) that the programs move through. The timelines and the summary are in the
+    robots' own order."""
     names = [w.name for w in robots]
     order = list(range(len(robots))) if priority is None else [int(k) for k in priority]
     timelines: list = [None] * len(robots)
@@ -592,12 +635,15 @@ def schedule_cell(
         if times is not None:  # the run-ups' times are the timing's (none on the path-length timeline)
             t0, q, track, starts, keep = with_leads(w, t0, q, track, starts)
         chosen = np.zeros(len(starts))
+        back = None if backs is None else backs[k]
         parked = False  # the robot starts parked, its first move the approach (the first stroke's hold fails)
         if rank and len(t0):
             # held at its first waypoint it would meet an earlier robot, whatever it waited: it starts parked
             if _block_wait(arm, t0, q, track, starts, chosen, 0, 0, sampled, clearance_mm) is None:
-                home, _ = park_joints(arm, q[0], float(track[0]), others)
-                t0 = np.r_[t0[0], t0 + _move_s(arm, home, q[0])]
+                # the program moves from the park to the approach pose, then along the gun axis to q[0]
+                entry, entry_s = _backed(back, q[0], float(track[0]))
+                home, _ = park_joints(arm, entry, float(track[0]), others)
+                t0 = np.r_[t0[0], t0 + _move_s(arm, home, entry) + entry_s]
                 q, track = np.vstack([home, q]), np.r_[track[0], track]
                 starts = np.r_[0, starts + 1]
                 chosen = np.zeros(len(starts))
@@ -615,21 +661,44 @@ def schedule_cell(
                         chosen[first] = wait
                         break
         knots = list(_knots(t0, q, track, starts, chosen))
+        route = None
         if len(t0):
             # the park: the first whose move and hold are clear of the earlier robots (the first at all if none)
+            # the program retracts from its last waypoint along the gun axis (a row), then moves to the park
+            last, retract_s = _backed(back, q[-1], float(track[-1]))
+            if retract_s > 0:
+                knots[0] = np.r_[knots[0], float(knots[0][-1]) + retract_s]
+                knots[1] = np.vstack([knots[1], last])
+                knots[2] = np.r_[knots[2], knots[2][-1]]
             done = float(knots[0][-1])
             horizon = max(((o.first + len(o.segments) - 1) * DT_S for o in sampled), default=0.0)
-            tries = park_candidates(arm, q[-1], float(track[-1]), others, track_range, track_speed)
+            tries = park_candidates(arm, last, float(track[-1]), others, track_range, track_speed)
             park = None
             for cand, where in itertools.islice(tries, PARK_TRIES):
-                move = _move_s(arm, q[-1], cand, float(track[-1]), where, track_speed)
+                move = _move_s(arm, last, cand, float(track[-1]), where, track_speed)
                 if park is None:
                     park, at, park_s = cand, where, move
                 if not rank or _park_clear(
-                    arm, q[-1], float(track[-1]), cand, where, done, move, sampled, horizon, clearance_mm
+                    arm, last, float(track[-1]), cand, where, done, move, sampled, horizon, clearance_mm
                 ):
                     park, at, park_s = cand, where, move
                     break
+            router = None if routers is None else routers[k]
+            route = None
+            if router is not None and not move_free(arm, last, park, float(track[-1]), at):
+                found = router.park_route(last, float(track[-1]), park, at)
+                if found is not None:
+                    route = found[1:]
+            if route is not None:  # through the route's nodes, each a joint move (with the track)
+                legs_q = np.vstack([last, route[0], park])
+                legs_t = np.r_[float(track[-1]), route[1], at]
+                park_s = 0.0
+                for j in range(1, len(legs_q)):
+                    park_s += _move_s(arm, legs_q[j - 1], legs_q[j], legs_t[j - 1], legs_t[j], track_speed)
+                    if j < len(legs_q) - 1:
+                        knots[0] = np.r_[knots[0], done + park_s]
+                        knots[1] = np.vstack([knots[1], legs_q[j]])
+                        knots[2] = np.r_[knots[2], legs_t[j]]
             knots[0] = np.r_[knots[0], done + park_s]
             knots[1] = np.vstack([knots[1], park])
             knots[2] = np.r_[knots[2], at]
@@ -637,7 +706,7 @@ def schedule_cell(
             knots[3] = knots[3][1:]
             chosen = np.r_[chosen[0], chosen[2:]]
         knots[3] = knots[3][keep]  # the waypoints' arrivals, without the run-ups' and run-outs' rows
-        line = Timeline(knots[0], knots[1], knots[2], knots[3], chosen)
+        line = Timeline(knots[0], knots[1], knots[2], knots[3], chosen, *(route if route is not None else (None, None)))
         timelines[k] = line
         g = _grid(0.0, line.end_s) if len(t0) else np.zeros(1, dtype=int)
         # a robot with no work (no area given to it) has no motion to keep apart: it is left out of the checks
@@ -668,10 +737,14 @@ def schedule_cell(
     return Schedule(tuple(timelines), gaps, conflicts, waits, cycle, tuple(robots[k].name for k in order))
 
 
-def scheduled(cell, robots: tuple, arms, job) -> tuple[tuple, dict]:
+def scheduled(cell, robots: tuple, arms, job, part=None) -> tuple[tuple, dict]:
     """The robots' work with its schedule's times and waits (:func:`schedule_cell`,
     with the ``[motion]`` speeds, the tracks' speeds and the ``[collision]`` clearance, the robot with the
-    longest work first: module docstring, step 2), and the schedule's summary."""
+    longest work first: module docstring, step 2; the programs' back-offs at the ends; with ``part``, the part
+    in the cell frame, a route to a park no joint move reaches free), and the schedule's summary."""
+    from sprayplan.cells.routes import CellRouter
+    from sprayplan.cells.timing import cell_limits, program_back_offs
+
     tracks = [None if r.track is None else r.track.speed_mm_s for r in cell.robots]
     ranges = [None if r.track is None else tuple(r.track.range_mm) for r in cell.robots]
     timed = job.timing.enabled and all(r.t_s is not None for r in robots)
@@ -693,6 +766,8 @@ def scheduled(cell, robots: tuple, arms, job) -> tuple[tuple, dict]:
         times=times,
         track_ranges=ranges,
         priority=sorted(range(len(robots)), key=lambda k: -own[k]),
+        backs=[program_back_offs(r, job, cell_limits(r, job.timing)) for r in cell.robots],
+        routers=None if part is None else [CellRouter(r, a, part, job.collision) for r, a in zip(cell.robots, arms)],
     )
     out = tuple(
         replace(
@@ -701,6 +776,8 @@ def scheduled(cell, robots: tuple, arms, job) -> tuple[tuple, dict]:
             wait_s=line.wait_s.copy(),
             ends_q=line.knot_q[[0, -1]].copy() if len(line.knot_q) else None,
             ends_track_mm=line.knot_track[[0, -1]].copy() if len(line.knot_q) else None,
+            park_route_q=line.park_route_q,
+            park_route_track_mm=line.park_route_track,
         )
         for r, line in zip(robots, plan.timelines)
     )

@@ -18,7 +18,7 @@ configuration (time 0) it runs its strokes in order:
   move (ruckig, :func:`sprayplan.timing.moves.point_to_point`) to every row of a transfer in turn (a routed
   transfer's nodes are joint moves to fine points); then to the approach pose of the next run's start (its
   first waypoint or its run-up's start) and the approach along the gun axis. A back-off line takes the longer
-  of its rest-to-rest joint move and its length at ``[export] approach_speed_mm_s`` (:func:`_back_offs`). A
+  of its rest-to-rest joint move and its length at ``[export] approach_speed_mm_s`` (:func:`program_back_offs`). A
   transfer's rows are stamped when the robot reaches them.
 
 A waypoint the robot does not reach gets the time at which it passes on (it holds its last configuration), so
@@ -179,7 +179,7 @@ def time_cell(cell, robots, job, back_offs: dict | None = None) -> list[WorkTimi
     """Each robot's work (``RobotWork``, in the cell's order) timed within its limits (module docstring); the
     spray stretches of all robots go to toppra's analysis together. ``back_offs``: a dict kept by the caller
     between timings of the same plan at other speeds (``cells.fit``): the programs' back-offs found
-    (:func:`_back_offs`, which depend on the joints, the limits and ``[export]`` alone) are kept in it per
+    (:func:`program_back_offs`, which depend on the joints, the limits and ``[export]`` alone) are kept in it per
     robot and not solved again."""
     timing, motion = job.timing, job.motion
     jump = math.radians(timing.joint_jump_deg)
@@ -196,12 +196,14 @@ def time_cell(cell, robots, job, back_offs: dict | None = None) -> list[WorkTimi
             max_rounds=timing.max_rounds,
         ) if stretches else []  # fmt: skip
         by_first = {int(way[0]): (tm, up, out) for (_, _, way, up, out), tm in zip(stretches, timed)}
-        back = _back_offs(robot, job, limits, None if back_offs is None else back_offs.setdefault(robot.name, {}))
+        back = program_back_offs(
+            robot, job, limits, None if back_offs is None else back_offs.setdefault(robot.name, {})
+        )
         plans.append(_timed(work, q, axes, limits, by_first, motion, jump, back))
     return plans
 
 
-def _back_offs(robot, job, limits, cache: dict | None = None):
+def program_back_offs(robot, job, limits, cache: dict | None = None):
     """``back(axes) -> (axes backed off, seconds) or None``: the programs' approach to (or retract from) a run's
     end at ``axes`` (joints, then the track): the gun moved straight back along its axis by ``[export]
     approach_mm`` or the first shorter share of it the arm reaches on the same branch
@@ -236,7 +238,7 @@ def _back_offs(robot, job, limits, cache: dict | None = None):
 def _timed(work, q, axes: _Axes, limits, timed: dict, motion, jump_rad: float, back=None) -> WorkTiming:
     """The time stamps of one robot's work, given its stretches' timings by their first waypoint (each with
     whether it has a run-up and a run-out: the robot moves to the run-up's start, and on from the run-out's
-    end). ``back`` (:func:`_back_offs`): the programs' approach and retract at every run's ends, timed as part
+    end). ``back`` (:func:`program_back_offs`): the programs' approach and retract at every run's ends, timed as part
     of the moves between runs."""
     n = len(q)
     t = np.full(n, np.nan)

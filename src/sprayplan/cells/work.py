@@ -54,6 +54,11 @@ class RobotWork:
         The track positions there (the waypoint's own), mm.
     lead_s : (n, 2) float or None
         How long the run-up into each waypoint and the run-out after it take in the timing (0 without), s.
+    park_route_q : (m, dof) float or None
+        The nodes the robot moves through, in order, from the end of its work to its park where no joint move
+        there is free (``cells.schedule``, a route of ``cells.routes``), rad; None: a joint move to the park.
+    park_route_track_mm : (m,) float or None
+        The track positions of ``park_route_q``, mm.
     """
 
     name: str
@@ -72,6 +77,8 @@ class RobotWork:
     lead_q: np.ndarray | None = None
     lead_track_mm: np.ndarray | None = None
     lead_s: np.ndarray | None = None
+    park_route_q: np.ndarray | None = None
+    park_route_track_mm: np.ndarray | None = None
 
     @property
     def waypoints(self) -> int:

@@ -284,6 +284,9 @@ class ArmPlan:
         the cell's schedule has it when the cycle starts and ends); None: at the arm's home joints.
     ends_mm : (2, axes) float or None
         The track positions there (none for a fixed base), mm.
+    park_route : tuple or None
+        ``(joints (m, 6), track positions (m, axes))``: the nodes the program moves through (joint moves) after
+        its last run, before its end park (``RobotWork.park_route_q``); None: straight to the park.
     """
 
     name: str
@@ -292,6 +295,7 @@ class ArmPlan:
     left_in_collision: int = 0
     ends_joints: np.ndarray | None = None
     ends_mm: np.ndarray | None = None
+    park_route: tuple | None = None
 
 
 #: The label (``StationPlan.repair``) of a routed transfer's waypoints in a cell robot's plan: a cell plan keeps
@@ -340,7 +344,12 @@ def arm_plan(work, cell: ArmCell, name: str = "") -> ArmPlan:
         track = np.asarray(work.ends_track_mm, float).reshape(2, 1)
         ends_mm = track if cell.external_axes else np.zeros((2, 0))
         home = ends_mm[0].copy()
-    return ArmPlan(name or work.name, (station,), home, int(colliding.sum()), ends_q, ends_mm)
+    park_route = None
+    if getattr(work, "park_route_q", None) is not None and len(work.park_route_q):
+        route_q = np.asarray(work.park_route_q, float).reshape(len(work.park_route_q), -1)
+        route_mm = np.asarray(work.park_route_track_mm, float).reshape(-1, 1)
+        park_route = (route_q, route_mm if cell.external_axes else np.zeros((len(route_q), 0)))
+    return ArmPlan(name or work.name, (station,), home, int(colliding.sum()), ends_q, ends_mm, park_route)
 
 
 @dataclass(frozen=True)

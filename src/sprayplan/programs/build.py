@@ -269,6 +269,8 @@ def build_program(plan, job, fmt: str, strict: bool | None = None, cell=None) ->
                 if waits[run.stroke] > 0:
                     run_moves[1] = dataclasses.replace(run_moves[1], wait_s=float(waits[run.stroke]))
             moves += run_moves
+        if order == len(plan.stations) - 1:
+            moves += park_route_moves(plan, cell)
         moves.append(end)
         stations.append(StationProgram(order, st.index, np.array(st.platform_mm), tuple(moves)))
     if strict:
@@ -299,6 +301,20 @@ def route_moves(st, run: Run, data, poses, q9, routed: set) -> list[Move]:
         return []
     inner = [int(k) for k in before[1:-1] if st.reachable[k]]
     return [Move(JOINT, "route", poses[k], q9[k, :6].copy(), q9[k, 6:].copy()) for k in inner]
+
+
+def park_route_moves(plan, cell: Cell) -> list[Move]:
+    """Joint moves (``route``) through the nodes of the way to the end park where the cell's schedule routes it
+    (``programs.arms.ArmPlan.park_route``: no joint move from the last run's retract to any park is free); []
+    without."""
+    route = getattr(plan, "park_route", None)
+    if route is None:
+        return []
+    joints, external = route
+    return [
+        Move(JOINT, "route", cell.poses(q, mm)[0], np.array(q, float), np.array(mm, float))
+        for q, mm in zip(joints, external)
+    ]
 
 
 def _refuse(report: dict) -> None:

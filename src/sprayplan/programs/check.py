@@ -217,6 +217,19 @@ class _Station:
 def _check_station(order, moves, fmt, plan, job, cell, result: CheckResult) -> None:
     station = _Station(order, plan.stations[order], fmt, job, cell)
     cfg = job.export
+    route = getattr(plan, "park_route", None)
+    if route is not None and order == len(plan.stations) - 1:  # the way to the end park: the plan's nodes
+        m = len(route[0])
+        way = moves[-1 - m : -1]
+        if len(moves) < m + 2 or not all(
+            w.kind == JOINT
+            and np.abs(w.joints - q).max() <= JOINT_RAD
+            and (w.external_mm is None or np.abs(np.asarray(w.external_mm) - mm).max(initial=0.0) <= EXTERNAL_MM)
+            for w, q, mm in zip(way, *route)
+        ):
+            result.fail(moves[-2] if len(moves) > 1 else None, "the moves to the end park are not the plan's route")
+            return
+        moves = [*moves[: -1 - m], moves[-1]]
     for home in (moves[0], moves[-1]):
         if any(on for _, on in home.events):
             result.fail(home, "the gun must not be switched on at home")
