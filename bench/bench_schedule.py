@@ -6,7 +6,9 @@ A cell plan folder written by ``sprayplan plan BODY --cell line3 --collisions`` 
 for the skid), times every robot's work within its limits (``cells.timing``) and schedules the robots
 (``cells.schedule.scheduled``). The builds run at once, one process each (a machine of two cores); each prints
 one JSON line: the schedule's summary (samples too close per pair, least gaps, waits, each robot's time, the
-cycle) and the seconds the timing and the schedule took.
+cycle) and the seconds the timing and the schedule took; then each robot's RAPID program built from it, its
+motions checked with the collision model (``programs.arms.motions_checked``: how many are in collision) and
+how many nodes its way to the end park has (a build that routes parks, ``RobotWork.park_route_q``).
 
 Usage::
 
@@ -28,26 +30,38 @@ PARTS = {"bmw": ("meshes/bmw_m6_body_m_yup.ply", "y"), "suv": ("meshes/gazebo_su
 
 def child(folder: str, name: str) -> None:
     sys.path.insert(0, str(HERE))
+    import inspect
+
     from _data import cell_plan_model
 
     from sprayplan.cells.schedule import scheduled
     from sprayplan.cells.timing import timed_cell
 
-    plan, _, _, _, arms = cell_plan_model(folder, name)
+    plan, _, painted, _, arms = cell_plan_model(folder, name)
     unscheduled = {"t_s": None, "wait_s": None}
     if hasattr(plan.robots[0], "ends_q"):  # a build that keeps the schedule's ends
         unscheduled.update(ends_q=None, ends_track_mm=None)
+    if hasattr(plan.robots[0], "park_route_q"):  # a build that routes parks
+        unscheduled.update(park_route_q=None, park_route_track_mm=None)
     robots = tuple(dataclasses.replace(w, **unscheduled) for w in plan.robots)
     start = time.perf_counter()
     report = {"cycle_time_s": 0.0, "robots": {w.name: {"cycle_time_s": 0.0} for w in robots}}
     robots = timed_cell(plan.cell, robots, plan.job, report)
     timed = time.perf_counter() - start
     start = time.perf_counter()
-    _, summary = scheduled(plan.cell, robots, arms, plan.job)
+    routed = {"part": painted} if "part" in inspect.signature(scheduled).parameters else {}
+    robots, summary = scheduled(plan.cell, robots, arms, plan.job, **routed)
     took = time.perf_counter() - start
     keep = ("priority", "conflicts", "least_gap_mm", "waits", "robot_time_s", "cycle_time_s")
     kept = {k: summary[k] for k in keep if k in summary}  # an older build has no priority
-    print(json.dumps({"timing_s": round(timed, 1), "schedule_s": round(took, 1), **kept}))
+    from sprayplan.programs.arms import build_cell_programs
+
+    job = plan.job.replace(collision={"check": True})
+    built = build_cell_programs(dataclasses.replace(plan, robots=robots, part=painted), job, ("rapid",))
+    motions = {r.robot: r.builts[0].program.report["program_motions"]["motions_in_collision"] for r in built}
+    nodes = {w.name: 0 if getattr(w, "park_route_q", None) is None else len(w.park_route_q) for w in robots}
+    print(json.dumps({"timing_s": round(timed, 1), "schedule_s": round(took, 1), **kept,
+                      "program_motions_in_collision": motions, "park_route_nodes": nodes}))  # fmt: skip
 
 
 def main() -> None:
@@ -67,7 +81,8 @@ def main() -> None:
         print(json.dumps({"build": build, **result}), flush=True)
         print(
             f"{build}: {sum(result['conflicts'].values())} samples too close, cycle {result['cycle_time_s']} s, "
-            f"schedule {result['schedule_s']} s",
+            f"schedule {result['schedule_s']} s, program motions in collision {result['program_motions_in_collision']}, "
+            f"park route nodes {result['park_route_nodes']}",
             flush=True,
         )
 

@@ -1116,3 +1116,37 @@ def test_the_gun_drawn_out_towards_the_base_and_a_park_route_from_it(tmp_path):
             assert kind == "out" and np.allclose(nodes, first[None])
         kinds.append(kind)
     assert "out" in kinds
+
+
+def test_the_out_route_backs_off_then_draws_the_gun_out_towards_the_base(tmp_path):
+    """``CellRouter.candidates``' ``out`` routes (one per ``OUT_MM``): nodes ``[A backed off, A drawn out, B
+    drawn out, B backed off]``: the first the gun at A moved back along its axis by the first retract length,
+    the second that pose moved the distance horizontally towards the base, orientation kept (FK of the joints),
+    and the same from B in reverse; tried after ``retract`` and ``via``."""
+    from sprayplan.cells.routes import OUT_MM, CellRouter
+    from sprayplan.config import JobConfig
+
+    cell, plan, arms = _box_cell(tmp_path)
+    work, arm, robot = plan.robots[0], arms[0], cell.robots[0]
+    config = JobConfig().collision
+    router = CellRouter(robot, arm, plan.part, config)
+    ok = np.flatnonzero(work.reachable)
+    back = config.retract_mm[0]
+    seen = 0
+    for i, j in zip(ok[:-1:40], ok[1::40]):
+        (qa, ta), (qb, tb) = (work.q[i], float(work.track_mm[i])), (work.q[j], float(work.track_mm[j]))
+        found = list(router.candidates(qa, ta, qb, tb))
+        kinds = [k for k, *_ in found]
+        outs = [(nodes, tracks) for k, nodes, tracks in found if k == "out"]
+        assert kinds == sorted(kinds, key=["retract", "via", "out"].index)
+        for nodes, tracks in outs:
+            assert len(nodes) == 4 and np.allclose(tracks, [ta, ta, tb, tb])
+            for q, t, end, step in ((qa, ta, nodes[0], nodes[1]), (qb, tb, nodes[3], nodes[2])):
+                pose, p_end, p_out = router.pose(q, t), router.pose(end, t), router.pose(step, t)
+                np.testing.assert_allclose(p_end[:3, 3], pose[:3, 3] - back * pose[:3, 2], atol=1e-6)
+                np.testing.assert_allclose(p_out[:3, :3], pose[:3, :3], atol=1e-9)
+                moved = p_out[:3, 3] - p_end[:3, 3]
+                assert moved[2] == pytest.approx(0.0, abs=1e-6)
+                assert np.linalg.norm(moved) in [pytest.approx(d, abs=1e-6) for d in OUT_MM]
+            seen += 1
+    assert seen >= 3

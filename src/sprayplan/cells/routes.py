@@ -12,6 +12,12 @@ routes tried, in order, are the gantry job's (``collision.transfers``) for an ar
 ``via``
     Backed off by the first retract length, then raised, keeping the gun's orientation, to a safe height: the
     highest point of the part within the arm's reach, plus ``clearance_mm`` and ``via_height_mm``.
+``out``
+    Backed off by the first retract length, then drawn horizontally towards the robot's base by each of
+    :data:`OUT_MM` (300, 600 mm), keeping the gun's orientation: a side robot's ``via`` height is over the
+    body's top, out of its reach (on the SUV no side robot's transfer was freed by ``via``, and each side robot
+    dropped 460-491 runs whose transfers no route freed), and an arm reaching round the body comes out
+    sideways. Nodes ``[A backed off, A drawn out, B drawn out, B backed off]``.
 ``detour``
     A seeded RRT-Connect search (``collision.transfers.rrt_connect``) in the arm's joints and its track
     position, between the two ends, up to ``[collision] cell_detour_iterations`` (200), its path shortened
@@ -46,7 +52,7 @@ import numpy as np
 from sprayplan.types import Stroke
 
 #: The routes tried, in order (module docstring).
-ROUTES = ("retract", "via", "detour", "home")
+ROUTES = ("retract", "via", "out", "detour", "home")
 #: The parks tried at each end of a transfer for a ``home`` route (module docstring).
 HOME_TRIES = 3
 #: How far a robot's gun is drawn out towards its base, in turn, on its way to its park, mm
@@ -124,7 +130,7 @@ class CellRouter:
     # ------------------------------------------------------------------------------------------ routes
 
     def candidates(self, q_a, t_a: float, q_b, t_b: float):
-        """``(kind, nodes (k, dof), tracks (k,))`` of the retract and via routes, in the order tried (those
+        """``(kind, nodes (k, dof), tracks (k,))`` of the retract, via and out routes, in the order tried (those
         whose poses the arm cannot reach left out)."""
         pose_a, pose_b = self.pose(q_a, t_a), self.pose(q_b, t_b)
         z_a, z_b = pose_a[:3, 2], pose_b[:3, 2]  # the gun's axis: from the gun to the surface
@@ -143,6 +149,26 @@ class CellRouter:
         if first is not None and last is not None:
             tracks = np.r_[np.full(len(first), t_a), np.full(len(last), t_b)]
             yield "via", np.vstack([first, last[::-1]]), tracks
+        for distance in OUT_MM:
+            first, last = self._out(q_a, t_a, distance), self._out(q_b, t_b, distance)
+            if first is not None and last is not None:
+                tracks = np.r_[np.full(len(first), t_a), np.full(len(last), t_b)]
+                yield "out", np.vstack([first, last[::-1]]), tracks
+
+    def _out(self, q, t: float, distance_mm: float) -> np.ndarray | None:
+        """The ``out`` route's way out from the end ``q`` at track position ``t``: the gun backed off along its
+        axis by the first retract length, then drawn ``distance_mm`` horizontally towards the robot's base
+        (:meth:`drawn_out`), its orientation kept (nodes ``(k, dof)`` from the end outwards), or None."""
+        back = self.config.retract_mm[0] if self.config.retract_mm else 0.0
+        start = q
+        nodes = []
+        if back:
+            start = self._back(q, t, back)
+            if start is None:
+                return None
+            nodes.append(start)
+        out = self.drawn_out(start, t, distance_mm)
+        return None if out is None else np.array([*nodes, out])
 
     def _raised(self, q, t: float) -> np.ndarray | None:
         """The ``via`` route's way up from the end ``q`` at track position ``t``: the gun backed off along its
@@ -334,7 +360,7 @@ class CellRouter:
 
     def route(self, q_a, t_a: float, q_b, t_b: float, seed: int = 0, search: bool = True):
         """``(kind, nodes, tracks)`` of the first free route (module docstring), at least one node, or None;
-        without ``search`` only the retract and via routes are tried."""
+        without ``search`` only the retract, via and out routes are tried."""
         for kind, nodes, tracks in self.candidates(q_a, t_a, q_b, t_b):
             if self.free(q_a, t_a, nodes, tracks, q_b, t_b):
                 return kind, nodes, tracks
@@ -374,8 +400,8 @@ def routed_work(
 ) -> tuple:
     """A robot's work (``cells.work.RobotWork``, its transfers joined: ``cells.repair.free_work``) with each
     transfer whose joint move is in collision re-routed (module docstring). Returns the work and
-    ``{"transfers_in_collision", "transfers_routed", "routed_retract", "routed_via", "routed_detour",
-    "routed_home"}``; the
+    ``{"transfers_in_collision", "transfers_routed", "routed_retract", "routed_via", "routed_out",
+    "routed_detour", "routed_home"}``; the
     search of the ``k``-th transfer is seeded ``seed + k``. ``failed``: a set of the transfers no route freed
     (their ends' joints and track positions), added to here, and not tried again (a touch-up round cuts and
     routes the plan again). Only the transfers from stroke ``since - 1`` on are looked at (the strokes before
@@ -386,7 +412,7 @@ def routed_work(
     axis by this much and come to the next one the same way (``programs.build``), so a transfer is checked as
     the program makes it: ``A -> A backed off -> B backed off -> B`` as well as the joint move ``A -> B``. Where
     the backed-off way is free and the joint move is not, the two backed-off poses become the route (counted as
-    ``retract``); where it is not free, the retract and via routes are tried between the two backed-off poses,
+    ``retract``); where it is not free, the retract, via and out routes are tried between the two backed-off poses,
     joined to them (nodes ``[A backed off, route..., B backed off]``), so that the program's retract, route and
     approach are the moves checked; where none of those is free, every route is tried from the ends
     themselves, as without ``approach_mm`` (the search and home routes between the backed-off poses alone
