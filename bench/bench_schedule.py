@@ -49,8 +49,12 @@ def child(folder: str, name: str) -> None:
     robots = timed_cell(plan.cell, robots, plan.job, report)
     timed = time.perf_counter() - start
     start = time.perf_counter()
-    routed = {"part": painted} if "part" in inspect.signature(scheduled).parameters else {}
-    robots, summary = scheduled(plan.cell, robots, arms, plan.job, **routed)
+    aids = ()
+    if "routers" in inspect.signature(scheduled).parameters:  # a build that moves to the parks as the programs do
+        from sprayplan.cells.plan import schedule_aids
+
+        aids = schedule_aids(plan.cell, arms, painted, plan.job)
+    robots, summary = scheduled(plan.cell, robots, arms, plan.job, *aids)
     took = time.perf_counter() - start
     keep = ("priority", "conflicts", "least_gap_mm", "waits", "robot_time_s", "cycle_time_s")
     kept = {k: summary[k] for k in keep if k in summary}  # an older build has no priority

@@ -575,7 +575,7 @@ def test_a_scheduled_robots_programs_start_and_end_where_the_schedule_has_it(wri
 
     from sprayplan.cells.collide import cell_arms
     from sprayplan.cells.files import cell_plan_dict, cell_plan_from_file
-    from sprayplan.cells.plan import plan_cell
+    from sprayplan.cells.plan import plan_cell, schedule_aids
     from sprayplan.cells.schedule import scheduled
     from sprayplan.config import CollisionConfig
     from sprayplan.io.load import load_part
@@ -584,7 +584,7 @@ def test_a_scheduled_robots_programs_start_and_end_where_the_schedule_has_it(wri
     job = JobConfig()
     plan = plan_cell(load_part(str(written["part"])), written["cell"], job)
     arms = cell_arms(plan.cell, plan.part, CollisionConfig(check=True))
-    robots, summary = scheduled(plan.cell, plan.robots, arms, plan.job)
+    robots, summary = scheduled(plan.cell, plan.robots, arms, plan.job, *schedule_aids(plan.cell, arms, plan.part, job))
     # the robot with the longest work goes first and never waits (cells.schedule, step 2)
     first = summary["priority"][0]
     own = {n: t - summary["waits"][n]["waited_s"] for n, t in summary["robot_time_s"].items()}
@@ -592,7 +592,9 @@ def test_a_scheduled_robots_programs_start_and_end_where_the_schedule_has_it(wri
     assert summary["waits"][first]["waited_s"] == 0 and own[first] == max(own.values())
     # and whatever the cell's order: the robots given the other way round are scheduled the same
     turned = dataclasses.replace(plan.cell, robots=plan.cell.robots[::-1])
-    _, back = scheduled(turned, plan.robots[::-1], arms[::-1], plan.job)
+    _, back = scheduled(
+        turned, plan.robots[::-1], arms[::-1], plan.job, *schedule_aids(turned, arms[::-1], plan.part, job)
+    )
     assert back["priority"] == summary["priority"] and back["waits"] == summary["waits"]
     assert back["cycle_time_s"] == summary["cycle_time_s"]
     (tmp_path / "cell_plan.json").write_text(json.dumps(cell_plan_dict(dataclasses.replace(plan, robots=robots))))

@@ -474,6 +474,19 @@ def with_touch_ups(cell: Cell, robots: tuple, extra: list):
 AREA_EDGE_MM = 200.0
 
 
+def schedule_aids(cell, arms, part: Part, job: JobConfig) -> tuple[list, list]:
+    """``(backs, routers)`` for ``cells.schedule.scheduled``: each robot's programs' back-off at a run's end
+    (``cells.timing.program_back_offs``) and its router (``cells.routes.CellRouter`` against ``part``, the
+    part in the cell frame), so that the schedule moves each robot to its park as its program does. (Built
+    here: the schedule importing them would close an import cycle through the routes, which ask the schedule
+    for parks.)"""
+    from sprayplan.cells.routes import CellRouter
+    from sprayplan.cells.timing import cell_limits, program_back_offs
+
+    backs = [program_back_offs(r, job, cell_limits(r, job.timing)) for r in cell.robots]
+    return backs, [CellRouter(r, a, part, job.collision) for r, a in zip(cell.robots, arms)]
+
+
 def area_surface(painted: Part) -> tuple[Part, np.ndarray]:
     """The painted surface as a cell of several robots splits it among them: every face with an edge longer
     than :data:`AREA_EDGE_MM` split (:func:`~sprayplan.surface.subdivide.split_part`); and for each face the
@@ -755,7 +768,7 @@ def plan_cell(
         begin("schedule")
         from sprayplan.cells.schedule import scheduled
 
-        robots = scheduled(cell, robots, arms, job, painted)
+        robots = scheduled(cell, robots, arms, job, *schedule_aids(cell, arms, painted, job))
         report["schedule"] = robots[1]
         robots = robots[0]
         if not report["collisions"]["robots_kept_apart"].startswith("in space"):

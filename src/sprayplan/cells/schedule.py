@@ -737,13 +737,11 @@ def schedule_cell(
     return Schedule(tuple(timelines), gaps, conflicts, waits, cycle, tuple(robots[k].name for k in order))
 
 
-def scheduled(cell, robots: tuple, arms, job, part=None) -> tuple[tuple, dict]:
+def scheduled(cell, robots: tuple, arms, job, backs=None, routers=None) -> tuple[tuple, dict]:
     """The robots' work with its schedule's times and waits (:func:`schedule_cell`,
     with the ``[motion]`` speeds, the tracks' speeds and the ``[collision]`` clearance, the robot with the
-    longest work first: module docstring, step 2; the programs' back-offs at the ends; with ``part``, the part
-    in the cell frame, a route to a park no joint move reaches free), and the schedule's summary."""
-    from sprayplan.cells.routes import CellRouter
-    from sprayplan.cells.timing import cell_limits, program_back_offs
+    longest work first: module docstring, step 2; ``backs`` and ``routers`` as :func:`schedule_cell` takes
+    them, ``cells.plan.schedule_aids``), and the schedule's summary."""
 
     tracks = [None if r.track is None else r.track.speed_mm_s for r in cell.robots]
     ranges = [None if r.track is None else tuple(r.track.range_mm) for r in cell.robots]
@@ -766,8 +764,8 @@ def scheduled(cell, robots: tuple, arms, job, part=None) -> tuple[tuple, dict]:
         times=times,
         track_ranges=ranges,
         priority=sorted(range(len(robots)), key=lambda k: -own[k]),
-        backs=[program_back_offs(r, job, cell_limits(r, job.timing)) for r in cell.robots],
-        routers=None if part is None else [CellRouter(r, a, part, job.collision) for r, a in zip(cell.robots, arms)],
+        backs=backs,
+        routers=routers,
     )
     out = tuple(
         replace(
