@@ -559,7 +559,8 @@ def _block_wait(arm, t0, q, track, starts, chosen, first: int, j: int, earlier, 
 
 
 #: The largest joint step (rad) between two samples of a move checked by :func:`move_free`: the programs'
-#: check's (``programs.arms.MOTION_STEP_RAD``).
+#: check's (``programs.arms.MOTION_STEP_RAD``, not imported: that would close an import cycle; a test holds
+#: the two equal).
 MOVE_STEP_RAD = 0.02
 
 
@@ -608,10 +609,9 @@ def schedule_cell(
     does, and its parks are chosen for those moves; ``routers``: each robot's ``cells.routes.CellRouter`` or
     None: where the joint move from the end of a robot's work to its park is not free of the part (every park
     is reached only through it: an arm reaching in under the body), the first free way there is taken
-    (``CellRouter.park_route``: the gun drawn out towards the base, then the transfers' routes), its nodes rows
-    of the timeline
-    (``Timeline.park_route_q``) that the programs move through. The timelines and the summary are in the
-    robots' own order."""
+    (``CellRouter.park_route``: the gun drawn out towards the base, then the transfers' routes), its nodes
+    rows of the timeline (``Timeline.park_route_q``) that the programs move through. The timelines and the
+    summary are in the robots' own order."""
     names = [w.name for w in robots]
     order = list(range(len(robots))) if priority is None else [int(k) for k in priority]
     timelines: list = [None] * len(robots)
@@ -684,7 +684,6 @@ def schedule_cell(
                     park, at, park_s = cand, where, move
                     break
             router = None if routers is None else routers[k]
-            route = None
             if router is not None and not move_free(arm, last, park, float(track[-1]), at):
                 found = router.park_route(last, float(track[-1]), park, at)
                 if found is not None:
