@@ -55,7 +55,9 @@ def main(argv=None) -> int:
             return work, {}, rest[4]  # (its failed transfers, unchanged)
         t0 = time.perf_counter()
         out = plain_freed(cell_robot, work, arm, *rest)
-        got.update(seconds=round(time.perf_counter() - t0, 1), counts=out[1], failed=out[2], cell_robot=cell_robot)
+        got.update(
+            seconds=round(time.perf_counter() - t0, 1), counts=out[1], failed=out[2], cell_robot=cell_robot, arm=arm
+        )
         raise _Done
 
     collide._freed_robot = one
@@ -74,13 +76,20 @@ def main(argv=None) -> int:
     if not got:
         print(f"robot {args.robot!r} not in line3 or no collision step ran", file=sys.stderr)
         return 2
-    cell_robot = got["cell_robot"]
-    moves, turns = [], []
+    from sprayplan.collision.arms import ARM_BODIES
+
+    arm = got["arm"]
+    moves, turns, ends, bodies = [], [], [], {}
     for key in got["failed"] or ():
         a = np.frombuffer(key, dtype=float).reshape(2, -1)
-        tips = [cell_robot.robot(row[-1]).fk(row[None, :-1])[0][:3, 3] for row in a]
+        tips = arm.tcp(a[:, :-1], a[:, -1])  # the gun tip at both ends, cell frame
         moves.append(float(np.linalg.norm(tips[1] - tips[0])))
         turns.append(float(np.degrees(np.abs(a[1, :-1] - a[0, :-1])).max()))
+        ends.append(tips)
+        s = np.linspace(0.0, 1.0, 41)[:, None]
+        hit = arm.check(a[0, :-1] + s * (a[1, :-1] - a[0, :-1]), a[0, -1] + s[:, 0] * (a[1, -1] - a[0, -1]))
+        for body in set(hit.body[hit.collides].tolist()):
+            bodies[ARM_BODIES[body]] = bodies.get(ARM_BODIES[body], 0) + 1
     counts = {k: (int(v) if isinstance(v, (int, np.integer)) else v) for k, v in got["counts"].items()}
     print(json.dumps({"robot": args.robot, "seconds": got["seconds"], **counts}))
     if moves:
@@ -88,6 +97,13 @@ def main(argv=None) -> int:
         print(
             f"{len(moves)} transfers no route freed: tip move {np.percentile(moves, q).round(0).tolist()} mm, "
             f"largest joint turn {np.percentile(turns, q).round(0).tolist()} deg (10/50/90 %)"
+        )
+        tips = np.concatenate(ends)
+        print(
+            f"their ends' gun tips: x {np.percentile(tips[:, 0], q).round(0).tolist()}, y "
+            f"{np.percentile(tips[:, 1], q).round(0).tolist()}, z {np.percentile(tips[:, 2], q).round(0).tolist()} mm"
+            f" (10/50/90 %); |y| < 300 mm: {int((np.abs(tips[:, 1]) < 300).sum())} of {len(tips)}; bodies in "
+            f"collision along the joint move (transfers): {dict(sorted(bodies.items(), key=lambda kv: -kv[1]))}"
         )
     return 0
 

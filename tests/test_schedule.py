@@ -98,10 +98,16 @@ def test_the_timelines_are_the_plans_timing_with_waits_only_before_strokes(box_p
             ]
             horizon = max(got.timelines[i].end_s for i in range(k))
 
-            at_end = (arms[k], q[-1], float(track[-1]))
+            end, there = q[-1], float(track[-1])
             clear = [
                 sched._park_clear(
-                    *at_end, p, t, done, sched._move_s(*at_end[:2], p, at_end[2], t, tracks[k]), earlier, horizon, 30.0
+                    arms[k],
+                    [done, done + sched._move_s(arms[k], end, p, there, t, tracks[k])],
+                    [end, p],
+                    [there, t],
+                    earlier,
+                    horizon,
+                    30.0,
                 )
                 for p, t in parks
             ]
@@ -362,19 +368,11 @@ def test_a_later_robot_parks_where_its_move_and_hold_keep_clear_of_the_earlier_r
     segments = np.stack([centre, centre], axis=1)[:, None]  # (m, 1, 2, 3)
     radii = np.array([60.0])
     other = sched._Sampled(0, segments, radii, sched._moves(segments), centre - 60.0, centre + 60.0)
-    assert not sched._park_clear(arm, q[-1], float(track[-1]), first, at, done, move, [other], 40.0, 30.0)
+    end, rail = q[-1], float(track[-1])
+    assert not sched._park_clear(arm, [done, done + move], [end, first], [rail, at], [other], 40.0, 30.0)
     clear = [
         sched._park_clear(
-            arm,
-            q[-1],
-            float(track[-1]),
-            p,
-            t,
-            done,
-            sched._move_s(arm, q[-1], p, float(track[-1]), t),
-            [other],
-            40.0,
-            30.0,
+            arm, [done, done + sched._move_s(arm, end, p, rail, t)], [end, p], [rail, t], [other], 40.0, 30.0
         )
         for p, t in parks[1:]
     ]
@@ -537,3 +535,92 @@ def test_a_move_is_free_when_no_sample_at_the_programs_step_collides(box_plan):
             q[-1] + np.linspace(0, 1, 2001)[:, None] * (park - q[-1]), np.full(2001, float(track[-1]))
         ).any()
     )
+
+
+def _passing_ball(centre, far, t_in: float, t_out: float, end_s: float, radius: float = 60.0):
+    """An "earlier robot" (``_Sampled``, grid samples from 0 to ``end_s``): a ball of ``radius`` mm that stands
+    at ``far``, comes in to ``centre`` at 1 m/s to be there from ``t_in`` to ``t_out``, and goes back."""
+    g = sched._grid(0.0, end_s)
+    t = g * sched.DT_S
+    travel = float(np.linalg.norm(np.asarray(far) - centre)) / 1000.0
+    share = np.clip(np.minimum((t - (t_in - travel)) / travel, ((t_out + travel) - t) / travel), 0.0, 1.0)
+    points = np.asarray(far)[None] + share[:, None] * (np.asarray(centre) - far)[None]
+    segments = np.stack([points, points], axis=1)[:, None]  # (m, 1, 2, 3)
+    return sched._Sampled(0, segments, np.array([radius]), sched._moves(segments), points - radius, points + radius)
+
+
+def test_a_park_way_an_earlier_robot_crosses_is_freed_by_a_wait_before_the_last_stroke(box_plan):
+    """``_end_wait``: an earlier robot passing through the way to the park just as the work ends (a ball there
+    from 1 s before to 3 s after) leaves no park clear at once (``_park_clear``); a wait before the last
+    stroke frees the stroke, the way and the hold together: with it the way is clear, recounted on 400
+    configurations of the way and every 0.01 s, and half a wait step less is not enough."""
+    plan, arms = box_plan
+    work, arm = plan.robots[0], arms[0]
+    q, track = sched._held(work.q, work.track_mm, work.reachable)
+    t0 = sched.waypoint_times(work, 400.0, 1000.0, arm.params.max_speed)
+    starts = np.cumsum([0] + [len(s) for s in work.strokes])[:-1]
+    chosen = np.zeros(len(starts))
+    park, at = sched.park_joints(arm, q[-1], float(track[-1]))
+    way = sched._park_way(arm, q[-1], float(track[-1]), None, park, at, None, None)
+    offsets, way_q, way_track, route = way
+    assert route is None and len(offsets) == 1
+    np.testing.assert_allclose(way_q[-1], park)
+    assert offsets[-1] == pytest.approx(sched._move_s(arm, q[-1], park, float(track[-1]), at))
+    done = float(t0[-1])
+    middle = arm.segments(((q[-1] + park) / 2)[None], [(float(track[-1]) + at) / 2])[0, -1].mean(axis=0)
+    ball = _passing_ball(middle, middle + [0.0, 0.0, 2500.0], done - 1.0, done + 3.0, done + 40.0)
+    knots = sched._way_knots(done, q[-1], float(track[-1]), way)
+    assert not sched._park_clear(arm, *knots, [ball], done + 40.0, 30.0)
+    found = sched._end_wait(arm, t0, q, track, starts, chosen, way, done + 40.0, [ball], 30.0)
+    assert found is not None
+    first, wait = found
+    assert first == len(starts) - 1 and wait > 0
+    assert (wait / sched.WAIT_STEP_S) == pytest.approx(round(wait / sched.WAIT_STEP_S))
+    # recounted: the last stroke and the way after the wait, sampled finely, keep the clearance from the ball
+    times = np.r_[t0[starts[first] :], done + offsets] + wait
+    joints = np.vstack([q[starts[first] :], way_q])
+    rails = np.r_[track[starts[first] :], way_track]
+    fine = np.arange(times[0], times[-1], 0.01)
+    caps = arm.segments(*sched._configs(fine, times, joints, rails))
+    where = np.clip(np.round(fine / sched.DT_S).astype(int), 0, len(ball.segments) - 1)
+    centre = ball.segments[where, 0, 0]
+    gaps = sched.segment_distances(caps[:, :, 0], caps[:, :, 1], centre[:, None], centre[:, None])
+    assert (gaps - np.asarray(arm.radii, float)[None] - 60.0).min() >= 30.0 - 1.0  # (the ball's step within a sample)
+    assert sched._park_clear(
+        arm, *sched._way_knots(done + wait, q[-1], float(track[-1]), way), [ball], done + 40.0, 30.0
+    )
+    shorter = sched._way_knots(done + wait - sched.WAIT_STEP_S, q[-1], float(track[-1]), way)
+    assert not sched._park_clear(arm, *shorter, [ball], done + 40.0, 30.0)
+
+
+def test_a_robot_waits_before_its_last_stroke_when_no_park_way_is_clear(box_plan, monkeypatch):
+    """In the schedule, a later robot none of whose parks' ways is clear when its work ends (``_park_clear``
+    made to say so) takes the first park whose way a wait before a last stroke frees (``_end_wait``, here
+    giving 2 s before the last stroke for the second park): its timeline waits there in place of the wait it
+    had, its other waits as they were, and ends with that park's way."""
+    plan, arms = box_plan
+    tracks = [None if r.track is None else r.track.speed_mm_s for r in plan.cell.robots]
+    ranges = [None if r.track is None else tuple(r.track.range_mm) for r in plan.cell.robots]
+    plain = sched.schedule_cell(plan.robots, arms, 400.0, 1000.0, 30.0, tracks, track_ranges=ranges)
+    asked = []
+
+    def end_wait(arm, t0, q, track, starts, chosen, way, *args):
+        asked.append(way)
+        return (len(starts) - 1, 2.0) if len(asked) == 2 else None
+
+    monkeypatch.setattr(sched, "_park_clear", lambda *args: False)
+    monkeypatch.setattr(sched, "_end_wait", end_wait)
+    got = sched.schedule_cell(plan.robots, arms, 400.0, 1000.0, 30.0, tracks, track_ranges=ranges)
+    assert len(asked) == 2  # the later robot only; the first park's way not freed, the second's freed
+    line, before = got.timelines[1], plain.timelines[1]
+    assert line.wait_s[-1] == 2.0
+    np.testing.assert_allclose(line.wait_s[:-1], before.wait_s[:-1])
+    n_last = len(plan.robots[1].strokes[-1])
+    # (the arrival at a stroke's first waypoint is before its wait, the rest after it)
+    assert line.arrive_s[-n_last] == pytest.approx(before.arrive_s[-n_last])
+    np.testing.assert_allclose(line.arrive_s[1 - n_last :], before.arrive_s[1 - n_last :] - before.wait_s[-1] + 2.0)
+    offsets, way_q, way_track, _ = asked[1]
+    np.testing.assert_allclose(line.knot_q[-len(way_q) :], way_q)
+    np.testing.assert_allclose(line.knot_track[-len(way_q) :], way_track)
+    assert line.end_s == pytest.approx(line.arrive_s[-1] + offsets[-1])
+    np.testing.assert_allclose(got.timelines[0].knot_t, plain.timelines[0].knot_t)  # the first robot unchanged

@@ -54,7 +54,12 @@ keeping them apart in space alone is not proven. :func:`schedule_cell` keeps the
    (``backs``); where no park's joint move from there is free (:func:`move_free`: on session 26's BMW plan
    the right robot ended at the sill with its wrist under the body, and every park's move hit the side; its
    program's last move was in collision), the robot goes there through a route (``routers``,
-   ``cells.routes.CellRouter.park_route``), the programs with it.
+   ``cells.routes.CellRouter.park_route``), the programs with it. The whole way (the retract, the route's
+   nodes, the move, :func:`_park_way`) is what is checked against the earlier robots; where no park's way is
+   clear when the work ends, the robot waits before one of its last strokes (:func:`_end_wait`) until the
+   strokes after the wait, the way and the hold are clear together, for the first park that such a wait
+   frees (on the SUV's plan of session 27 the roof robot's retract and park move, at the right robot's side,
+   came within 8 mm of it: 6 samples too close; a wait of 0.5 s before its last stroke frees them).
 3. **The check** samples the common time axis every ``DT_S`` and measures, at every sample, the least distance
    between any capsule of one robot and any capsule of the other (:func:`segment_distances`, exact for segments;
    the arms' own capsules, ``collision.arms``). Two robots may conflict where that distance is below the sum of
@@ -246,33 +251,21 @@ def park_candidates(
 PARK_TRIES = 12
 
 
-def _park_clear(
-    arm,
-    q_last,
-    track_last: float,
-    park,
-    at: float,
-    t_start: float,
-    move_s: float,
-    earlier,
-    horizon_s: float,
-    clearance_mm: float,
-) -> bool:
-    """Whether a robot's move from ``q_last`` at ``track_last`` (at ``t_start``, taking ``move_s``) to its
-    park (``park`` at ``at``) and its hold there up to ``horizon_s`` (when the earlier robots are done) keep
-    clear of every ``earlier`` robot (``_Sampled``) at the grid samples, with the motion bounds."""
-    g = _grid(t_start, t_start + move_s)
+def _park_clear(arm, times, q, track, earlier, horizon_s: float, clearance_mm: float) -> bool:
+    """Whether a robot's way to its park (knots: ``times`` (m,) s, ``q`` (m, dof), ``track`` (m,) mm, the joints
+    and the track linear between them: the retract, a route's nodes, the park last) and its hold at the park
+    up to ``horizon_s`` (when the earlier robots are done) keep clear of every ``earlier`` robot (``_Sampled``)
+    at the grid samples, with the motion bounds."""
+    times, q, track = np.asarray(times, float), np.asarray(q, float), np.asarray(track, float)
+    g = _grid(times[0], times[-1])
     if len(g):
-        knots = np.array([t_start, t_start + move_s])
-        move = _Sampled.of(
-            arm, *_configs(g * DT_S, knots, np.vstack([q_last, park]), np.array([track_last, at])), first=int(g[0])
-        )
+        move = _Sampled.of(arm, *_configs(g * DT_S, times, q, track), first=int(g[0]))
         rows = np.arange(len(g))
         if any((_gaps(move, rows, other, other.rows(g), clearance_mm) < 0).any() for other in earlier):
             return False
-    g = _grid(t_start + move_s, horizon_s)
+    g = _grid(times[-1], horizon_s)
     if len(g):
-        hold = _Sampled.of(arm, np.asarray(park, float)[None], np.array([at], float))
+        hold = _Sampled.of(arm, q[-1:], track[-1:])
         zero = np.zeros(len(g), dtype=int)
         for other in earlier:
             for c in range(0, len(g), 4096):
@@ -280,6 +273,65 @@ def _park_clear(
                 if (_gaps(hold, zero[: len(part)], other, other.rows(part), clearance_mm) < 0).any():
                     return False
     return True
+
+
+def _park_way(arm, q_end, track_end: float, back, park, at: float, track_speed, router):
+    """A robot's way from its last timeline row (``q_end`` at ``track_end``) to a park (``park`` at ``at``), as
+    its program makes it: the retract along the gun axis (``back``, :func:`_backed`), then a joint move to the
+    park, or where that move is not free (:func:`move_free`) and ``router`` finds a way, the route's nodes
+    (``CellRouter.park_route``) each reached by a joint move. Returns the knots after ``q_end`` (offsets from
+    its time, s (m,); joints (m, dof); track (m,) mm; the park last) and the route (nodes, tracks) or None."""
+    last, retract_s = _backed(back, q_end, track_end)
+    offsets, qs, tracks = ([retract_s], [last], [track_end]) if retract_s > 0 else ([], [], [])
+    route = None
+    if router is not None and not move_free(arm, last, park, track_end, at):
+        found = router.park_route(last, track_end, park, at)
+        if found is not None:
+            route = found[1:]
+    legs_q = [last, *([] if route is None else route[0]), park]
+    legs_t = [track_end, *([] if route is None else route[1]), at]
+    clock = retract_s
+    for j in range(1, len(legs_q)):
+        clock += _move_s(arm, legs_q[j - 1], legs_q[j], legs_t[j - 1], legs_t[j], track_speed)
+        offsets.append(clock)
+        qs.append(legs_q[j])
+        tracks.append(legs_t[j])
+    return np.asarray(offsets), np.asarray(qs, float), np.asarray(tracks, float), route
+
+
+def _way_knots(at_s: float, q_end, track_end: float, way):
+    """The knots of a way to a park (:func:`_park_way`) that starts at ``q_end`` (``track_end``) at ``at_s``."""
+    offsets, way_q, way_track, _ = way
+    return np.r_[at_s, at_s + offsets], np.vstack([np.asarray(q_end, float)[None], way_q]), np.r_[track_end, way_track]
+
+
+def _end_wait(arm, t0, q, track, starts, chosen, way, horizon_s: float, earlier, clearance_mm: float, parked=False):
+    """Where a robot's way to its park (``way``: :func:`_park_way`'s knots) is not clear of the ``earlier``
+    robots when it follows its last waypoint, the wait before one of its last :data:`BACKTRACK` + 1 strokes
+    (the last first) that frees those strokes, the way and the hold at the park up to ``horizon_s`` together:
+    ``(first, wait)``, or None if none does. ``parked``: the robot starts parked
+    (its first stroke's wait is made at the park, before the stroke ``first`` = 1 is never waited for)."""
+    offsets, way_q, way_track, _ = way
+    t_all = np.r_[t0, t0[-1] + offsets]
+    q_all, track_all = np.vstack([q, way_q]), np.r_[track, way_track]
+    j = len(starts) - 1
+    for first in range(j, max(j - BACKTRACK, 0) - 1, -1):
+        if parked and first == 1:
+            continue
+        shift = float(chosen[:first].sum())
+        t_x, q_x, track_x = t_all, q_all, track_all
+        if horizon_s - shift > t_all[-1]:  # held at the park until the earlier robots are done
+            t_x, q_x, track_x = (
+                np.r_[t_all, horizon_s - shift],
+                np.vstack([q_all, q_all[-1:]]),
+                np.r_[track_all, track_all[-1]],
+            )
+        wait = _block_wait(arm, t_x, q_x, track_x, starts, chosen, first, j, earlier, clearance_mm)
+        if wait is False:
+            return None
+        if wait is not None:
+            return first, wait
+    return None
 
 
 #: The waypoints of a robot's plan whose capsules' ends :func:`work_points` takes: one in this many.
@@ -660,47 +712,52 @@ def schedule_cell(
                         chosen[first : j + 1] = 0.0
                         chosen[first] = wait
                         break
-        knots = list(_knots(t0, q, track, starts, chosen))
         route = None
+        way = None
         if len(t0):
-            # the park: the first whose move and hold are clear of the earlier robots (the first at all if none)
-            # the program retracts from its last waypoint along the gun axis (a row), then moves to the park
-            last, retract_s = _backed(back, q[-1], float(track[-1]))
-            if retract_s > 0:
-                knots[0] = np.r_[knots[0], float(knots[0][-1]) + retract_s]
-                knots[1] = np.vstack([knots[1], last])
-                knots[2] = np.r_[knots[2], knots[2][-1]]
-            done = float(knots[0][-1])
+            # the park: the first whose way (the retract, the move or its route) and hold are clear of the
+            # earlier robots (``_park_clear``); if none is, the first whose way a wait before one of the last
+            # strokes frees (``_end_wait``); else the first at all
+            last, _ = _backed(back, q[-1], float(track[-1]))
             horizon = max(((o.first + len(o.segments) - 1) * DT_S for o in sampled), default=0.0)
-            tries = park_candidates(arm, last, float(track[-1]), others, track_range, track_speed)
-            park = None
-            for cand, where in itertools.islice(tries, PARK_TRIES):
-                move = _move_s(arm, last, cand, float(track[-1]), where, track_speed)
-                if park is None:
-                    park, at, park_s = cand, where, move
-                if not rank or _park_clear(
-                    arm, last, float(track[-1]), cand, where, done, move, sampled, horizon, clearance_mm
-                ):
-                    park, at, park_s = cand, where, move
-                    break
+            tries = list(itertools.islice(
+                park_candidates(arm, last, float(track[-1]), others, track_range, track_speed), PARK_TRIES
+            ))  # fmt: skip
+            done = float(t0[-1] + chosen.sum())
             router = None if routers is None else routers[k]
-            if router is not None and not move_free(arm, last, park, float(track[-1]), at):
-                found = router.park_route(last, float(track[-1]), park, at)
-                if found is not None:
-                    route = found[1:]
-            if route is not None:  # through the route's nodes, each a joint move (with the track)
-                legs_q = np.vstack([last, route[0], park])
-                legs_t = np.r_[float(track[-1]), route[1], at]
-                park_s = 0.0
-                for j in range(1, len(legs_q)):
-                    park_s += _move_s(arm, legs_q[j - 1], legs_q[j], legs_t[j - 1], legs_t[j], track_speed)
-                    if j < len(legs_q) - 1:
-                        knots[0] = np.r_[knots[0], done + park_s]
-                        knots[1] = np.vstack([knots[1], legs_q[j]])
-                        knots[2] = np.r_[knots[2], legs_t[j]]
-            knots[0] = np.r_[knots[0], done + park_s]
-            knots[1] = np.vstack([knots[1], park])
-            knots[2] = np.r_[knots[2], at]
+            ways = [None] * len(tries)  # each park's way, made when first asked for (a route takes a search)
+            pick = 0
+            if rank:
+                pick = None
+                for i, (cand, where) in enumerate(tries):
+                    ways[i] = _park_way(arm, q[-1], float(track[-1]), back, cand, where, track_speed, router)
+                    if _park_clear(
+                        arm, *_way_knots(done, q[-1], float(track[-1]), ways[i]), sampled, horizon, clearance_mm
+                    ):
+                        pick = i
+                        break
+                if pick is None:
+                    pick, best = 0, None
+                    for i, way in enumerate(ways):
+                        found = _end_wait(
+                            arm, t0, q, track, starts, chosen, way, horizon, sampled, clearance_mm, parked
+                        )
+                        if found is not None:
+                            best, pick = found, i
+                            break
+                    if best is not None:
+                        chosen[best[0] :] = 0.0
+                        chosen[best[0]] = best[1]
+            if ways[pick] is None:
+                ways[pick] = _park_way(arm, q[-1], float(track[-1]), back, *tries[pick], track_speed, router)
+            way = ways[pick]
+            route = way[3]
+        knots = list(_knots(t0, q, track, starts, chosen))
+        if way is not None:  # the retract, the route's nodes and the park: rows after the last waypoint
+            done = float(knots[0][-1])
+            knots[0] = np.r_[knots[0], done + way[0]]
+            knots[1] = np.vstack([knots[1], way[1]])
+            knots[2] = np.r_[knots[2], way[2]]
         if parked:  # the park at the start is not a waypoint; its wait is the first stroke's
             knots[3] = knots[3][1:]
             chosen = np.r_[chosen[0], chosen[2:]]
