@@ -10,9 +10,14 @@ cycle) and the seconds the timing and the schedule took; then each robot's RAPID
 motions checked with the collision model (``programs.arms.motions_checked``: how many are in collision) and
 how many nodes its way to the end park has (a build that routes parks, ``RobotWork.park_route_q``).
 
+With ``--plan-times`` each robot keeps the waypoint times of the file, its waits taken off, in place of being
+timed again: the plan's own inputs to its schedule (timing again from the file's joints, rounded to 1e-6 rad,
+can differ: on the SUV's session 27 plan the right robot's retract at a wrist flip came out 0.39 s longer,
+and its schedule had none of the plan's 6 samples too close).
+
 Usage::
 
-    python bench/bench_schedule.py OUT --part bmw --base ../wt-base
+    python bench/bench_schedule.py OUT --part bmw --base ../wt-base [--plan-times]
 """
 
 from __future__ import annotations
@@ -28,7 +33,29 @@ HERE = Path(__file__).resolve().parent
 PARTS = {"bmw": ("meshes/bmw_m6_body_m_yup.ply", "y"), "suv": ("meshes/gazebo_suv_body_m.ply", "z")}
 
 
-def child(folder: str, name: str) -> None:
+def unwaited(work):
+    """A robot's waypoint times as its plan's timing gave them, before the schedule: the file's arrival times
+    (``t_s``) less the waits before every stroke up to its own (the arrival at a stroke's first waypoint is
+    before that stroke's wait, unless the stroke starts with a run-up, where the wait is held:
+    ``cells.schedule.with_leads``)."""
+    import numpy as np
+
+    t = np.asarray(work.t_s, float)
+    if work.wait_s is None:
+        return t
+    sizes = [len(s) for s in work.strokes]
+    waits = np.asarray(work.wait_s, float)
+    through = np.repeat(np.cumsum(waits), sizes)  # the waits of the strokes up to each waypoint's own
+    firsts = np.cumsum([0, *sizes[:-1]])
+    up = np.zeros(len(firsts), bool)
+    if work.lead_q is not None and work.lead_s is not None and len(t):
+        lead = np.asarray(work.lead_q, float)[np.minimum(firsts, len(t) - 1), 0]
+        up = np.isfinite(lead).all(axis=1) & (np.asarray(work.lead_s, float)[np.minimum(firsts, len(t) - 1), 0] > 0)
+    through[firsts[~up]] -= waits[~up]
+    return t - through
+
+
+def child(folder: str, name: str, plan_times: bool = False) -> None:
     sys.path.insert(0, str(HERE))
     import inspect
 
@@ -46,7 +73,10 @@ def child(folder: str, name: str) -> None:
     robots = tuple(dataclasses.replace(w, **unscheduled) for w in plan.robots)
     start = time.perf_counter()
     report = {"cycle_time_s": 0.0, "robots": {w.name: {"cycle_time_s": 0.0} for w in robots}}
-    robots = timed_cell(plan.cell, robots, plan.job, report)
+    if plan_times:  # the plan's own timing, read back: the schedule's inputs as the plan had them
+        robots = tuple(dataclasses.replace(r, t_s=unwaited(w)) for r, w in zip(robots, plan.robots))
+    else:
+        robots = timed_cell(plan.cell, robots, plan.job, report)
     timed = time.perf_counter() - start
     start = time.perf_counter()
     aids = ()
@@ -73,15 +103,21 @@ def main() -> None:
     parser.add_argument("folder", help="a cell plan folder written with --collisions")
     parser.add_argument("--part", default="bmw", choices=sorted(PARTS))
     parser.add_argument("--base", help="another checkout to compare with (its src/)")
+    parser.add_argument(
+        "--plan-times",
+        action="store_true",
+        help="the waypoint times of the plan's file, its waits taken off, in place of timing the work again",
+    )
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
-        child(args.folder, args.part)
+        child(args.folder, args.part, args.plan_times)
         return
     sys.path.insert(0, str(HERE))
     from _data import builds_at_once
 
-    for build, result in builds_at_once([__file__, args.folder, "--part", args.part, "--child"], args.base):
+    extra = ["--plan-times"] if args.plan_times else []
+    for build, result in builds_at_once([__file__, args.folder, "--part", args.part, "--child", *extra], args.base):
         print(json.dumps({"build": build, **result}), flush=True)
         print(
             f"{build}: {sum(result['conflicts'].values())} samples too close, cycle {result['cycle_time_s']} s, "
