@@ -1150,3 +1150,40 @@ def test_the_out_route_backs_off_then_draws_the_gun_out_towards_the_base(tmp_pat
                 assert np.linalg.norm(moved) in [pytest.approx(d, abs=1e-6) for d in OUT_MM]
             seen += 1
     assert seen >= 3
+
+
+def test_repair_candidates_that_turn_the_arm_over_from_the_joints_before_come_last(tmp_path):
+    """``cells.repair._candidates``: every (try, branch) that reaches the waypoints, those with no joint
+    jumping by more than ``JOINT_JUMP_RAD`` from the joints before (``seed``) and none along them first, then
+    those that jump only from the seed, then those that jump along; within each, the tries in their order.
+    Recounted from each candidate's joints, from the arm's start joints and from the first joints of a
+    candidate that others start more than a jump away from (so that both kinds are there and the order is
+    not the tries' alone)."""
+    from sprayplan.cells.repair import _candidates
+    from sprayplan.cells.tries import JOINT_JUMP_RAD, start_joints, stroke_tries
+
+    cell, plan, _ = _box_cell(tmp_path)
+    robot, work = cell.robots[0], plan.robots[0]
+    stroke = next(s for s in work.strokes if s.spray_on)
+    arm = robot.robot(0.0)
+    tries = [(t.tobytes(), r) for t, r in stroke_tries(robot, stroke)]
+    none = np.zeros(len(stroke), bool)
+    ordered = _candidates(robot, arm, stroke, start_joints(arm.dof), none)
+    starts = np.array([qb[ok][0] for qb, ok, _, _ in ordered])
+    apart = (np.abs(starts[:, None] - starts[None]).max(axis=2) > JOINT_JUMP_RAD).any(axis=1)
+    other = starts[int(np.flatnonzero(apart)[-1])]
+    for seed in (start_joints(arm.dof), other):
+        got = _candidates(robot, arm, stroke, seed, none)
+        assert len(got) == len(ordered) > 1  # the same candidates, another order
+        ranks, order = [], []
+        for qb, ok, t, r in got:
+            along = qb[ok]
+            jumps = len(along) > 1 and np.abs(np.diff(along, axis=0)).max() > JOINT_JUMP_RAD
+            ranks.append(2 if jumps else int(np.abs(along[0] - seed).max() > JOINT_JUMP_RAD))
+            order.append(tries.index((t.tobytes(), r)))
+        assert ranks == sorted(ranks)
+        for rank in set(ranks):
+            within = [k for k, rk in zip(order, ranks) if rk == rank]
+            assert within == sorted(within)
+    assert ranks[0] == 0 and 1 in ranks
+    assert order != sorted(order)  # the seed's own candidate moved ahead of earlier tries

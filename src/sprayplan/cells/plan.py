@@ -90,7 +90,7 @@ from sprayplan.cells.reach import reach_matrix, reach_tilts
 from sprayplan.cells.repair import repaired_work
 from sprayplan.cells.seams import SEAM_STEP_MM, SeamGuard, cut_stroke, feathered
 from sprayplan.cells.spec import Cell, place_part
-from sprayplan.cells.tries import rot_z, start_joints, stroke_tries
+from sprayplan.cells.tries import JOINT_JUMP_RAD, rot_z, start_joints, stroke_tries
 from sprayplan.cells.work import RobotWork, joined_transfers, transfer_stroke, with_tuned_dwell
 from sprayplan.config import JobConfig
 from sprayplan.errors import ConfigError, InputError
@@ -170,13 +170,6 @@ def _sub_part(part: Part, keep: np.ndarray, name: str) -> Part:
     from sprayplan.surface.region import keep_faces
 
     return dataclasses.replace(keep_faces(part, keep), vertex_normals=None, name=name)
-
-
-#: A joint step this large between two waypoints of a stroke (rad) is a jump (:func:`solve_strokes`): the
-#: arm turned over, or a first joint at its limit turned back by a whole turn (over the SUV in ``line3`` the
-#: roof robot's first joint turned by 344 deg between two waypoints 6 mm apart where its strokes crossed
-#: the roof's middle).
-JOINT_JUMP_RAD = math.radians(90.0)
 
 
 def solve_strokes(cell_robot, strokes) -> list[tuple[np.ndarray, float, np.ndarray, np.ndarray]]:

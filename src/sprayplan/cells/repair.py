@@ -10,7 +10,7 @@ import dataclasses
 
 import numpy as np
 
-from sprayplan.cells.tries import rot_z, start_joints, stroke_tries
+from sprayplan.cells.tries import JOINT_JUMP_RAD, rot_z, start_joints, stroke_tries
 from sprayplan.surface.poses import stroke_poses
 
 #: The waypoints of a stroke at which every repair candidate is screened before any is checked in full: up to
@@ -60,8 +60,16 @@ def _screened(arm, ordered: list, colliding: np.ndarray) -> list:
 def _candidates(cell_robot, robot, stroke, seed: np.ndarray, need: np.ndarray) -> list:
     """Every (track position, roll) try of ``stroke`` (:func:`~sprayplan.cells.tries.stroke_tries`) and every
     IK branch that reaches at least the waypoints ``need`` (and as many), each followed from ``seed`` by whole
-    turns: ``(joints (n, dof), reached (n,), track (n,), roll)``, in the order tried (the tries in their order,
-    the branches of a try by their first joints' distance from ``seed``)."""
+    turns: ``(joints (n, dof), reached (n,), track (n,), roll)``, in the order tried: those with no joint
+    jumping by more than :data:`~sprayplan.cells.tries.JOINT_JUMP_RAD` from ``seed`` to their first waypoint
+    or between two of their waypoints first, then those that jump only from ``seed``, then the rest; within
+    each, the tries in their order and the branches of a try by their first joints' distance from ``seed``.
+
+    A repair that keeps a try turning the arm over from the joints before it (the first free one, whatever
+    its branch) leaves a transfer that the programs' retract and approach make through the part and that no
+    route frees, and its run is dropped: over the SUV's roof in ``line3`` (session 27) the roof robot's 98
+    runs dropped were such transfers, median largest joint turn 220 deg, the forearm, wrist and gun meeting the
+    roof (``bench/bench_robot_step.py``)."""
     from sprayplan.robots.interface import nearest_turns
 
     axis = np.zeros(3) if cell_robot.track is None else cell_robot.track.axis
@@ -88,9 +96,12 @@ def _candidates(cell_robot, robot, stroke, seed: np.ndarray, need: np.ndarray) -
             for j in np.flatnonzero(ok):
                 prev = qb[j] = nearest_turns(robot, joints[j, branch], prev)
             start = qb[np.flatnonzero(ok)[0]]
-            candidates.append((float(((start - seed) ** 2).sum()), branch, qb, ok))
-        ordered += [(qb, ok, t, r) for _, _, qb, ok in sorted(candidates, key=lambda c: c[0])]
-    return ordered
+            along = qb[ok]
+            jumps = len(along) > 1 and np.abs(np.diff(along, axis=0)).max() > JOINT_JUMP_RAD
+            rank = 2 if jumps else int(np.abs(start - seed).max() > JOINT_JUMP_RAD)
+            candidates.append((float(((start - seed) ** 2).sum()), branch, qb, ok, rank))
+        ordered += [(k, rank, (qb, ok, t, r)) for _, _, qb, ok, rank in sorted(candidates, key=lambda c: c[0])]
+    return [c for _, _, c in sorted(ordered, key=lambda c: (c[1], c[0]))]
 
 
 def resolved_piece(cell_robot, arm, piece, seed: np.ndarray, standoff_mm: float = 0.0, tilts: tuple = ()):
