@@ -130,9 +130,10 @@ def resolved_piece(cell_robot, arm, piece, seed: np.ndarray, standoff_mm: float 
 
 def repaired_work(cell_robot, work, arm) -> tuple:
     """A robot's plan with its strokes in collision solved again, as a programmer would: every (track
-    position, roll) try of the stroke (:func:`~sprayplan.cells.tries.stroke_tries`) and every IK branch, the
-    branches of a try in the order of their first joints' distance from the joints before the stroke, keeping
-    the first that reaches at least the waypoints reached before with no waypoint and no motion in collision.
+    position, roll) try of the stroke (:func:`~sprayplan.cells.tries.stroke_tries`) and every IK branch, in the
+    order of :func:`_candidates` (those that do not turn the arm over from the joints before the stroke
+    first), keeping the first that reaches at least the waypoints reached before with no waypoint and no
+    motion in collision.
 
     The transfers are joined to their neighbours (``cells.work.joined_transfers``): a transfer is the joint move
     from the end of one spray stroke to the start of the next, so it belongs to the stroke after it. A stroke is

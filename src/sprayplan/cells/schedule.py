@@ -309,8 +309,8 @@ def _end_wait(arm, t0, q, track, starts, chosen, way, horizon_s: float, earlier,
     """Where a robot's way to its park (``way``: :func:`_park_way`'s knots) is not clear of the ``earlier``
     robots when it follows its last waypoint, the wait before one of its last :data:`BACKTRACK` + 1 strokes
     (the last first) that frees those strokes, the way and the hold at the park up to ``horizon_s`` together:
-    ``(first, wait)``, or None if none does. ``parked``: the robot starts parked
-    (its first stroke's wait is made at the park, before the stroke ``first`` = 1 is never waited for)."""
+    ``(first, wait)``, or None if none does. ``parked``: the robot starts parked (row 0 is its park, and its
+    first stroke's wait is made there, so ``first`` = 1 is not tried, as in :func:`schedule_cell`)."""
     offsets, way_q, way_track, _ = way
     t_all = np.r_[t0, t0[-1] + offsets]
     q_all, track_all = np.vstack([q, way_q]), np.r_[track, way_track]

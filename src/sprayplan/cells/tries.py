@@ -15,10 +15,10 @@ TRACK_TRIES_MM = (0.0, -300.0, 300.0, -600.0, 600.0)
 ROLL_TRIES_DEG = (0.0, 90.0, 180.0, 270.0)
 #: The joints a six-axis robot starts from (rad): the wrist bent (ABB's zero is a straight, singular wrist).
 START_JOINTS = np.radians([0.0, 0.0, 0.0, 0.0, 30.0, 0.0])
-#: A joint step this large between two waypoints of a stroke (rad) is a jump (:func:`solve_strokes`): the
-#: arm turned over, or a first joint at its limit turned back by a whole turn (over the SUV in ``line3`` the
-#: roof robot's first joint turned by 344 deg between two waypoints 6 mm apart where its strokes crossed
-#: the roof's middle).
+#: A joint step this large between two waypoints of a stroke (rad) is a jump (``cells.plan.solve_strokes``,
+#: ``cells.repair._candidates``): the arm turned over, or a first joint at its limit turned back by a whole
+#: turn (over the SUV in ``line3`` the roof robot's first joint turned by 344 deg between two waypoints 6 mm
+#: apart where its strokes crossed the roof's middle).
 JOINT_JUMP_RAD = math.radians(90.0)
 #: A try whose flange passes nearer than this to the robot's first axis is tried after the others, mm
 #: (:func:`stroke_tries`).
