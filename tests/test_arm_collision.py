@@ -1187,3 +1187,118 @@ def test_repair_candidates_that_turn_the_arm_over_from_the_joints_before_come_la
             assert within == sorted(within)
     assert ranks[0] == 0 and 1 in ranks
     assert order != sorted(order)  # the seed's own candidate moved ahead of earlier tries
+
+
+def test_a_run_about_to_be_dropped_is_solved_again_continuous_with_the_run_before(tmp_path):
+    """``cells.repair.rescued_run``: from the joints a run before ended at, the run solved again with no joint
+    jumping by more than ``JOINT_JUMP_RAD`` from them nor along it, every waypoint reached at its pose (the
+    forward kinematics' answer, the roll kept), free of the part (the full check) and backed off free at its
+    ends where ``backs`` says; nearest the seed of all such candidates; None where ``backs`` frees no end."""
+    from sprayplan.cells.repair import _candidates, rescued_run
+    from sprayplan.cells.tries import JOINT_JUMP_RAD
+    from sprayplan.collision.arms import plan_collides
+
+    cell, plan, arms = _box_cell(tmp_path)
+    robot, work, arm = cell.robots[0], plan.robots[0], arms[0]
+    found = check_robot(arm, work.q, work.track_mm, work.reachable)
+    starts = np.r_[0, np.cumsum([len(s) for s in work.strokes])]
+    spray = [
+        i
+        for i, s in enumerate(work.strokes)
+        if s.spray_on and work.reachable[starts[i] : starts[i + 1]].all()
+        and not found.waypoint.collides[starts[i] : starts[i + 1]].any()
+    ]  # fmt: skip
+    i = spray[1]
+    stroke, seed = work.strokes[i], work.q[starts[spray[0] + 1] - 1]  # the end of the free run before
+    got = rescued_run(robot, arm, stroke, seed)
+    assert got is not None
+    qb, t, roll = got
+    assert np.abs(qb[0] - seed).max() <= JOINT_JUMP_RAD and np.abs(np.diff(qb, axis=0)).max() <= JOINT_JUMP_RAD
+    assert not plan_collides(arm, qb, t, np.ones(len(qb), bool))
+    fk = np.stack([robot.robot(tt).fk(j[None])[0] for tt, j in zip(t, qb)])
+    want = poses_at(stroke.tcp, stroke.normals) @ _rolls(np.full(len(qb), roll))
+    np.testing.assert_allclose(fk[:, :3, 3], want[:, :3, 3], atol=1e-6)
+    np.testing.assert_allclose(fk[:, :3, :3], want[:, :3, :3], atol=1e-6)
+    smooth = _candidates(robot, robot.robot(0.0), stroke, seed, np.ones(len(stroke), bool), smooth=True)
+    steps = [np.abs(c[0][0] - seed).max() for c in smooth]
+    assert steps == sorted(steps) and np.abs(qb[0] - seed).max() >= steps[0] - 1e-12
+    assert max(steps) <= JOINT_JUMP_RAD
+    # the back-offs: asked at the run's first and last waypoints only, and a run whose ends no back-off frees is
+    # not saved
+    asked = []
+
+    def backs(q, tr):
+        asked.append(len(q))
+        return np.zeros(len(q), bool)
+
+    assert rescued_run(robot, arm, stroke, seed, backs) is None and set(asked) == {2}
+    same = rescued_run(robot, arm, stroke, seed, lambda q, tr: np.ones(len(q), bool))
+    np.testing.assert_array_equal(same[0], qb)
+
+
+def test_a_run_solved_again_is_kept_and_its_transfers_routed_again():
+    """``dropped_unrouted`` with ``rescue`` (``rescued``): the run the failed transfer leads into is solved again
+    from the end of the run before in place of being dropped, its transfers made plain again (``with_run``: ends
+    joined to the new joints, other rows as they were) and routed again, and kept only where both are free;
+    where one is not, the run is dropped as it would have been, and not solved again. The stub route frees a
+    transfer whose joints move less than 0.75 (neighbouring runs: 0.5), except the one into run 6 named failed
+    at the start."""
+    from functools import partial
+
+    from sprayplan.cells.collide import dropped_unrouted, rescued
+
+    work = _run_chain(10)
+
+    def starts(w):
+        return np.r_[0, np.cumsum([len(s) for s in w.strokes])]
+
+    def key(w, i):
+        s = starts(w)[i]
+        return np.column_stack([w.q, w.track_mm])[s : s + 2].tobytes()
+
+    def route(w, only):
+        calls.append(sorted(only))
+        for i in only:
+            a = starts(w)[i]
+            if abs(w.q[a + 1, 0] - w.q[a, 0]) >= 0.75:
+                failed.add(key(w, i))
+        return w, {"transfers_routed": 1}
+
+    into_6 = 2 * 6 - 1
+    calls, failed = [], {key(work, into_6)}
+    plain, _, plain_dropped, _, _ = dropped_unrouted(work, route, failed)
+    assert plain_dropped >= 1
+    for shift, kept in ((0.1, True), (0.8, False)):
+        seeds, calls = [], []
+        failed = {key(work, into_6)}
+
+        def solve(run, seed, shift=shift, seeds=seeds):
+            seeds.append((run, seed[0]))
+            if run is not work.strokes[12]:
+                return None
+            return np.array([np.r_[6 + shift, np.zeros(5)], np.r_[6.5 + shift, np.zeros(5)]]), np.zeros(2), 0.0
+
+        rescue = partial(rescued, solve=solve, route=route, failed=failed)
+        out, counts, dropped, _, rounds = dropped_unrouted(work, route, failed, rescue=rescue)
+        assert seeds[0] == (work.strokes[12], 5.5)  # from the end of run 5
+        assert sum(r is work.strokes[12] for r, _ in seeds) == 1  # solved again once only
+        assert calls[0] == [into_6, into_6 + 2]  # the transfers either side routed again
+        runs = [s for s in out.strokes if s.spray_on]
+        transfers = [i for i, s in enumerate(out.strokes) if not s.spray_on]
+        assert all(key(out, i) not in failed for i in transfers)
+        planned = [work.strokes[k] for k in range(0, 19, 2)]
+        order = [next(j for j, p in enumerate(planned) if p is r) for r in runs]
+        assert order == sorted(order)  # the runs kept are planned runs, in their order
+        if kept:
+            assert counts["runs_solved_again"] == 1 and dropped == 0 and rounds == 1
+            assert counts["transfers_routed"] == 1 and out.strokes[12] is work.strokes[12]
+            rows = np.arange(starts(out)[12], starts(out)[13])
+            np.testing.assert_allclose(out.q[rows, 0], [6.1, 6.6])
+            np.testing.assert_allclose(out.q[starts(out)[into_6] : starts(out)[into_6] + 2, 0], [5.5, 6.1])
+            np.testing.assert_allclose(out.q[starts(out)[13] : starts(out)[13] + 2, 0], [6.6, 7.0])
+            others = np.setdiff1d(np.arange(len(out.q)), np.r_[rows, starts(out)[into_6] + 1, starts(out)[13]])
+            np.testing.assert_array_equal(out.q[others], work.q[others])
+        else:  # as without the rescue
+            assert counts["runs_solved_again"] == 0 and dropped == plain_dropped
+            assert [s for s in out.strokes if s.spray_on] == [s for s in plain.strokes if s.spray_on]
+            np.testing.assert_array_equal(out.q, plain.q)

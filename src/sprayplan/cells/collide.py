@@ -163,7 +163,7 @@ def freed_cell(
 def _freed_robot(cell_robot, work, arm, config, repair, part, standoff_mm, mine, first, approach_mm, tilts):
     """One robot's share of :func:`freed_cell`: its work repaired, checked, cut, routed and its unroutable runs
     dropped; returns the work, its counts and ``mine`` (the transfers no route freed, grown)."""
-    from sprayplan.cells.repair import free_work, resolved_piece
+    from sprayplan.cells.repair import free_work, rescued_run, resolved_piece
     from sprayplan.cells.routes import CellRouter, routed_work
 
     repairs, routes = {}, {}
@@ -199,7 +199,11 @@ def _freed_robot(cell_robot, work, arm, config, repair, part, standoff_mm, mine,
         routes.pop("transfers_in_collision")  # the check after the film counts what is left
         if mine is None:
             mine = set()
-        work, more, dropped, dropped_mm, rounds = dropped_unrouted(work, route, mine, first)
+
+        def rescue(work_, k):
+            return rescued(work_, k, lambda run, seed: rescued_run(cell_robot, arm, run, seed, backs), route, mine)
+
+        work, more, dropped, dropped_mm, rounds = dropped_unrouted(work, route, mine, first, rescue)
         for key, value in more.items():
             routes[key] = routes.get(key, 0) + value
         routes["touch_ups_dropped" if first else "runs_dropped"] = dropped
@@ -209,31 +213,61 @@ def _freed_robot(cell_robot, work, arm, config, repair, part, standoff_mm, mine,
     return work, {**repairs, **left, **routes}, mine
 
 
-def dropped_unrouted(work, route, failed: set, first: int = 0):
+def dropped_unrouted(work, route, failed: set, first: int = 0, rescue=None):
     """``work`` with every run dropped that a transfer no route frees leads into (:func:`unrouted_runs`; from
     stroke ``first`` on, and with ``first`` > 0, a touch-up round, only touch-ups), the runs either side joined
     by a new transfer and that one routed in turn (``route(work, only) -> (work, counts)``:
     ``cells.routes.routed_work`` for the transfers of index ``only``, adding the keys of those no route frees to
     ``failed``), round after round until no run is left to drop: a program makes every transfer of its plan, so
-    one that no route frees would be a motion into the body. Each round drops a run at least, so it ends. (Up to
+    one that no route frees would be a motion into the body. Each round drops or keeps solved again a run at
+    least, and a run is solved again once, so it ends. (Up to
     session 25 it stopped after 10 rounds; the SUV in ``line3`` kept 12 transfers in collision.)
+
+    ``rescue(work, k) -> (work, counts) or None``: a run named to be dropped is first solved again, once,
+    continuous with the run before it (``cells.repair.rescued_run``), its transfers routed again
+    (``cells.work.with_run``, then ``route``), and kept only where no transfer either side is one no route
+    frees: the work so routed and the routes' counts, or None (the run is dropped as it was). Counted as
+    ``"runs_solved_again"``.
 
     Returns the work, the routes' counts summed over the rounds (without ``transfers_in_collision``), how many
     runs were dropped, the spray path they would have painted (mm: what the drops cost the film) and the
     rounds."""
     from sprayplan.cells.work import without_strokes
 
-    counts: dict = {}
+    counts: dict = {} if rescue is None else {"runs_solved_again": 0}
     dropped, dropped_mm, rounds, blamed = 0, 0.0, 0, set()
+    tried: list = []  # the runs solved again (or tried), kept alive so that their ids stay theirs
     while True:
+        blamed_before = set(blamed)
         drop = unrouted_runs(work, failed, first, bool(first), blamed)
         if not drop:
             break
         rounds += 1
-        dropped += len(drop)
-        dropped_mm += sum(float(np.linalg.norm(np.diff(work.strokes[k].tcp, axis=0), axis=1).sum()) for k in drop)
+        if rescue is not None:
+            saved = []
+            for k in drop:
+                if any(work.strokes[k] is s for s in tried):
+                    continue
+                tried.append(work.strokes[k])
+                origin = _transfer_origin(work, k)
+                got = rescue(work, k)
+                if got is None:
+                    continue
+                work, more = got  # stroke indices stay (a route adds rows, not strokes)
+                saved.append(k)
+                for key, value in more.items():
+                    if key != "transfers_in_collision":
+                        counts[key] = counts.get(key, 0) + value
+                if origin not in blamed_before:  # the run after it was kept: no blame on the run before
+                    blamed.discard(origin)
+            counts["runs_solved_again"] += len(saved)
+            drop = [k for k in drop if k not in saved]
+            if not drop:
+                continue
         old = work.strokes  # kept alive, so that no new stroke takes an old one's id
         before = {id(s) for s in old}
+        dropped += len(drop)
+        dropped_mm += sum(float(np.linalg.norm(np.diff(work.strokes[k].tcp, axis=0), axis=1).sum()) for k in drop)
         work = without_strokes(work, drop)
         # only the transfers the drops made are routed again (the others were routed or failed)
         joined = {i for i, s in enumerate(work.strokes) if not s.spray_on and id(s) not in before}
@@ -243,6 +277,39 @@ def dropped_unrouted(work, route, failed: set, first: int = 0):
             if key != "transfers_in_collision":
                 counts[key] = counts.get(key, 0) + value
     return work, counts, dropped, dropped_mm, rounds
+
+
+def rescued(work, k: int, solve, route, failed: set):
+    """``work`` with run ``k`` solved again continuous with the run before it (``solve(run, seed) -> (joints,
+    track, roll_deg) or None``: ``cells.repair.rescued_run`` from ``seed``, the joints that run ends at) and the
+    transfers either side made plain (``cells.work.with_run``) and routed again (``route(work, only) -> (work,
+    counts)``, adding the transfers no route frees to ``failed``), and the routes' counts; None where
+    ``solve`` finds nothing, finds the joints the run has, or a transfer either side is one no route frees
+    (:func:`dropped_unrouted`'s ``rescue``). Not for the first or the last stroke."""
+    from sprayplan.cells.work import with_run
+
+    if k < 2 or k + 1 >= len(work.strokes):  # a transfer on one side only
+        return None
+    at = int(sum(len(s) for s in work.strokes[:k]))
+    got = solve(work.strokes[k], work.q[at - len(work.strokes[k - 1])])  # from the transfer's start
+    if got is None or np.allclose(got[0], work.q[at : at + len(work.strokes[k])]):
+        return None
+    trial, counts = route(with_run(work, k, *got), {k - 1, k + 1})
+    starts = np.concatenate([[0], np.cumsum([len(s) for s in trial.strokes])]).astype(int)
+    pairs = np.column_stack([trial.q, trial.track_mm])
+    for i in (k - 1, k + 1):
+        if len(trial.strokes[i]) == 2 and pairs[starts[i] : starts[i] + 2].tobytes() in failed:
+            return None
+    return trial, counts
+
+
+def _transfer_origin(work, k: int) -> bytes:
+    """The state (joints and track position, as bytes: :func:`unrouted_runs`' blame) the transfer into stroke
+    ``k`` starts from; b"" for the first stroke."""
+    if k < 1:
+        return b""
+    at = int(sum(len(s) for s in work.strokes[: k - 1]))
+    return np.r_[work.q[at], work.track_mm[at]].tobytes()
 
 
 def check_cell(plan, config, repair=None, arms=None) -> tuple[tuple, dict]:

@@ -57,13 +57,16 @@ def _screened(arm, ordered: list, colliding: np.ndarray) -> list:
     return ordered
 
 
-def _candidates(cell_robot, robot, stroke, seed: np.ndarray, need: np.ndarray) -> list:
+def _candidates(cell_robot, robot, stroke, seed: np.ndarray, need: np.ndarray, smooth: bool = False) -> list:
     """Every (track position, roll) try of ``stroke`` (:func:`~sprayplan.cells.tries.stroke_tries`) and every
     IK branch that reaches at least the waypoints ``need`` (and as many), each followed from ``seed`` by whole
     turns: ``(joints (n, dof), reached (n,), track (n,), roll)``, in the order tried: those with no joint
     jumping by more than :data:`~sprayplan.cells.tries.JOINT_JUMP_RAD` from ``seed`` to their first waypoint
     or between two of their waypoints first, then those that jump only from ``seed``, then the rest; within
     each, the tries in their order and the branches of a try by their first joints' distance from ``seed``.
+
+    ``smooth``: only the first kind (no jump from ``seed``, none along), nearest ``seed`` first (the largest joint
+    step from it), whatever the try (:func:`rescued_run`).
 
     A repair that keeps a try turning the arm over from the joints before it (the first free one, whatever
     its branch) leaves a transfer that the programs' retract and approach make through the part and that no
@@ -99,8 +102,14 @@ def _candidates(cell_robot, robot, stroke, seed: np.ndarray, need: np.ndarray) -
             along = qb[ok]
             jumps = len(along) > 1 and np.abs(np.diff(along, axis=0)).max() > JOINT_JUMP_RAD
             rank = 2 if jumps else int(np.abs(start - seed).max() > JOINT_JUMP_RAD)
-            candidates.append((float(((start - seed) ** 2).sum()), branch, qb, ok, rank))
-        ordered += [(k, rank, (qb, ok, t, r)) for _, _, qb, ok, rank in sorted(candidates, key=lambda c: c[0])]
+            if smooth and rank:
+                continue
+            key = float(np.abs(start - seed).max()) if smooth else float(((start - seed) ** 2).sum())
+            candidates.append((key, branch, qb, ok, rank))
+        ordered += [
+            (key if smooth else k, rank, (qb, ok, t, r))
+            for key, _, qb, ok, rank in sorted(candidates, key=lambda c: c[0])
+        ]
     return [c for _, _, c in sorted(ordered, key=lambda c: (c[1], c[0]))]
 
 
@@ -125,6 +134,34 @@ def resolved_piece(cell_robot, arm, piece, seed: np.ndarray, standoff_mm: float 
         for qb, ok, t, r in _screened(arm, ordered, need):
             if not plan_collides(arm, qb, t, ok):
                 return qb, t, r, aimed
+    return None
+
+
+def rescued_run(cell_robot, arm, run, seed: np.ndarray, backs=None):
+    """A spray run solved again continuous with the run before it, ahead of being dropped
+    (``cells.collide.dropped_unrouted``: the transfer into it, or out of it, is one no route frees): the
+    candidates of :func:`_candidates` with ``smooth`` (no joint jumping by more than
+    :data:`~sprayplan.cells.tries.JOINT_JUMP_RAD` from ``seed``, the joints at the end of the run before, nor
+    along the run; nearest ``seed`` first, whatever the try) that reach every waypoint with no waypoint and no
+    motion in collision and, with ``backs(q (m, dof), track (m,)) -> (m,) bool``
+    (``cells.routes.CellRouter.backs_free``), the programs' approach at its first waypoint and retract at its
+    last free. ``(joints (n, dof), track (n,), roll_deg)`` or None.
+
+    Each run is solved on its own by the repairs (:func:`repaired_work`, :func:`resolved_piece`: the first free
+    try, in the try order), and a try that suits the run may leave the arm turned over from where the run before
+    ended (over the SUV's roof in ``line3`` the transfers no route frees turned a joint by 220 deg, median,
+    ``bench/bench_robot_step.py``): the transfer then sweeps the arm through the body whatever the route."""
+    from sprayplan.collision.arms import plan_collides
+
+    robot = cell_robot.robot(0.0)
+    need = np.ones(len(run), bool)
+    ordered = _candidates(cell_robot, robot, run, seed, need, smooth=True)
+    for qb, ok, t, r in _screened(arm, ordered, need):
+        if plan_collides(arm, qb, t, ok):
+            continue
+        if backs is not None and not backs(qb[[0, -1]], t[[0, -1]]).all():
+            continue
+        return qb, t, float(r)
     return None
 
 

@@ -170,6 +170,30 @@ def without_strokes(work: RobotWork, drop) -> RobotWork:
     return joined_transfers(out)
 
 
+def with_run(work: RobotWork, k: int, q: np.ndarray, track_mm: np.ndarray, roll_deg) -> RobotWork:
+    """``work`` with spray stroke ``k`` solved again (its joints ``q`` (n, dof), track positions ``track_mm`` (n,)
+    and roll ``roll_deg``, every waypoint reached), the same stroke, and the transfers either side made plain
+    again (:func:`transfer_stroke`, their ends its and their neighbours' joints: :func:`joined_transfers`): a
+    route found for the joints before goes, since its ends moved."""
+    starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
+    strokes, rows = list(work.strokes), []
+    for i, s in enumerate(work.strokes):
+        if i in (k - 1, k + 1) and not s.spray_on and 0 < i < len(strokes) - 1:
+            strokes[i] = transfer_stroke(strokes[i - 1], work.strokes[i + 1])
+            rows.append(np.array([starts[i], starts[i + 1] - 1]))
+        else:
+            rows.append(np.arange(starts[i], starts[i + 1]))
+    index = np.concatenate(rows)
+    q_all, track, roll, reach = work.q[index], work.track_mm[index], work.roll_deg[index], work.reachable[index]
+    at = sum(len(r) for r in rows[:k])
+    n = len(work.strokes[k])
+    q_all[at : at + n], track[at : at + n], roll[at : at + n], reach[at : at + n] = q, track_mm, roll_deg, True
+    out = dataclasses.replace(
+        work, strokes=tuple(strokes), q=q_all, track_mm=track, roll_deg=roll, reachable=reach, collides=None
+    )
+    return joined_transfers(out)
+
+
 def with_tuned_dwell(robots, tuned, owners) -> tuple:
     """The robots' strokes with the time factors the tuning chose for their reached runs (unreached waypoints
     keep theirs)."""
