@@ -1240,7 +1240,9 @@ def test_a_run_solved_again_is_kept_and_its_transfers_routed_again():
     """``dropped_unrouted`` with ``rescue`` (``rescued``): the run the failed transfer leads into is solved again
     from the end of the run before in place of being dropped, its transfers made plain again (``with_run``: ends
     joined to the new joints, other rows as they were) and routed again, and kept only where both are free;
-    where one is not, the run is dropped as it would have been, and not solved again. The stub route frees a
+    where the one into it is not, the run is dropped as it would have been, and not solved again; where the one
+    out of it is not, the runs after it are solved again in turn from the end of the one before, up to
+    ``RESCUE_CHAIN``, and kept together where every transfer is then free. The stub route frees a
     transfer whose joints move less than 0.75 (neighbouring runs: 0.5), except the one into run 6 named failed
     at the start."""
     from functools import partial
@@ -1268,15 +1270,21 @@ def test_a_run_solved_again_is_kept_and_its_transfers_routed_again():
     calls, failed = [], {key(work, into_6)}
     plain, _, plain_dropped, _, _ = dropped_unrouted(work, route, failed)
     assert plain_dropped >= 1
-    for shift, kept in ((0.1, True), (0.8, False)):
+    for shift, kept in ((0.1, True), (0.8, False), (-0.3, "chain")):
         seeds, calls = [], []
         failed = {key(work, into_6)}
 
         def solve(run, seed, shift=shift, seeds=seeds):
             seeds.append((run, seed[0]))
-            if run is not work.strokes[12]:
-                return None
-            return np.array([np.r_[6 + shift, np.zeros(5)], np.r_[6.5 + shift, np.zeros(5)]]), np.zeros(2), 0.0
+            if run is work.strokes[12]:
+                return np.array([np.r_[6 + shift, np.zeros(5)], np.r_[6.5 + shift, np.zeros(5)]]), np.zeros(2), 0.0
+            if shift < 0 and any(run is work.strokes[k] for k in (14, 16, 18)):  # on from the run before's end
+                return (
+                    np.array([np.r_[seed[0] + 0.5, np.zeros(5)], np.r_[seed[0] + 1.0, np.zeros(5)]]),
+                    np.zeros(2),
+                    0.0,
+                )
+            return None
 
         rescue = partial(rescued, solve=solve, route=route, failed=failed)
         out, counts, dropped, _, rounds = dropped_unrouted(work, route, failed, rescue=rescue)
@@ -1289,7 +1297,13 @@ def test_a_run_solved_again_is_kept_and_its_transfers_routed_again():
         planned = [work.strokes[k] for k in range(0, 19, 2)]
         order = [next(j for j, p in enumerate(planned) if p is r) for r in runs]
         assert order == sorted(order)  # the runs kept are planned runs, in their order
-        if kept:
+        if kept == "chain":  # run 6 ends 0.8 short of run 7: runs 7, 8 and 9 go on from it in turn (the last)
+            assert counts["runs_solved_again"] == 1 and dropped == 0 and rounds == 1
+            assert [r for r, _ in seeds] == [work.strokes[k] for k in (12, 14, 16, 18)]
+            for k, begin in ((12, 5.7), (14, 6.7), (16, 7.7), (18, 8.7)):
+                np.testing.assert_allclose(out.q[starts(out)[k] : starts(out)[k + 1], 0], [begin, begin + 0.5])
+            np.testing.assert_array_equal(out.q[: starts(out)[into_6] + 1], work.q[: starts(out)[into_6] + 1])
+        elif kept:
             assert counts["runs_solved_again"] == 1 and dropped == 0 and rounds == 1
             assert counts["transfers_routed"] == 1 and out.strokes[12] is work.strokes[12]
             rows = np.arange(starts(out)[12], starts(out)[13])
