@@ -207,3 +207,28 @@ def test_a_timeline_with_run_ups_has_one_configuration_at_each_time(routed):
                 assert np.allclose(q[i], q[i + 1], atol=1e-12) and track[i] == track[i + 1], (w.name, i)
                 checked += 1
     assert checked > 0
+
+
+def test_a_back_off_of_a_robot_without_a_track_given_a_track_axis_is_timed_on_its_joints(routed, monkeypatch):
+    """The schedule asks ``program_back_offs`` with a track position appended for every robot (``np.r_[q,
+    track]``); for a robot without a track its limits have only the arm's axes, and the move was timed over
+    one axis more than the limits give (ruckig read a limit past their end: a failure, or a time from an
+    arbitrary limit). With the track axis at 0 the answer is the joints-only one, that axis unmoved."""
+    plan, _ = routed
+    cr = next(r for r in plan.cell.robots if r.track is None)
+    work = plan.robots[list(plan.cell.robots).index(cr)]
+    limits = cell_limits(cr, plan.job.timing)
+    assert len(limits.velocity) == 6
+    q = work.q[np.flatnonzero(work.reachable)[0]]
+    import sprayplan.cells.timing as cells_timing
+
+    def timed(start, target, lim):  # a move's axes and its limits agree (ruckig does not check it)
+        assert len(start) == len(target) == len(lim.velocity) == len(lim.acceleration)
+        return point_to_point(start, target, lim)
+
+    monkeypatch.setattr(cells_timing, "point_to_point", timed)
+    six = program_back_offs(cr, plan.job, limits)(q)
+    seven = program_back_offs(cr, plan.job, limits)(np.r_[q, 0.0])
+    assert six is not None and seven is not None
+    np.testing.assert_array_equal(seven[0], np.r_[six[0], 0.0])
+    assert seven[1] == six[1] and np.isfinite(six[1])

@@ -229,7 +229,9 @@ def program_back_offs(robot, job, limits, cache: dict | None = None):
             else:
                 distance, _, joints = found
                 moved = np.r_[joints, np.asarray(axes, float)[6:]]
-                cache[key] = moved, max(point_to_point(axes, moved, limits).duration_s, distance / speed)
+                n = len(limits.velocity)  # a robot without a track may be given one at 0 (the schedule's rows)
+                seconds = point_to_point(np.asarray(axes, float)[:n], moved[:n], limits).duration_s
+                cache[key] = moved, max(seconds, distance / speed)
         return cache[key]
 
     return back
