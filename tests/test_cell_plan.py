@@ -457,3 +457,37 @@ def test_a_bad_gun_axis_names_the_file(axis):
     with pytest.raises(InputError, match="gun_axis") as err:
         ruled_job_from_dict(data, source="s.toml")
     assert "s.toml" in str(err.value)
+
+
+def test_a_masked_end_is_left_unpainted_and_stays_an_obstacle(monkeypatch, tmp_path):
+    """``[load] mask`` (``plan --mask``) in a cell: the film, the areas and the strokes leave the masked end of
+    the box out (its area reported), and the arms are checked against the whole box, the masked end too."""
+    from sprayplan.cells import collide
+    from sprayplan.config import CollisionConfig, LoadConfig
+    from sprayplan.surface.region import parse_region
+
+    path = tmp_path / "c.toml"
+    path.write_text(CELL)
+    cell = load_cell(path)
+    box = grid_box(n=6, size=SIZE)
+    seen = []
+    plain = collide.cell_arms
+    monkeypatch.setattr(
+        collide, "cell_arms", lambda cell_, part, config: seen.append(part) or plain(cell_, part, config)
+    )
+    job = JobConfig(load=LoadConfig(mask=("x > 150",)), collision=CollisionConfig(check=True))
+    plan = plan_cell(box, cell, job)
+    # the masked end in the part frame: its top 150 x 300, two sides 150 x 200, the end 300 x 200 (the bottom
+    # faces the floor and is left out anyway)
+    assert plan.report["masked_left_out_mm2"] == pytest.approx(150 * 300 + 2 * 150 * 200 + 300 * 200, rel=1e-9)
+    to_part = np.linalg.inv(plan.part2cell)
+    centres = plan.part.triangles.mean(axis=1) @ to_part[:3, :3].T + to_part[:3, 3]
+    assert centres[:, 0].max() < 150.0  # no painted face in the mask
+    assert plan.part.area == pytest.approx(2 * (600 * 200 + 300 * 200) + 600 * 300 - 165000.0, rel=1e-9)
+    sprayed = np.concatenate([s.points for r in plan.robots for s in r.strokes if s.spray_on])
+    in_part = sprayed @ to_part[:3, :3].T + to_part[:3, 3]
+    # strokes run on past the mask's edge by the spray's radius, as past any edge (onto the masking), no further
+    assert in_part[:, 0].max() <= 150.0 + job.paths.spray_radius_mm + 1e-6
+    (obstacle,) = seen
+    assert obstacle.area == pytest.approx(plan.part.area + 165000.0, rel=1e-9)  # the masked end is an obstacle
+    assert parse_region("x > 150").contains(obstacle.triangles.mean(axis=1) @ to_part[:3, :3].T + to_part[:3, 3]).any()

@@ -234,3 +234,28 @@ def test_a_new_plan_takes_the_old_plans_programs_with_it(testdata, tmp_path, cap
     assert code == 0
     # the programs were of the old plan: they are gone, the user's file is kept
     assert sorted(p.name for p in out.iterdir()) == ["notes.txt", "plan.json", "waypoints.csv"]
+
+
+def test_a_mask_leaves_its_surface_unpainted_and_a_bad_one_is_exit_2(testdata, tmp_path, capsys):
+    from sprayplan.export.plan_read import read_plan_file
+
+    part = str(testdata / "meshes" / "tray_bottom_mm_ascii.stl")
+    out = tmp_path / "plan"
+    code, stdout, _ = run(capsys, "plan", part, "--up", "y", "--mask", "x > 180", "--mask", "y < 60", "-o", str(out))
+    assert code == 0 and "surface masked (--mask) left out" in stdout
+    data = json.loads((out / "plan.json").read_text())
+    assert data["totals"]["masked_left_out_mm2"] > 0.0
+    read = read_plan_file(out / "plan.json")
+    assert read.job.load.mask == ("x > 180", "y < 60")  # kept with the plan's settings, read back
+    plan = read.plan
+    spray = [s for s in plan.strokes if s.spray_on]
+    on = np.concatenate([s.points[s.on_part] for s in spray])
+    off = np.concatenate([s.points[~s.on_part] for s in spray])
+    # the strokes paint the tray but the masked parts: on the part only outside the masks (the lead-ins and
+    # -outs run on past the mask's edges as past any edge, over the masking)
+    assert len(on) > 100 and on[:, 0].max() <= 180.0 + 1e-6 and on[:, 1].min() >= 60.0 - 1e-6
+    assert len(off) and (off[:, 0].max() > 180.0 or off[:, 1].min() < 60.0)
+    for extra, words in ((["--mask", "q > 3"], "--mask"), (["--mask", "x > -5"], "nothing left to paint")):
+        bad = tmp_path / "bad"
+        code, _, err = run(capsys, "plan", part, "--up", "y", *extra, "-o", str(bad))
+        assert code == 2 and len(err.strip().splitlines()) == 1 and words in err and not bad.exists(), err

@@ -192,3 +192,123 @@ def test_the_painted_surface_leaves_out_what_faces_the_floor_and_what_is_covered
     with pytest.raises(RegionError, match="covered"):
         top, faces = _sheet(0, 10, 0, 10, 5.0)
         painted_surface(_stack(_sheet(0, 10, 0, 10, 0.0), (top, faces[:, ::-1])), CollisionConfig())  # face to face
+
+
+# --- masks ([load] mask, plan --mask): surface left unpainted, cut out exactly ---------------------------------
+
+
+def _boundary_edges(faces):
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    unique, count = np.unique(edges, axis=0, return_counts=True)
+    return unique[count == 1]
+
+
+def _rotation(axis, angle):
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+
+
+@pytest.mark.parametrize(
+    "masks, hole_area",
+    [
+        (["box(2.5, 3.3, -1, 6.1, 7.7, 1)"], 3.6 * 4.4),  # a window inside the square
+        (["x > 7.25"], 2.75 * 10.0),  # a strip at its edge
+        (["box(2.5, 3.3, -1, 6.1, 7.7, 1)", "3 < x < 5 and y < 5"], 3.6 * 4.4 + 2.0 * 5.0 - 2.0 * 1.7),  # overlapping
+    ],
+)
+def test_a_mask_cuts_out_exactly_its_area_and_the_rest_stays_one_welded_mesh(masks, hole_area):
+    from sprayplan.surface.region import mask_out, parse_masks
+
+    square = grid_square(n=10, size=10.0)
+    kept, left_out = mask_out(square, masks)
+    assert left_out == pytest.approx(hole_area, rel=1e-9)
+    assert kept.area == pytest.approx(100.0 - hole_area, rel=1e-9)
+    regions = parse_masks(masks)
+    centres = kept.triangles.mean(axis=1)
+    for region in regions:
+        assert not region.contains(centres, tol_mm=-1e-9).any()  # no face's centre strictly inside a mask
+    # welded: every edge that bounds the kept surface lies on the square's rim or on a mask's plane, none on
+    # a seam between the pieces the outside of a mask is cut into
+    rim_or_plane = np.isclose(kept.vertices[:, :2], 0.0, atol=1e-12) | np.isclose(kept.vertices[:, :2], 10.0)
+    on_plane = np.zeros(len(kept.vertices), bool)
+    for region in regions:
+        for axis, value in zip(region.axis, region.value):
+            on_plane |= np.isclose(kept.vertices[:, axis], value, atol=1e-9)
+    ends = _boundary_edges(kept.faces)
+    assert (rim_or_plane.any(axis=1) | on_plane)[ends].all()
+    assert len(np.unique(kept.faces, axis=0)) == len(kept.faces)
+
+
+def test_a_mask_in_the_part_frame_cuts_a_placed_part_where_it_cuts_the_part():
+    from sprayplan.surface.region import mask_out
+
+    square = grid_square(n=8, size=10.0)
+    rot = _rotation([0.3, -0.5, 1.0], 0.9)
+    part2frame = np.eye(4)
+    part2frame[:3, :3], part2frame[:3, 3] = rot, [120.0, -40.0, 7.0]
+    placed = Part(square.vertices @ rot.T + part2frame[:3, 3], square.faces, None, "placed")
+    masks = ["box(1.6, 2.7, -1, 4.4, 8.9, 1)"]  # no vertex on its planes: the turned frame rounds those
+    here, left_here = mask_out(square, masks)
+    there, left_there = mask_out(placed, masks, part2frame)
+    assert left_there == pytest.approx(left_here, rel=1e-9) and len(there.faces) == len(here.faces)
+    back = (there.vertices - part2frame[:3, 3]) @ rot  # the placed result taken back to the part frame
+    assert np.sort(back[there.faces].mean(axis=1), axis=0) == pytest.approx(
+        np.sort(here.vertices[here.faces].mean(axis=1), axis=0), abs=1e-9
+    )
+
+
+def test_a_mask_keeps_the_winding_of_the_faces_it_cuts():
+    from sprayplan.surface.normals import outward_face_normals
+    from sprayplan.surface.region import mask_out
+
+    part = car_roof()
+    lo, hi = part.bounds
+    mid = (lo + hi) / 2
+    box = f"box({mid[0] - 200}, {mid[1] - 100}, {lo[2] - 1}, {mid[0] + 200}, {mid[1] + 100}, {hi[2] + 1})"
+    kept, left_out = mask_out(part, [box])
+    assert left_out > 0 and kept.area == pytest.approx(part.area - left_out, rel=1e-9)
+    from scipy.spatial import cKDTree
+
+    faces, normals = outward_face_normals(part.vertices, part.faces)
+    part = Part(part.vertices, faces, None, part.name)
+    kept, _ = mask_out(part, [box])
+    tri = kept.triangles
+    cut_normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    _, near = cKDTree(part.triangles.mean(axis=1)).query(tri.mean(axis=1))
+    # every kept face is wound as the face it was cut from (a flipped one would point into the part)
+    assert (np.einsum("ij,ij->i", cut_normals, normals[near]) > 0).all()
+
+
+def test_masks_that_cover_everything_or_cannot_be_read_are_errors_naming_the_mask():
+    from sprayplan.surface.region import mask_out
+
+    square = grid_square()
+    with pytest.raises(RegionError, match="cover all of it"):
+        mask_out(square, ["box(-1, -1, -1, 11, 11, 1)"])
+    with pytest.raises(RegionError, match="cover all of it"):
+        mask_out(square, ["x < 6", "x > 4"])
+    with pytest.raises(RegionError, match="mask 'q > 3'"):
+        mask_out(square, ["z > 0", "q > 3"])
+
+
+def test_a_mask_drops_a_cloud_s_points_inside_it():
+    from sprayplan.surface.region import mask_out
+
+    rng = np.random.default_rng(3)
+    points = rng.uniform(0, 10, size=(500, 3))
+    cloud = Part(points, np.zeros((0, 3), int), np.tile([0.0, 0.0, 1.0], (500, 1)), "cloud")
+    kept, left_out = mask_out(cloud, ["x < 5 and y < 5"])
+    inside = (points[:, 0] <= 5) & (points[:, 1] <= 5)
+    assert left_out == 0.0 and np.array_equal(kept.vertices, points[~inside])
+    assert len(kept.vertex_normals) == len(kept.vertices)
+
+
+def test_a_job_s_masks_are_checked_when_the_job_is_made():
+    from sprayplan.config import LoadConfig
+    from sprayplan.errors import ConfigError
+
+    assert LoadConfig(mask=["z > 3", "box(0,0,0,1,1,1)"]).mask == ("z > 3", "box(0,0,0,1,1,1)")
+    for bad in ("z > 3", [3], ["x >> 2"], ["box(1,0,0,0,1,1)"]):
+        with pytest.raises(ConfigError, match="load.mask"):
+            LoadConfig(mask=bad)

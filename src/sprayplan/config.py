@@ -133,18 +133,34 @@ class LoadConfig(Section):
         The file's up axis, turned to +z.
     region : str or None
         A region expression (``sprayplan.surface.region``), in mm in the part frame; None: the whole part.
+    mask : list of str
+        Regions left unpainted (``plan --mask``; ``surface.region.mask_out``): each a region expression in mm
+        in the part frame; the part inside them stays an obstacle for the robots, and the film is judged on
+        the rest. Empty: nothing masked.
     """
 
     SECTION = "load"
     units: str = "mm"
     up: str = "z"
     region: str | None = None
+    mask: tuple = ()
 
     def _check(self):
         _choice(LoadConfig, "units", self.units, UNITS)
         _choice(LoadConfig, "up", self.up, UP_AXES)
         if self.region is not None and not self.region.strip():
             raise _fail(LoadConfig, "region", "a region expression or none", self.region)
+        masks = self.mask
+        if isinstance(masks, str) or not isinstance(masks, (list, tuple)) or not all(isinstance(m, str) for m in masks):
+            raise _fail(LoadConfig, "mask", "a list of region expressions", masks)
+        from sprayplan.errors import RegionError
+        from sprayplan.surface.region import parse_masks
+
+        try:
+            parse_masks(masks)
+        except RegionError as exc:
+            raise ConfigError(f"load.mask: {exc}") from None
+        object.__setattr__(self, "mask", tuple(masks))
 
 
 @dataclass(frozen=True)

@@ -150,7 +150,7 @@ def _region(state: JobState, progress: Progress) -> JobState:
     from sprayplan.surface.region import painted_surface, select_region
 
     part = select_region(state.part, state.job.load.region)
-    part, left_out = painted_surface(part, state.job.collision)
+    part, left_out = painted_surface(part, state.job.collision, state.job.load.mask)
     totals = {**state.totals, **{k: round(v, 3) for k, v in left_out.items()}}
     return dataclasses.replace(state, part=part, whole=state.part, totals=totals)
 

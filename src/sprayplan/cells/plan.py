@@ -546,14 +546,22 @@ def plan_cell(
     # oriented once, as a whole: each robot's share then keeps the body's outward side (a share voted on
     # alone can turn a piece of the nose inward)
     painted, left_out = painted_surface(oriented_part(placed.part), job.collision)
+    # the masks ([load] mask, in the part's own frame) leave surface unpainted that the arms still must not hit
+    obstacle = painted
+    if job.load.mask:
+        from sprayplan.surface.region import mask_out
+
+        painted, masked = mask_out(painted, job.load.mask, placed.part2cell)
+        left_out["masked_left_out_mm2"] = masked
     if len(cell.robots) > 1:
         painted, _ = area_surface(painted)
+        obstacle = area_surface(obstacle)[0] if job.load.mask else painted
     begin("areas")
     job, chosen = meet_thickness(job)
     if job.collision.check:
         from sprayplan.cells.collide import cell_arms
 
-        arms = cell_arms(cell, painted, job.collision)
+        arms = cell_arms(cell, obstacle, job.collision)
     if len(cell.robots) == 1:
         areas, assignment = whole_area(painted)
     else:
@@ -584,7 +592,7 @@ def plan_cell(
             arms,
             job.collision,
             repair,
-            painted,
+            obstacle,
             job.paths.standoff_mm,
             unrouted,
             since,
@@ -604,6 +612,7 @@ def plan_cell(
         "spray_radius_mm": job.paths.spray_radius_mm,
         "floor_facing_left_out_mm2": round(left_out.get("floor_facing_left_out_mm2", 0.0), 1),
         "covered_left_out_mm2": round(left_out.get("covered_left_out_mm2", 0.0), 1),
+        **({"masked_left_out_mm2": round(left_out["masked_left_out_mm2"], 1)} if job.load.mask else {}),
     }
     plan = CellPlan(cell, painted, placed.part2cell, areas, assignment, robots, None, report, timings, job=job)
     target = job.coating.thickness_um
@@ -720,7 +729,7 @@ def plan_cell(
 
         begin("run-ups")
         robots, report["run_ups"] = with_run_ups(
-            cell, plan.robots, job, arms if job.collision.check else None, painted if job.collision.check else None
+            cell, plan.robots, job, arms if job.collision.check else None, obstacle if job.collision.check else None
         )
         plan = dataclasses.replace(plan, robots=robots)
     if job.timing.enabled:
@@ -761,7 +770,7 @@ def plan_cell(
         begin("schedule")
         from sprayplan.cells.schedule import scheduled
 
-        robots = scheduled(cell, robots, arms, job, *schedule_aids(cell, arms, painted, job))
+        robots = scheduled(cell, robots, arms, job, *schedule_aids(cell, arms, obstacle, job))
         report["schedule"] = robots[1]
         robots = robots[0]
         if not report["collisions"]["robots_kept_apart"].startswith("in space"):

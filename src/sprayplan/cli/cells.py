@@ -296,6 +296,8 @@ def cmd_plan_cell(args, job, cell=None) -> int:
         for name, r in report["robots"].items()
     )
     line = f"{cell.name}: {report['areas']} areas; {robots}; cycle {report['cycle_time_s']:.0f} s"
+    if report.get("masked_left_out_mm2"):
+        line += f"; surface masked (--mask) left out: {report['masked_left_out_mm2'] / 1e6:.4g} m2"
     film = report.get("film")
     if film:
         whole = film["whole"]

@@ -448,6 +448,13 @@ def build_parser() -> argparse.ArgumentParser:
     group.add_argument("--units", choices=["mm", "cm", "m", "in"])
     group.add_argument("--up", choices=["z", "y", "x"])
     group.add_argument("--region")
+    group.add_argument(
+        "--mask",
+        action="append",
+        metavar="REGION",
+        help="leave this region unpainted (masked), in mm in the part frame as --region's expressions; repeat "
+        "for more; the part inside stays an obstacle and the film is judged on the rest",
+    )
     group = plan_cmd.add_argument_group("plan")
     group.add_argument(
         "--robot",

@@ -37,7 +37,10 @@ def _job_config(args):
     if "spacing_mm" in paths and "overlap" in paths:
         raise ConfigError("give either --spacing-mm or --overlap, not both")
     changes = {
-        "load": given("units", "up", "region"),
+        "load": {
+            **given("units", "up", "region"),
+            **({"mask": tuple(args.mask)} if getattr(args, "mask", None) else {}),
+        },
         "paths": paths,
         "ordering": given("tour"),
         "kinematics": {
@@ -130,6 +133,8 @@ def summary_line(result, outdir) -> str:
         line += f"; surface facing the floor left out: {totals['floor_facing_left_out_mm2'] / 1e6:.4g} m2"
     if totals.get("covered_left_out_mm2"):
         line += f"; surface covered by other faces left out: {totals['covered_left_out_mm2'] / 1e6:.4g} m2"
+    if totals.get("masked_left_out_mm2"):
+        line += f"; surface masked (--mask) left out: {totals['masked_left_out_mm2'] / 1e6:.4g} m2"
     if result.film is not None:
         from sprayplan.export.film import film_report
 
@@ -192,7 +197,9 @@ def cmd_simulate(args) -> int:
     inputs = [(part_file, "--part" if args.part else "part"), (outdir / "plan.json", "plan.json")]
     check_folder_outputs(outdir, own, "OUTDIR", inputs)
     part = select_region(load_part(part_file, units=job.load.units, up=job.load.up), job.load.region)
-    part, _ = painted_surface(part, job.collision)  # the surface the plan paints, as its region stage cut it
+    part, _ = painted_surface(
+        part, job.collision, job.load.mask
+    )  # the surface the plan paints, as its region stage cut it
     filmed = result
     if read.timing is not None and job.timing.film_at_timed_speeds:  # the film at the speeds the robot makes
         from sprayplan.timing.stage import real_plan

@@ -14,6 +14,7 @@ placed exactly on the boundary plane.
 
 from __future__ import annotations
 
+import logging
 import math
 import re
 from dataclasses import dataclass
@@ -23,6 +24,8 @@ import numpy as np
 from sprayplan.errors import RegionError
 from sprayplan.surface.pairs import unique_pairs
 from sprayplan.types import Part
+
+log = logging.getLogger(__name__)
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
@@ -168,6 +171,106 @@ def select_region(part: Part, region: Region | str | None) -> Part:
     return Part(vertices[used], remap[faces], None, part.name, oriented=part.oriented)
 
 
+def parse_masks(masks) -> tuple[Region, ...]:
+    """The masks of ``[load] mask`` (``plan --mask``) parsed: each a region expression (module docstring).
+
+    Raises
+    ------
+    RegionError
+        Naming the mask that could not be read.
+    """
+    if isinstance(masks, (str, Region)):
+        masks = (masks,)
+    out = []
+    for mask in masks:
+        if isinstance(mask, Region):
+            out.append(mask)
+            continue
+        try:
+            out.append(parse_region(mask))
+        except RegionError as exc:
+            raise RegionError(f"mask {mask!r}: {exc}") from None
+    return tuple(out)
+
+
+def mask_out(part: Part, masks, part2frame: np.ndarray | None = None) -> tuple[Part, float]:
+    """``part`` less what lies inside any of ``masks``: the surface left unpainted on purpose (a paint shop's
+    masking: glass, running gear, an intake's grille), still there as an obstacle for the robot.
+
+    Each mask is a convex region (:func:`parse_region`) in the part frame; ``part2frame`` is where the part
+    frame sits in the frame of ``part``'s vertices (a cell plan masks the placed body with the masks written
+    in the body's own frame), None for the same frame. The outside of a region of half-spaces ``h_1 .. h_k``
+    is cut exactly as the pieces ``h_1 .. h_(i-1), not h_i``; the pieces' cut points on a shared edge are the
+    same (:func:`_clip`), so the pieces are welded back into one mesh whose faces along each mask's
+    boundary meet the rest by shared edges (the slicer and the areas follow the surface across them).
+
+    Returns
+    -------
+    part : Part
+        A mesh keeps its orientation (no file normals: cut faces have none); a point cloud keeps the points
+        (and normals) outside every mask.
+    left_out_mm2 : float
+        The area the masks took, mm^2 (0 for a point cloud).
+
+    Raises
+    ------
+    RegionError
+        A mask that cannot be read, or masks that leave nothing to paint.
+    """
+    masks = parse_masks(masks)
+    if not masks:
+        return part, 0.0
+    if part2frame is None:
+        coords = part.vertices
+    else:
+        frame = np.asarray(part2frame, dtype=float)
+        coords = (part.vertices - frame[:3, 3]) @ frame[:3, :3]
+    if not part.is_mesh:
+        keep = ~np.any([m.contains(coords) for m in masks], axis=0)
+        if not keep.any():
+            raise RegionError(f"{part.name}: the masks {_mask_text(masks)} cover all of it: nothing left to paint")
+        normals = None if part.vertex_normals is None else part.vertex_normals[keep]
+        return Part(part.vertices[keep], part.faces, normals, part.name), 0.0
+    vertices, faces = part.vertices, part.faces
+    for mask in masks:
+        pieces = []
+        rest = (vertices, coords, faces)
+        for axis, sign, value in zip(mask.axis, mask.sign, mask.value):
+            pieces.append(_clip(*rest, int(axis), -float(sign), float(value)))
+            rest = _clip(*rest, int(axis), float(sign), float(value))
+        vertices, coords, faces = _welded(pieces)
+        if len(faces) == 0:
+            raise RegionError(f"{part.name}: the masks {_mask_text(masks)} cover all of it: nothing left to paint")
+    masked = Part(vertices, faces, None, part.name, oriented=part.oriented)
+    left_out = max(float(part.area - masked.area), 0.0)
+    if left_out == 0.0:
+        log.warning("%s: the masks %s leave out none of its surface", part.name, _mask_text(masks))
+    return masked, left_out
+
+
+def _mask_text(masks) -> str:
+    return ", ".join(repr(m.text) for m in masks)
+
+
+def _welded(pieces) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pieces ``(vertices, coords, faces)`` of one mesh joined: equal points made one vertex, faces that
+    collapse to a line or a point (a plane through a vertex leaves them) dropped, unused vertices dropped."""
+    offsets = np.cumsum([0] + [len(v) for v, _, _ in pieces])
+    vertices = np.vstack([v for v, _, _ in pieces])
+    coords = np.vstack([c for _, c, _ in pieces])
+    faces = np.vstack([f + o for (_, _, f), o in zip(pieces, offsets)]).astype(np.int64)
+    unique, first, inverse = np.unique(vertices, axis=0, return_index=True, return_inverse=True)
+    faces = inverse.reshape(-1)[faces]
+    tri = unique[faces]
+    area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    distinct = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])
+    faces = faces[distinct & (area > 0)]
+    used = np.zeros(len(unique), dtype=bool)
+    used[faces.reshape(-1)] = True
+    remap = np.cumsum(used) - 1
+    return unique[used], coords[first][used], remap[faces]
+
+
 def not_floor_facing(part: Part, below_deg: float) -> np.ndarray:
     """(m,) bool: the mesh's faces that :func:`drop_floor_facing` keeps (their normal, by the file's winding, at
     most ``below_deg`` below the horizontal)."""
@@ -248,7 +351,26 @@ def clip_halfspace(
     faces : (j, 3) int
         Faces inside (or clipped to) the half-space, wound as the originals.
     """
-    s = sign * (vertices[:, axis] - value)
+    vertices, _, faces = _clip(vertices, vertices, faces, axis, sign, value, canonical=False)
+    return vertices, faces
+
+
+def _clip(
+    vertices: np.ndarray,
+    coords: np.ndarray,
+    faces: np.ndarray,
+    axis: int,
+    sign: float,
+    value: float,
+    canonical: bool = True,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`clip_halfspace` with the half-space tested on ``coords`` (the same points in another frame, or
+    ``vertices`` itself): returns the vertices, the coordinates (both with the cut points appended) and the
+    faces. ``canonical``: a cut point is interpolated from the edge's lower-numbered end whichever side is kept,
+    so clipping the same mesh to the two sides of a plane gives bit-identical points on their shared edges
+    (:func:`mask_out` welds them); else from its inside end, as :func:`clip_halfspace` always has (its regions'
+    cut points, and so the plans of the parts cut, stay the same to the last bit)."""
+    s = sign * (coords[:, axis] - value)
     inside = s <= 0.0
     count = inside[faces].sum(axis=1)
     keep = faces[count == 3]
@@ -260,14 +382,22 @@ def clip_halfspace(
     # cut edges as (inside vertex, outside vertex); both faces of a shared edge name it the same way
     edges = np.concatenate([one[:, [0, 1]], one[:, [0, 2]], two[:, [1, 0]], two[:, [2, 0]]]).reshape(-1, 2)
     if len(edges) == 0:
-        return vertices, keep
+        return vertices, coords, keep
     unique, inverse = unique_pairs(edges, return_inverse=True)
     inverse = inverse.reshape(-1)
-    v_in, v_out = vertices[unique[:, 0]], vertices[unique[:, 1]]
-    s_in, s_out = s[unique[:, 0]], s[unique[:, 1]]
-    t = s_in / (s_in - s_out)
-    cut = v_in + t[:, None] * (v_out - v_in)
-    cut[:, axis] = value
+    lo, hi = (unique.min(axis=1), unique.max(axis=1)) if canonical else (unique[:, 0], unique[:, 1])
+    d = coords[:, axis] - value
+    t = (d[lo] / (d[lo] - d[hi]))[:, None]
+    ends = (t == 0.0, t == 1.0)
+
+    def cut_points(points: np.ndarray) -> np.ndarray:
+        cut = points[lo] + t * (points[hi] - points[lo])
+        cut = np.where(ends[0], points[lo], cut)
+        return np.where(ends[1], points[hi], cut)
+
+    cut_coords = cut_points(coords)
+    cut_coords[:, axis] = value
+    cut = cut_coords if coords is vertices else cut_points(vertices)
     new_id = len(vertices) + inverse
     n1, n2 = len(one), len(two)
     p01_one, p02_one = new_id[:n1], new_id[n1 : 2 * n1]
@@ -278,7 +408,9 @@ def clip_halfspace(
         np.stack([p01_two, two[:, 1], two[:, 2]], axis=1),
         np.stack([p01_two, two[:, 2], p02_two], axis=1),
     ]
-    return np.vstack([vertices, cut]), np.vstack(new_faces).astype(np.int64)
+    new_vertices = np.vstack([vertices, cut])
+    new_coords = new_vertices if coords is vertices else np.vstack([coords, cut_coords])
+    return new_vertices, new_coords, np.vstack(new_faces).astype(np.int64)
 
 
 def _roll_first(faces: np.ndarray, odd: np.ndarray) -> np.ndarray:
@@ -374,17 +506,28 @@ def _ray_hits(origin: np.ndarray, direction: np.ndarray, tri: np.ndarray, length
     return ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t >= 0) & (t <= length)
 
 
-def painted_surface(part: Part, collision) -> tuple[Part, dict]:
+def painted_surface(part: Part, collision, masks=(), part2frame: np.ndarray | None = None) -> tuple[Part, dict]:
     """The surface a plan paints of a part its region stage cut: without what faces the floor (``[collision]
     skip_floor_facing``, :func:`drop_floor_facing`) and what other faces cover (``skip_covered``,
-    :func:`covered_faces` within ``covered_mm``), both judged on the whole part; and the areas left out, mm^2
-    (``floor_facing_left_out_mm2``, ``covered_left_out_mm2``, each only when there is some).
+    :func:`covered_faces` within ``covered_mm``), both judged on the whole part, and without what ``masks``
+    (``[load] mask``) cover (:func:`mask_out`, ``part2frame`` as there); and the areas left out, mm^2
+    (``floor_facing_left_out_mm2``, ``covered_left_out_mm2``, ``masked_left_out_mm2``, each only when there
+    is some).
 
     Raises
     ------
     RegionError
-        When nothing is left.
+        When nothing is left, or a mask cannot be read.
     """
+    part, left = _unmasked_painted_surface(part, collision)
+    if masks:
+        part, masked = mask_out(part, masks, part2frame)
+        if masked > 0:
+            left["masked_left_out_mm2"] = masked
+    return part, left
+
+
+def _unmasked_painted_surface(part: Part, collision) -> tuple[Part, dict]:
     if not part.is_mesh:
         if collision.skip_floor_facing:
             part, _ = drop_floor_facing(part, collision.floor_facing_deg)
