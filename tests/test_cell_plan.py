@@ -490,4 +490,5 @@ def test_a_masked_end_is_left_unpainted_and_stays_an_obstacle(monkeypatch, tmp_p
     assert in_part[:, 0].max() <= 150.0 + job.paths.spray_radius_mm + 1e-6
     (obstacle,) = seen
     assert obstacle.area == pytest.approx(plan.part.area + 165000.0, rel=1e-9)  # the masked end is an obstacle
+    assert plan.collision_part is obstacle  # and the check after the film and the programs' check use it too
     assert parse_region("x > 150").contains(obstacle.triangles.mean(axis=1) @ to_part[:3, :3].T + to_part[:3, 3]).any()

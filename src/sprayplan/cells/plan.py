@@ -150,6 +150,9 @@ class CellPlan:
     timed_film : CoatingResult or None
         The film the robots leave at their timed speeds (``report["film"]["at_timed_speeds"]`` in brief), when
         the plan was timed with a film target; not read back from ``cell_plan.json``.
+    obstacle : Part or None
+        The surface the arms must not hit where it is more than ``part`` (``[load] mask``: the masked surface is
+        not painted but is there); None: ``part`` (:attr:`collision_part`). Not read back from ``cell_plan.json``.
     """
 
     cell: Cell
@@ -164,6 +167,12 @@ class CellPlan:
     name: str = ""
     job: object = field(default=None, compare=False)
     timed_film: object = field(default=None, compare=False)
+    obstacle: object = field(default=None, compare=False)
+
+    @property
+    def collision_part(self):
+        """The surface the arms are checked against: :attr:`obstacle`, else :attr:`part`."""
+        return self.part if self.obstacle is None else self.obstacle
 
 
 def _sub_part(part: Part, keep: np.ndarray, name: str) -> Part:
@@ -614,7 +623,8 @@ def plan_cell(
         "covered_left_out_mm2": round(left_out.get("covered_left_out_mm2", 0.0), 1),
         **({"masked_left_out_mm2": round(left_out["masked_left_out_mm2"], 1)} if job.load.mask else {}),
     }
-    plan = CellPlan(cell, painted, placed.part2cell, areas, assignment, robots, None, report, timings, job=job)
+    plan = CellPlan(cell, painted, placed.part2cell, areas, assignment, robots, None, report, timings, job=job,
+                    obstacle=obstacle if job.load.mask else None)  # fmt: skip
     target = job.coating.thickness_um
     everything, film_owners = reached_strokes(robots)
     if not everything:
