@@ -197,9 +197,8 @@ def cmd_simulate(args) -> int:
     inputs = [(part_file, "--part" if args.part else "part"), (outdir / "plan.json", "plan.json")]
     check_folder_outputs(outdir, own, "OUTDIR", inputs)
     part = select_region(load_part(part_file, units=job.load.units, up=job.load.up), job.load.region)
-    part, _ = painted_surface(
-        part, job.collision, job.load.mask
-    )  # the surface the plan paints, as its region stage cut it
+    # the surface the plan paints, as its region stage cut it
+    part, _ = painted_surface(part, job.collision, job.load.mask)
     filmed = result
     if read.timing is not None and job.timing.film_at_timed_speeds:  # the film at the speeds the robot makes
         from sprayplan.timing.stage import real_plan

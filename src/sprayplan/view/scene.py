@@ -292,9 +292,8 @@ def _part_from_file(part_file: str | None, job, notes: list) -> Surface | None:
         return None
     try:
         part = select_region(load_part(part_file, units=job.load.units, up=job.load.up), job.load.region)
-        part, _ = painted_surface(
-            part, job.collision, job.load.mask
-        )  # the surface the plan paints, as its region stage cut it
+        # the surface the plan paints, as its region stage cut it
+        part, _ = painted_surface(part, job.collision, job.load.mask)
     except InputError as exc:
         notes.append(f"the part file could not be read again ({exc}): the part is not drawn")
         return None
