@@ -567,6 +567,52 @@ def test_a_stroke_that_starts_where_the_one_before_ended_reads_back_as_its_own(w
     assert result.waypoints == whole.waypoints + 1 and len(result.left_out) == len(whole.left_out)
 
 
+@pytest.mark.parametrize("flip", [False, True])
+def test_a_stroke_starting_where_an_unapproachable_end_was_reads_back_as_its_own(written, tmp_path, monkeypatch, flip):
+    """The shared waypoint of a stroke cut in two (as in the test above) left out of the first stroke's run
+    because its retract is out of reach there (``build._back_off``: on the first stroke's branch only), while
+    the second stroke starts there: the approach ends at a pose that the first stroke's unmatched last waypoint
+    has too, and the check must take the second stroke's (the run goes on along it), not be shifted by one
+    waypoint onto the first's (the masked SUV's roof program in session 31: 10 mm off, 200 differences)."""
+    import dataclasses
+
+    from sprayplan.cells.plan import plan_cell
+    from sprayplan.io.load import load_part
+    from sprayplan.programs import build
+    from sprayplan.programs.arms import arm_plan, build_cell_programs
+
+    job = JobConfig()
+    plan = plan_cell(load_part(str(written["part"])), written["cell"], job)
+    work = plan.robots[1]
+    starts = np.r_[0, np.cumsum([len(s) for s in work.strokes])]
+    i = next(
+        k
+        for k, s in enumerate(work.strokes)
+        if s.spray_on and len(s) >= 8 and work.reachable[starts[k] : starts[k + 1]].all()
+    )
+    m = len(work.strokes[i]) // 2
+    split = _split_at(work, i, m, flip)
+    at = starts[i] + m  # the first stroke's last waypoint; the second stroke's first is three rows on
+    arm = ArmCell(written["cell"].robots[1], plan.job.paths.standoff_mm)
+    cut = dataclasses.replace(plan, robots=(plan.robots[0], split))
+    left_out = lambda b: {(w["stroke"], w["waypoint"]) for w in b.builts[0].program.report["unapproachable_waypoints"]}
+    before = left_out(build_cell_programs(cut, job, ("rapid",))[1])
+    plain = build._back_off
+    monkeypatch.setattr(
+        build, "_back_off", lambda cell, cfg, poses, q9, k: None if k == at else plain(cell, cfg, poses, q9, k)
+    )
+    built = build_cell_programs(cut, job, ("rapid",))[1]
+    assert left_out(built) - before == {(i, m)}  # the first stroke's last waypoint, and only it
+    folder = tmp_path / "rapid"
+    folder.mkdir()
+    for name, text in built.builts[0].files.items():
+        (folder / name).write_text(text)
+    result = check_program(read_programs(folder, job, "rapid", 0), arm_plan(split, arm), job, arm)
+    assert result.ok, result.failures[:3]
+    # the second stroke's first waypoint moved to, the first stroke's last the one left out
+    assert (0, int(at)) in result.left_out and (0, int(at) + 3) not in result.left_out
+
+
 def test_a_scheduled_robots_programs_start_and_end_where_the_schedule_has_it(written, tmp_path):
     """With the cell's schedule (``cells.schedule.scheduled``): each robot's program starts where the schedule
     has it at time 0 and ends at the park the schedule gives it (joints and track), both read back from

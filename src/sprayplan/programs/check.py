@@ -263,10 +263,11 @@ def _check_station(order, moves, fmt, plan, job, cell, result: CheckResult) -> N
     result.left_out += [(order, int(i)) for i in left]
 
 
-def _match(station: _Station, pose, start: int, stroke: int | None = None) -> int | None:
+def _match(station: _Station, pose, start: int, stroke: int | None = None, near: bool = False) -> int | None:
     """The first reachable spray waypoint at or after ``start`` (of ``stroke`` when given) whose pose (from the
     plan's joints) is ``pose``; a transfer's waypoints share their poses with the strokes' ends and are skipped.
-    The next waypoint, then the next 64 are looked at first (a run's next target is almost always among them)."""
+    The next waypoint, then the next 64 are looked at first (a run's next target is almost always among them);
+    with ``near`` only those."""
     if (
         start < len(station.poses)
         and station.spray[start]
@@ -278,7 +279,7 @@ def _match(station: _Station, pose, start: int, stroke: int | None = None) -> in
             and angle_between_deg(here[:3, :3], pose[:3, :3]) <= ANGLE_DEG
         ):
             return start
-    for stop in (start + 64, len(station.poses)):
+    for stop in (start + 64,) if near else (start + 64, len(station.poses)):
         mask = station.spray[start:stop]
         if stroke is not None:
             mask = mask & (station.data["stroke"][start:stop] == stroke)
@@ -298,22 +299,26 @@ def _match(station: _Station, pose, start: int, stroke: int | None = None) -> in
     return None
 
 
-def _first_waypoint(station, chain, a: int, pointer: int, joints, matched) -> int | None:
+def _first_waypoint(station, chain, a: int, pointer: int, joints) -> int | None:
     """The waypoint a run's approach (``chain[a]``) ends at (:func:`_match` from ``pointer``). A run split for a
     file's size starts again at the waypoint the one before ended at (``pointer``, matched already), but so can
     a stroke the plan starts at the gun pose where the stroke before ended (a cell robot's run solved on its own
-    with its free neighbour, ``cells.repair.resolved_piece``, on another branch or the same). Of the two
-    candidates, the one whose stroke the run's next target continues is taken; if both or neither, the one
-    whose joints are nearer the joint move's to the approach (the program's IK on the plan's branch there)."""
+    with its free neighbour, ``cells.repair.resolved_piece``, on another branch or the same), and the stroke
+    before may end one waypoint short of that pose in the program (its last waypoint left out: no retract from
+    it on its branch, ``build.unapproachable_waypoints``), so that the first match is that unmatched waypoint.
+    Of the first two waypoints with the approach's pose, the one whose stroke the run's next target continues
+    is taken; if both or neither, the one whose joints are nearer the joint move's to the approach (the
+    program's IK on the plan's branch there), the first on a tie."""
     first = _match(station, chain[a].pose, pointer)
-    if first != pointer or not matched[pointer]:
-        return first
-    later = _match(station, chain[a].pose, pointer + 1)
+    if first is None:
+        return None
+    later = _match(station, chain[a].pose, first + 1, near=True)  # such a stroke follows its transfer
     if later is None:
         return first
     candidates = [first, later]
     if a + 2 < len(chain):  # chain[a + 1] is a spray move (the chain's last is the retract)
-        fits = [_match(station, chain[a + 1].pose, c + 1, station.data["stroke"][c]) == c + 1 for c in candidates]
+        nexts = [_match(station, chain[a + 1].pose, c + 1, station.data["stroke"][c]) for c in candidates]
+        fits = [k is not None and _only_duplicates(station, c, k) for c, k in zip(candidates, nexts)]
         if fits[0] != fits[1]:
             return candidates[fits.index(True)]
     near = np.abs(station.q9[candidates, :6] - np.asarray(joints, float)[None, :6]).max(axis=1)
@@ -326,7 +331,7 @@ def _check_run(station, transfer, chain, fmt, cfg, cell, job, result, matched, p
     external = transfer.external_mm if transfer.external_mm is not None else station.st.platform_mm
     start_pose = cell.poses(transfer.joints, external)[0]
     a = next((j for j, m in enumerate(chain[:-1]) if _match(station, m.pose, pointer) is not None), None)
-    first = None if a is None else _first_waypoint(station, chain, a, pointer, transfer.joints, matched)
+    first = None if a is None else _first_waypoint(station, chain, a, pointer, transfer.joints)
     if first is None:
         result.fail(chain[0], "the approach does not end at a reachable spray waypoint of the station (in order)")
         return None
