@@ -526,16 +526,11 @@ def _split_at(work, i: int, m: int, flip: bool):
     )  # fmt: skip
 
 
-@pytest.mark.parametrize("flip", [False, True])
-def test_a_stroke_that_starts_where_the_one_before_ended_reads_back_as_its_own(written, tmp_path, flip):
-    """A cell robot's stroke may start at the gun pose where the stroke before ended (a run solved on its own
-    with its free neighbour, ``cells.repair.free_work``), on the same joints or another branch: the read-back
-    check takes each run for its own stroke, so the programs pass and every spray waypoint is moved to."""
-    import dataclasses
-
+def _a_whole_stroke(written):
+    """The small box planned again: ``(job, plan, the right robot's work, the rows where its strokes start,
+    the index of its first spray stroke of 8 waypoints or more, all reached)``."""
     from sprayplan.cells.plan import plan_cell
     from sprayplan.io.load import load_part
-    from sprayplan.programs.arms import arm_plan, build_cell_programs
 
     job = JobConfig()
     plan = plan_cell(load_part(str(written["part"])), written["cell"], job)
@@ -546,6 +541,19 @@ def test_a_stroke_that_starts_where_the_one_before_ended_reads_back_as_its_own(w
         for k, s in enumerate(work.strokes)
         if s.spray_on and len(s) >= 8 and work.reachable[starts[k] : starts[k + 1]].all()
     )
+    return job, plan, work, starts, i
+
+
+@pytest.mark.parametrize("flip", [False, True])
+def test_a_stroke_that_starts_where_the_one_before_ended_reads_back_as_its_own(written, tmp_path, flip):
+    """A cell robot's stroke may start at the gun pose where the stroke before ended (a run solved on its own
+    with its free neighbour, ``cells.repair.free_work``), on the same joints or another branch: the read-back
+    check takes each run for its own stroke, so the programs pass and every spray waypoint is moved to."""
+    import dataclasses
+
+    from sprayplan.programs.arms import arm_plan, build_cell_programs
+
+    job, plan, work, starts, i = _a_whole_stroke(written)
     m = len(work.strokes[i]) // 2
     split = _split_at(work, i, m, flip)
     arm = ArmCell(written["cell"].robots[1], plan.job.paths.standoff_mm)
@@ -576,20 +584,10 @@ def test_a_stroke_starting_where_an_unapproachable_end_was_reads_back_as_its_own
     waypoint onto the first's (the masked SUV's roof program in session 31: 10 mm off, 200 differences)."""
     import dataclasses
 
-    from sprayplan.cells.plan import plan_cell
-    from sprayplan.io.load import load_part
     from sprayplan.programs import build
     from sprayplan.programs.arms import arm_plan, build_cell_programs
 
-    job = JobConfig()
-    plan = plan_cell(load_part(str(written["part"])), written["cell"], job)
-    work = plan.robots[1]
-    starts = np.r_[0, np.cumsum([len(s) for s in work.strokes])]
-    i = next(
-        k
-        for k, s in enumerate(work.strokes)
-        if s.spray_on and len(s) >= 8 and work.reachable[starts[k] : starts[k + 1]].all()
-    )
+    job, plan, work, starts, i = _a_whole_stroke(written)
     m = len(work.strokes[i]) // 2
     split = _split_at(work, i, m, flip)
     at = starts[i] + m  # the first stroke's last waypoint; the second stroke's first is three rows on
@@ -611,6 +609,51 @@ def test_a_stroke_starting_where_an_unapproachable_end_was_reads_back_as_its_own
     assert result.ok, result.failures[:3]
     # the second stroke's first waypoint moved to, the first stroke's last the one left out
     assert (0, int(at)) in result.left_out and (0, int(at) + 3) not in result.left_out
+
+
+def test_a_stroke_cut_between_two_waypoints_whose_run_up_starts_at_the_last_one_reads_back(written, tmp_path):
+    """A stroke cut between waypoints m and m + 1 (``cells.repair.free_work``), the first piece running out to
+    waypoint m + 1's pose and the second's run-up starting at waypoint m's (``cells.runups`` along the stroke):
+    the second run's approach ends at the pose of the first's last waypoint, and the read-back must take it for
+    the run-up's start, not for that waypoint (the masked SUV's roof program in session 32: one waypoint off,
+    10 mm, 200 differences)."""
+    import dataclasses
+
+    from sprayplan.cells.seams import cut_stroke
+    from sprayplan.cells.work import transfer_stroke
+    from sprayplan.programs.arms import arm_plan, build_cell_programs
+
+    job, plan, work, starts, i = _a_whole_stroke(written)
+    a, b = starts[i], starts[i + 1]
+    m = (b - a) // 2
+    stroke = work.strokes[i]
+    first, second = cut_stroke(stroke, 0, m + 1), cut_stroke(stroke, m + 1, b - a)
+    rows = [np.arange(a, a + m + 1), np.array([a + m, a + m + 1]), np.arange(a + m + 1, b)]
+    pick = lambda x: np.concatenate([x[:a], *(x[r] for r in rows), x[b:]])
+    lead_q, lead_track = pick(work.lead_q).copy(), pick(work.lead_track_mm).copy()
+    last, start = a + m, a + m + 3  # the first piece's last waypoint, the second's first (after the transfer)
+    lead_q[last, 1], lead_q[start, 0] = work.q[a + m + 1], work.q[a + m]
+    lead_track[last, 1], lead_track[start, 0] = work.track_mm[a + m + 1], work.track_mm[a + m]
+    cut = dataclasses.replace(
+        work,
+        strokes=work.strokes[:i] + (first, transfer_stroke(first, second), second) + work.strokes[i + 1 :],
+        area=np.concatenate([work.area[:i], [work.area[i], -1, work.area[i]], work.area[i + 1 :]]),
+        q=pick(work.q), track_mm=pick(work.track_mm), roll_deg=pick(work.roll_deg), reachable=pick(work.reachable),
+        collides=None, t_s=None, wait_s=None, lead_q=lead_q, lead_track_mm=lead_track, lead_s=None,
+    )  # fmt: skip
+    arm = ArmCell(written["cell"].robots[1], plan.job.paths.standoff_mm)
+    poses = arm.poses(cut.q, [])
+    assert np.allclose(arm.poses(lead_q[[start], 0], [])[0], poses[last], atol=1e-9)
+    built = build_cell_programs(dataclasses.replace(plan, robots=(plan.robots[0], cut)), job, ("rapid",))[1]
+    program = built.builts[0]
+    assert program.program.report["run_ups"] >= 1 and program.program.report["run_outs"] >= 1
+    folder = tmp_path / "rapid"
+    folder.mkdir()
+    for name, text in program.files.items():
+        (folder / name).write_text(text)
+    result = check_program(read_programs(folder, job, "rapid", 0), arm_plan(cut, arm), job, arm)
+    assert result.ok, result.failures[:3]
+    assert (0, int(last)) not in result.left_out and (0, int(start)) not in result.left_out
 
 
 def test_a_scheduled_robots_programs_start_and_end_where_the_schedule_has_it(written, tmp_path):
