@@ -2,11 +2,12 @@
 are dropped), the other robots skipped: its repairs, cut, routes and drops on a car body, and then the
 transfers no route freed, decoded (how far the gun tip moves, how far a joint turns).
 
-    python bench/bench_robot_step.py --body suv --robot roof
+    python bench/bench_robot_step.py --body suv --robot roof [--mask REGION ...]
 
 Prints the step's counts and time (``cells.collide``'s entry: ``runs_dropped``, ``runs_dropped_mm``, ...), the
 drop rounds (``cells.collide``'s log line), and over the failed transfers the 10/50/90 % quantiles of the tip's move (mm) and of the
-largest joint turn (deg). The step stops the plan after that robot (nothing is written).
+largest joint turn (deg). The step stops the plan after that robot (nothing is written). ``--mask`` as the
+plan's.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--body", choices=sorted(CAR_BODIES), default="suv")
     ap.add_argument("--robot", default="roof")
+    ap.add_argument("--mask", action="append", default=[], help="a mask as the plan's --mask (repeatable)")
     args = ap.parse_args(argv)
 
     from sprayplan.cells import collide, each, load_cell
@@ -69,7 +71,8 @@ def main(argv=None) -> int:
         try:
             cli_main(
                 ["-q", "plan", str(testdata_dir() / path), "--units", "m", "--up", up, "--cell", "line3",
-                 "--thickness-um", "50", "--collisions", "-o", str(Path(tmp) / "out")]
+                 "--thickness-um", "50", "--collisions", *(f"--mask={m}" for m in args.mask),
+                 "-o", str(Path(tmp) / "out")]
             )  # fmt: skip
         except _Done:
             pass
