@@ -349,7 +349,7 @@ def check_cell(plan, config, repair=None, arms=None) -> tuple[tuple, dict]:
         A robot without link sizes (:func:`~sprayplan.collision.arms.arm_radii`), a gun radius too large.
     """
     if arms is None:
-        arms = cell_arms(plan.cell, getattr(plan, "collision_part", plan.part), config)
+        arms = cell_arms(plan.cell, plan.collision_part, config)
     from sprayplan.cells.each import each_robot
 
     robots, sweeps, per_robot = [], [], {}

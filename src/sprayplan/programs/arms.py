@@ -436,7 +436,7 @@ def check_program_motions(plan, job, built: list[RobotPrograms]) -> None:
     ``counts.program_motions``)."""
     from sprayplan.cells.collide import cell_arms
 
-    arms = cell_arms(plan.cell, getattr(plan, "collision_part", plan.part), job.collision)
+    arms = cell_arms(plan.cell, plan.collision_part, job.collision)
     for robot, arm in zip(built, arms):
         if not robot.builts:
             continue

@@ -325,15 +325,15 @@ def _first_waypoint(station, chain, a: int, pointer: int, joints) -> int | None:
     return later if near[1] < near[0] else first
 
 
-def _starts_at_run_up(station, chain, a: int, pointer: int, cell) -> int:
+def _starts_at_run_up(station, chain, a: int, here: int, pointer: int, cell) -> int:
     """1 where ``chain[a]`` is not the run's first waypoint but the start of its run-up into ``chain[a + 1]``
     that has the pose of a waypoint of another stroke before it (a stroke cut between two waypoints,
     ``cells.repair.free_work``: the piece after starts its run-up at the last waypoint of the piece before,
-    which ran out to its first, ``cells.runups``); else 0. (The masked SUV's roof program, session 32: taken for
-    that waypoint, the run was one waypoint off, 10 mm, 200 differences.)"""
-    here = _match(station, chain[a].pose, pointer)
+    which ran out to its first, ``cells.runups``); else 0. ``here``: the waypoint ``chain[a]``'s pose matched
+    (:func:`_match` from ``pointer``). (The masked SUV's roof program, session 32: taken for that waypoint, the
+    run was one waypoint off, 10 mm, 200 differences.)"""
     k = _match(station, chain[a + 1].pose, pointer + 1)
-    if here is None or k is None or station.data["stroke"][k] == station.data["stroke"][here]:
+    if k is None or station.data["stroke"][k] == station.data["stroke"][here]:
         return 0
     up = _lead_of(station, cell, k, 0)
     return int(up is not None and _same_pose(chain[a].pose, up[0]))
@@ -344,9 +344,10 @@ def _check_run(station, transfer, chain, fmt, cfg, cell, job, result, matched, p
     the approach (to the run's first waypoint), spray moves and via points, the retract."""
     external = transfer.external_mm if transfer.external_mm is not None else station.st.platform_mm
     start_pose = cell.poses(transfer.joints, external)[0]
-    a = next((j for j, m in enumerate(chain[:-1]) if _match(station, m.pose, pointer) is not None), None)
+    matches = ((j, _match(station, m.pose, pointer)) for j, m in enumerate(chain[:-1]))
+    a, here = next(((j, k) for j, k in matches if k is not None), (None, None))
     if a is not None and a + 2 < len(chain):
-        a += _starts_at_run_up(station, chain, a, pointer, cell)
+        a += _starts_at_run_up(station, chain, a, here, pointer, cell)
     first = None if a is None else _first_waypoint(station, chain, a, pointer, transfer.joints)
     if first is None:
         result.fail(chain[0], "the approach does not end at a reachable spray waypoint of the station (in order)")
