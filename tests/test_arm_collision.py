@@ -1316,3 +1316,95 @@ def test_a_run_solved_again_is_kept_and_its_transfers_routed_again():
             assert counts["runs_solved_again"] == 0 and dropped == plain_dropped
             assert [s for s in out.strokes if s.spray_on] == [s for s in plain.strokes if s.spray_on]
             np.testing.assert_array_equal(out.q, plain.q)
+
+
+def _spray_in_collision(arm, work) -> int:
+    """The spray waypoints of ``work`` the full check finds in collision."""
+    found = check_robot(arm, work.q, work.track_mm, work.reachable)
+    spray = np.concatenate([np.full(len(s), s.spray_on) for s in work.strokes])
+    return int((found.waypoint.collides & spray).sum())
+
+
+def test_the_first_solve_with_the_collision_model_takes_free_tries(tmp_path):
+    """``cells.plan.solved_work`` with the robot's collision model (``--collisions``): every waypoint still at the
+    pose its stroke asks (the forward kinematics' answer, with the roll kept), fewer spray waypoints in
+    collision than the same strokes solved without it (the full check's answer), and without it the plan's
+    own joints. ``_free_try`` on each stroke as first solved: None where its joints are free at the checked
+    waypoints; else a try reaching every waypoint that meets the body at fewer of them, at none for some."""
+    import sprayplan.cells.plan as cells_plan
+    from tests.test_cell_plan import SIZE
+
+    cell, plan, arms = _box_cell(tmp_path, SIZE)
+    robot, work, arm = cell.robots[0], plan.robots[0], arms[0]
+    plain = cells_plan.solved_work(robot, list(work.strokes), list(work.area))
+    np.testing.assert_array_equal(plain.q, work.q)
+    free = cells_plan.solved_work(robot, list(work.strokes), list(work.area), arm)
+    assert _spray_in_collision(arm, free) < _spray_in_collision(arm, plain)
+    ok = free.reachable
+    got = np.stack([robot.robot(t).fk(j[None])[0] for t, j in zip(free.track_mm[ok], free.q[ok])])
+    want = poses_at(np.concatenate([s.tcp for s in free.strokes]), np.concatenate([s.normals for s in free.strokes]))
+    want = want[ok] @ _rolls(free.roll_deg[ok])
+    np.testing.assert_allclose(got[:, :3, 3], want[:, :3, 3], atol=1e-6)
+    np.testing.assert_allclose(got[:, :3, :3], want[:, :3, :3], atol=1e-9)
+
+    kin = robot.robot(0.0)
+    starts = np.r_[0, np.cumsum([len(s) for s in work.strokes])]
+    outcomes = []
+    for i, s in enumerate(work.strokes):
+        a, b = starts[i], starts[i + 1]
+        if not s.spray_on or not work.reachable[a:b].all():
+            continue
+        rows = np.unique(np.linspace(0, len(s) - 1, min(cells_plan.FIRST_SOLVE_CHECKS, len(s))).astype(int))
+        before = int(arm.collides(work.q[a:b][rows], work.track_mm[a:b][rows]).sum())
+        got = cells_plan._free_try(robot, kin, arm, s, work.q[a], work.q[a:b], work.track_mm[a:b])
+        if before == 0:
+            assert got is None
+            continue
+        if got is None:
+            continue
+        q, track, roll = got
+        after = int(arm.collides(q[rows], track[rows]).sum())
+        assert after < before
+        reached = np.stack([robot.robot(t).fk(j[None])[0] for t, j in zip(track, q)])
+        aimed = poses_at(s.tcp, s.normals) @ _rolls(np.full(len(s), roll))
+        np.testing.assert_allclose(reached[:, :3, 3], aimed[:, :3, 3], atol=1e-6)
+        outcomes.append(after)
+    assert 0 in outcomes
+
+
+def test_the_first_solve_starts_on_the_branch_that_reaches_most_free(tmp_path):
+    """``cells.plan.home_joints``: joints that put the gun at the pose of one of the strokes' waypoints (the
+    forward kinematics' answer), on the IK branch whose solutions are free at the most of the sampled
+    waypoints (recounted here, branch by branch, with the full check), free themselves."""
+    import sprayplan.cells.plan as cells_plan
+    from sprayplan.cells.tries import rot_z, stroke_tries
+    from sprayplan.surface.poses import stroke_poses
+
+    cell, plan, arms = _box_cell(tmp_path)
+    robot, arm = cell.robots[0], arms[0]
+    strokes = list(plan.robots[0].strokes)
+    kin = robot.robot(0.0)
+    tries = [stroke_tries(robot, s) for s in strokes]
+
+    def moved(i, k):
+        track, roll = tries[i][k]
+        out = stroke_poses(strokes[i]) @ rot_z(roll)
+        out[:, :3, 3] -= track[:, None] * robot.track.axis
+        return out
+
+    home = cells_plan.home_joints(kin, strokes, tries, moved, arm)
+    rows = [i for i, s in enumerate(strokes) if s.spray_on]
+    poses = np.concatenate([moved(i, 0)[:: cells_plan.HOME_STEP] for i in rows])
+    tracks = np.concatenate([tries[i][0][0][:: cells_plan.HOME_STEP] for i in rows])
+    sols = kin.ik(poses)
+    free = np.zeros(sols.valid.shape, bool)
+    for b in range(free.shape[1]):
+        ok = sols.valid[:, b]
+        free[ok, b] = ~arm.check(sols.q[ok, b], tracks[ok]).collides
+    counts = free.sum(axis=0)
+    best = int(np.flatnonzero(counts == counts.max())[0])
+    first = int(np.flatnonzero(free[:, best])[0])
+    np.testing.assert_allclose(home, sols.q[first, best])
+    np.testing.assert_allclose(kin.fk(home[None])[0], poses[first], atol=1e-6)
+    assert not arm.check(home[None], tracks[first : first + 1]).collides[0]
+    assert counts.max() > counts.min()
