@@ -25,12 +25,7 @@ not):
    that follows the gun accelerates with every change of its speed, far slower than the arm); one base
    position does not reach both ends of a 4 m stroke along a car's side, which then follows the gun. Along
    the stroke the branch nearest the previous waypoint's joints is followed
-   (``robots.interface.follow_solutions``), from the joints of the IK branch that reaches most of the robot's
-   waypoints (:func:`home_joints`). With ``--collisions`` the arm's collision model is there already: a stroke
-   whose kept try meets the body at one of :data:`FIRST_SOLVE_CHECKS` waypoints spread along it takes instead
-   the first try and branch, in the repairs' order, that is free at all of them, or else the one that meets
-   it at the fewest (:func:`_free_try`), and the next stroke goes on from there. Unreached waypoints are data
-   (``reachable`` False);
+   (``robots.interface.follow_solutions``). Unreached waypoints are data (``reachable`` False);
 6. **film**: the strokes of all robots together over the whole body, cut to the runs of waypoints their
    robot reaches (:func:`reached_strokes`: an unreached waypoint leaves its surface bare), their speeds tuned
    to the target by
@@ -186,7 +181,7 @@ def _sub_part(part: Part, keep: np.ndarray, name: str) -> Part:
     return dataclasses.replace(keep_faces(part, keep), vertex_normals=None, name=name)
 
 
-def solve_strokes(cell_robot, strokes, collision=None) -> list[tuple[np.ndarray, float, np.ndarray, np.ndarray]]:
+def solve_strokes(cell_robot, strokes) -> list[tuple[np.ndarray, float, np.ndarray, np.ndarray]]:
     """For each stroke a (track positions, roll) try and the joints along it (module docstring, step 5):
     ``(track_mm (n,), roll_deg, q (n, 6), reachable (n,))`` a stroke.
 
@@ -198,15 +193,7 @@ def solve_strokes(cell_robot, strokes, collision=None) -> list[tuple[np.ndarray,
     nor from where the stroke before ends (the transfer between them; over the SUV in ``line3`` the roof robot
     took the same point from two track positions 600 mm apart and turned over at the roof, a transfer no route
     freed); failing the last, the first whole try with no jump along it; failing that, the first whole try;
-    else the first that reaches the most. The first stroke starts from :func:`home_joints`.
-
-    ``collision`` (the robot's ``collision.arms.ArmCollision``, with ``--collisions``): a spray stroke whose
-    try so kept meets the body at one of :data:`FIRST_SOLVE_CHECKS` waypoints takes :func:`_free_try`'s
-    instead, and the strokes after it go on from its end. Solved without it, the roof robot of ``line3`` over
-    the masked SUV put 9,220 of its 35,976 spray waypoints in collision (the elbow, hung low over the roof's
-    outer lanes, on the branch nearest the one before) and the side robots 7,404 and 7,449 of 27,338 and
-    27,026 (the elbow folded over the upper side); with it 460, 4,135 and 3,899, and the repairs, cuts and
-    routes after it start from strokes that go on from free ones (docs/benchmarks.md, "Session 33")."""
+    else the first that reaches the most."""
     from sprayplan.robots.interface import follow_solutions
 
     arm = cell_robot.robot(0.0)
@@ -231,7 +218,7 @@ def solve_strokes(cell_robot, strokes, collision=None) -> list[tuple[np.ndarray,
         for j, i in enumerate(mine):
             counts[i][k] = int(reached[ends[j] : ends[j + 1]].sum())
     out = []
-    seed = home_joints(arm, strokes, tries, moved, collision)
+    seed = start_joints(arm.dof)
     first = True  # no spray stroke before: the first keeps any start
     for i, s in enumerate(strokes):
         n = len(s)
@@ -254,90 +241,15 @@ def solve_strokes(cell_robot, strokes, collision=None) -> list[tuple[np.ndarray,
             q, branch = follow_solutions(arm, arm.ik(moved(i, k)), seed)
             chosen = (3, k, q, branch >= 0)
         _, k, q, reach = chosen
-        track, roll = tries[i][k]
-        if collision is not None and s.spray_on and reach.all():
-            freed = _free_try(cell_robot, arm, collision, s, seed, q, track)
-            if freed is not None:
-                q, track, roll = freed
         if reach.any() and s.spray_on:
             seed = q[np.flatnonzero(reach)[-1]]
             first = False
-        out.append((track, roll, q, reach))
+        out.append((*tries[i][k], q, reach))
     return out
 
 
-#: The waypoints of a stroke checked for collisions in the first solve (:func:`_free_try`), spread along it.
-FIRST_SOLVE_CHECKS = 24
-
-
-def _free_try(cell_robot, arm, collision, stroke, seed, q, track):
-    """A stroke's first-solve try (joints ``q``, ``track``) where it meets the body at one of
-    :data:`FIRST_SOLVE_CHECKS` waypoints spread along it (``collision``: the robot's ``ArmCollision``): the
-    first try and IK branch in the repairs' order (``cells.repair._candidates`` from ``seed``: no joint jump
-    first) that reaches every waypoint free at those checks (``cells.repair._screened``), as ``(q, track,
-    roll_deg)``; None where the try is free there or no other is."""
-    from sprayplan.cells.repair import _candidates, _screened
-
-    n = len(stroke)
-    rows = np.unique(np.linspace(0, n - 1, min(FIRST_SOLVE_CHECKS, n)).astype(int))
-    hit = collision.collides(q[rows], track[rows])
-    if not hit.any():
-        return None
-    colliding = np.zeros(n, bool)
-    colliding[rows[hit]] = True
-    ordered = _candidates(cell_robot, arm, stroke, seed, np.ones(n, bool))
-    for qb, _, t, r in _screened(collision, ordered, colliding):
-        return qb, t, float(r)
-    # none free at every check: the one that meets the body at the fewest (no joint jump along it)
-    smooth = [c for c in ordered if len(c[0]) < 2 or np.abs(np.diff(c[0], axis=0)).max() <= JOINT_JUMP_RAD]
-    if not smooth:
-        return None
-    joints = np.concatenate([qb[rows] for qb, _, _, _ in smooth])
-    hits = collision.collides(joints, np.concatenate([t[rows] for _, _, t, _ in smooth]))
-    hits = hits.reshape(len(smooth), len(rows)).sum(axis=1)
-    best = int(np.argmin(hits))  # the first of the fewest, in the repairs' order
-    if hits[best] >= hit.sum():
-        return None
-    qb, _, t, r = smooth[best]
-    return qb, t, float(r)
-
-
-#: Every this many waypoints of each spray stroke's first try are solved to choose a robot's home branch
-#: (:func:`home_joints`).
-HOME_STEP = 4
-
-
-def home_joints(arm, strokes, tries, moved, collision=None) -> np.ndarray:
-    """The joints a robot's first solve (:func:`solve_strokes`) starts from: those of the IK branch that reaches
-    the most of its spray waypoints (every :data:`HOME_STEP`-th of each stroke's first try, ``moved(i, 0)``;
-    with ``collision``, the robot's ``ArmCollision``, reaches free of the body), at the first of them it
-    reaches; :func:`~sprayplan.cells.tries.start_joints` where none does. A programmer sets a robot's
-    configuration once for a program; the solve then follows the nearest branch from here."""
-    rows = [i for i, s in enumerate(strokes) if s.spray_on and len(s) and tries[i]]
-    if not rows:
-        return start_joints(arm.dof)
-    sols = arm.ik(np.concatenate([moved(i, 0)[::HOME_STEP] for i in rows]))
-    score = sols.valid.copy()
-    if collision is not None:
-        track = np.concatenate([tries[i][0][0][::HOME_STEP] for i in rows])
-        for b in range(score.shape[1]):
-            ok = np.flatnonzero(score[:, b])
-            if len(ok):
-                score[ok, b] = ~collision.collides(sols.q[ok, b], track[ok])
-    best = int(np.argmax(score.sum(axis=0)))
-    hits = np.flatnonzero(score[:, best])
-    return sols.q[hits[0], best].copy() if len(hits) else start_joints(arm.dof)
-
-
 def _robot_work(
-    cell_robot,
-    index: int,
-    part: Part,
-    areas: Areas,
-    assignment: AreaAssignment,
-    job: JobConfig,
-    guard=None,
-    collision=None,
+    cell_robot, index: int, part: Part, areas: Areas, assignment: AreaAssignment, job: JobConfig, guard=None
 ):
     from sprayplan.paths.planner import plan_paths
 
@@ -362,14 +274,14 @@ def _robot_work(
                 area_of.append(-1)
             strokes.append(s)
             area_of.append(a)
-    return solved_work(cell_robot, strokes, area_of, collision)
+    return solved_work(cell_robot, strokes, area_of)
 
 
-def solved_work(cell_robot, strokes, area_of, collision=None) -> RobotWork:
+def solved_work(cell_robot, strokes, area_of) -> RobotWork:
     """A robot's strokes (with the area of each, -1 for transfers) solved by its inverse kinematics
     (:func:`solve_strokes`), the transfers joined to their neighbours (:func:`joined_transfers`)."""
     track, roll, qs, ok = [], [], [], []
-    for t, r, q, reach in solve_strokes(cell_robot, strokes, collision):
+    for t, r, q, reach in solve_strokes(cell_robot, strokes):
         track.append(t)
         roll.append(np.full(len(q), r))
         qs.append(q)
@@ -675,10 +587,7 @@ def plan_cell(
         guard = SeamGuard(
             painted, areas.face_area * labels + assignment.face_robot + 1, areas.face_normals, SEAM_STEP_MM
         )
-    robots = tuple(
-        _robot_work(r, i, painted, areas, assignment, job, guard, None if arms is None else arms[i])
-        for i, r in enumerate(cell.robots)
-    )
+    robots = tuple(_robot_work(r, i, painted, areas, assignment, job, guard) for i, r in enumerate(cell.robots))
     freed: dict = {}  # per robot: the repairs', the cut's and the routes' counts (--collisions)
     unrouted: dict = {}  # per robot: the transfers no route freed (cells.routes.routed_work)
 
