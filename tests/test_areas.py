@@ -243,13 +243,13 @@ def test_a_lift_sets_its_robot_above_each_part_within_its_range(testdata, bmw):
     del data["robot"][0]["lift"]
     fixed = cell_from_dict(data, source="fixed.toml")
     assert np.array_equal(place_part(suv, fixed).cell.robots[0].base2cell, fixed.robots[0].base2cell)
-    # line3's own lift: 3.7 m over the BMW (its top + 1.6 m is below the range), 1.6 m over the SUV's top
+    # line3's own lift: 3.7 m over the BMW (its top + 1.8 m is below the range), 1.8 m over the SUV's top
     line3 = load_cell("line3")
     assert line3.robots[0].base2cell[2, 3] == 3700.0
     assert place_part(bmw, line3).cell.robots[0].base2cell[2, 3] == 3700.0
     placed = place_part(suv, line3)
-    assert placed.cell.robots[0].base2cell[2, 3] == pytest.approx(placed.part.vertices[:, 2].max() + 1600.0)
-    assert placed.cell.robots[0].base2cell[2, 3] > 3900.0
+    assert placed.cell.robots[0].base2cell[2, 3] == pytest.approx(placed.part.vertices[:, 2].max() + 1800.0)
+    assert placed.cell.robots[0].base2cell[2, 3] > 4100.0
 
 
 def test_a_robot_inside_the_part_or_a_part_out_of_reach_is_refused(bmw):
@@ -295,7 +295,7 @@ def test_line3_splits_the_bmw_like_the_seed(bmw):
 @pytest.mark.parametrize("cell_name", ["line3", "line3-tall"])
 def test_line3_and_line3_tall_split_the_suv_like_the_seed(testdata, cell_name):
     """The SUV (about 1.84 m tall): its roof to the roof robot and each side to its own, as in seed 003, in
-    line3 (its roof robot lifted to 1.6 m over the SUV's top, 3.94 m) and in line3-tall (the body on the
+    line3 (its roof robot lifted to 1.8 m over the SUV's top, 4.14 m) and in line3-tall (the body on the
     floor)."""
     suv = load_part(testdata / "meshes" / "gazebo_suv_body_m.ply", units="m")
     assert 1700.0 < np.ptp(suv.vertices[:, 2]) < 2000.0  # z up in its file
