@@ -6,10 +6,10 @@ layout or a solve leaves the collision step to do), the collision step itself sk
 Plans the body as ``sprayplan plan BODY --cell CELL --collisions`` does up to its collision step, then prints per
 robot, from ``collision.arms.check_robot`` on the first solve: the spray waypoints, those reached, those in
 collision, the motions in collision, the transfers, those in collision and those turning a joint by more than
-90 deg (the arm turned over: the transfers no route frees, docs/benchmarks.md "Session 26"), and the share of
-reached spray waypoints with the third axis below -90 deg (the elbow folded back). About 1.5 min for the SUV in
-``line3``, against the collision step's 45-75 min: a cheap first look at a layout. ``--cell`` is a preset name
-or a cell file, ``--mask`` as the plan's.
+``cells.tries.JOINT_JUMP_RAD`` (90 deg: the arm turned over, the transfers no route frees, docs/benchmarks.md
+"Session 26"), and the share of reached spray waypoints with the third axis below -90 deg (the elbow folded
+back). About 1.5 min for the SUV in ``line3``, against the collision step's 45-75 min: a cheap first look at a
+layout. ``--cell`` is a preset name or a cell file, ``--mask`` as the plan's.
 """
 
 from __future__ import annotations
@@ -37,13 +37,14 @@ class _Done(BaseException):
 
 def first_solve_figures(work, arm) -> dict:
     """The figures of one robot's first solve (module docstring)."""
+    from sprayplan.cells.tries import JOINT_JUMP_RAD
     from sprayplan.collision.arms import check_robot
 
     found = check_robot(arm, work.q, work.track_mm, work.reachable)
     spray = np.concatenate([np.full(len(s), s.spray_on) for s in work.strokes]).astype(bool)
     starts = np.concatenate([[0], np.cumsum([len(s) for s in work.strokes])]).astype(int)
     transfers = [int(starts[i]) for i, s in enumerate(work.strokes) if not s.spray_on and len(s) == 2]
-    turned = [a for a in transfers if np.abs(work.q[a + 1] - work.q[a]).max() > math.radians(90.0)]
+    turned = [a for a in transfers if np.abs(work.q[a + 1] - work.q[a]).max() > JOINT_JUMP_RAD]
     reached = spray & work.reachable
     return {
         "spray_waypoints": int(spray.sum()),
