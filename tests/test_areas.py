@@ -46,6 +46,66 @@ def test_islands_merge_into_the_neighbour_they_share_most_edge_with():
         assert merged.direction[into[0]] in ("top", "bottom")
 
 
+def test_an_island_never_joins_a_patch_facing_away_from_it():
+    """_merge_islands: patch 1 (an island facing -x) shares 300 mm with patch 0 (facing +x, its back) and 50
+    mm with patch 2 (facing up): it joins 2. Bordering only its back it stays an area; a sliver under
+    OPPOSED_KEPT of the island size joins its back all the same."""
+    from sprayplan.surface.areas import OPPOSED_KEPT, _merge_islands
+
+    comp = np.array([0, 0, 1, 2, 2])  # faces 0-1 patch 0, face 2 patch 1, faces 3-4 patch 2
+    centres = np.zeros((5, 3))
+    normals = np.array([[1.0, 0, 0], [1.0, 0, 0], [-1.0, 0, 0], [0, 0, 1.0], [0, 0, 1.0]])
+
+    def merged(face_area, pairs, length, limit):
+        facing = np.zeros((3, 3))
+        np.add.at(facing, comp, normals * np.asarray(face_area)[:, None])
+        return _merge_islands(comp, np.asarray(face_area, float), np.array(pairs), np.array(length, float),
+                              centres, limit, facing)  # fmt: skip
+
+    got = merged([50, 50, 10, 50, 50], [[1, 2], [2, 3]], [300, 50], limit=20)
+    assert got[2] == got[3] != got[0]
+    # without the facing, the longest border wins: the old rule
+    plain = _merge_islands(comp, np.array([50, 50, 10, 50, 50.0]), np.array([[1, 2], [2, 3]]),
+                           np.array([300, 50.0]), centres, 20.0)  # fmt: skip
+    assert plain[2] == plain[0]
+    alone = merged([50, 50, 10, 50, 50], [[1, 2], [3, 4]], [300, 50], limit=20)
+    assert len(np.unique(alone)) == 3 and alone[2] not in (alone[0], alone[3])
+    sliver = merged([50, 50, 0.5 * OPPOSED_KEPT * 20, 50, 50], [[1, 2], [3, 4]], [300, 50], limit=20)
+    assert sliver[2] == sliver[0]
+
+
+@pytest.mark.parametrize("mask", [(), ("box(-930, -1700, 0, 870, 1970, 660)",)])
+def test_no_area_of_the_suv_holds_both_sides_of_its_bumpers(testdata, mask):
+    """The SUV's bumpers are thin: each one's face and back meet along its lower edge, and the face (under 3 %
+    of the surface) had joined its back, so that one area faced both ways (31 % of it facing more than 120 deg
+    from its mean normal). Every area now faces one way: under 5 % of each faces away from its mean normal."""
+    from sprayplan.cells.plan import area_surface
+    from sprayplan.config import CollisionConfig
+    from sprayplan.surface.normals import oriented_part
+    from sprayplan.surface.region import mask_out, painted_surface
+
+    suv = load_part(testdata / "meshes" / "gazebo_suv_body_m.ply", units="m")
+    placed = place_part(suv, load_cell("line3"))
+    painted, _ = painted_surface(oriented_part(placed.part), CollisionConfig(check=True))
+    if mask:
+        painted, _ = mask_out(painted, mask, placed.part2cell)
+    part, _ = area_surface(painted)
+    areas = segment_areas(part)
+    away = np.einsum("ij,ij->i", areas.face_normals, areas.normal[areas.face_area]) < -0.5
+    share = np.bincount(areas.face_area, part.face_areas * away, len(areas)) / areas.area_mm2
+    assert share.max() < 0.05
+    # the faces of the body's ends (the bumpers' faces) lie in areas facing out of the body at that end (all
+    # but slivers: 6 faces of 354 at the -x end)
+    x = part.triangles.mean(axis=1)[:, 0]
+    nx = areas.face_normals[:, 0]
+    for end, sign in ((x.min(), -1.0), (x.max(), 1.0)):
+        face = (np.abs(x - end) < 150.0) & (sign * nx > 0.7)
+        assert part.face_areas[face].sum() > 0.2e6
+        out = sign * areas.normal[areas.face_area[face], 0] > 0.3
+        assert part.face_areas[face][out].sum() > 0.95 * part.face_areas[face].sum()
+    assert areas.area_mm2.sum() == pytest.approx(part.area)
+
+
 def test_face_adjacency_pairs_each_shared_edge_once():
     box = grid_box(n=3)
     pairs, length = face_adjacency(box.faces, box.vertices)
