@@ -12,12 +12,12 @@ steps, both over the mesh itself:
    the mesh's edges). A patch under ``min_share`` of the surface is an island (a door handle, a panel gap,
    a wheel arch lip): it is merged into the neighbouring patch it shares the longest edge length with, the
    smallest island first, until none is left, but never into a patch whose mean normal is more than
-   :data:`OPPOSED_DEG` from its own (a bumper's face into its back, which it meets along the bumper's lower edge: no robot paints both from one side, and an
-   area holding both had its strokes wrap from the face onto the back, where the arm meets the body); an
-   island whose neighbours all face away stays an area (a sliver under :data:`OPPOSED_KEPT` of the island
-   share joins one anyway); an island that shares no edge with anything (a
-   separate shell of a mesh that is not welded) joins the patch nearest to it in space. The patches that remain are the
-   areas: the roof, hood and boot lid face up (``top``), the two sides face +-y, the two ends face +-x.
+   :data:`OPPOSED_DEG` from its own (a bumper's face into its back, which it meets along the bumper's lower
+   edge: no robot paints both from one side, and an area holding both had its strokes wrap from the face
+   onto the back, where the arm meets the body); an island whose neighbours all face away stays an area (a
+   sliver under :data:`OPPOSED_KEPT` of the island share joins one anyway); an island that shares no edge
+   with anything (a separate shell of a mesh that is not welded) joins the patch nearest to it in space. The
+   patches that remain are the areas: the roof, hood and boot lid face up (``top``), the two sides face +-y, the two ends face +-x.
 2. :func:`assign_areas`: given which robot reaches which face (:func:`reach_matrix` from the robots'
    inverse kinematics, a score in [0, 1] a face), each area goes to the robot that reaches the largest
    share of its surface with the gun along the normal (a face reached only with a tilted gun scores at most
