@@ -360,6 +360,21 @@ def test_a_cell_plan_with_collisions_flags_each_waypoint_as_its_own_check_does(t
     assert report["waypoints_in_collision"] == total
     gap = report["robot_gap_mm"]["left-right"]
     assert (gap > 0) == (report["robots_kept_apart"].startswith("in space"))
+    # what the collision step took from each area: what is kept is the plan's spray path over that area
+    kept = report["areas"]
+    assert list(kept) == [a["name"] for a in plan["areas"]]
+    for k, entry in enumerate(kept.values()):
+        path = 0.0
+        for work in plan["robots"]:
+            for st in work["strokes"]:
+                if st["kind"] == "spray" and st["area"] == k:
+                    steps = np.linalg.norm(np.diff(st["points_mm"], axis=0), axis=1)
+                    good = st["reachable"]
+                    path += float(steps[good[:-1] & good[1:]].sum())
+        assert entry["kept_mm"] == pytest.approx(path, abs=0.1)
+        assert 0.0 < entry["kept_mm"] <= entry["spray_path_mm"] and entry["kept_share"] == pytest.approx(
+            entry["kept_mm"] / entry["spray_path_mm"], abs=1e-4
+        )
 
 
 def test_collisions_asked_for_an_arm_without_link_sizes_is_one_line_and_no_output(tmp_path, capsys):

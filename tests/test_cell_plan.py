@@ -277,6 +277,28 @@ def test_the_film_is_made_only_by_reached_runs_and_their_tuning_goes_back():
     assert np.array_equal(back.strokes[1].dwell, [1, 1])
 
 
+def test_spray_path_by_area_counts_reached_runs_of_spray_strokes_only():
+    """The collision report's path per area: spray strokes only (not transfers, not touch-ups of no area),
+    whole or over runs of two or more reached waypoints, each summed into its own area."""
+    from sprayplan.cells.plan import RobotWork, spray_path_by_area
+    from sprayplan.types import Stroke
+
+    n = 9
+    pts = np.column_stack([np.arange(n) * 10.0, np.zeros(n), np.zeros(n)])
+    normals = np.tile([0.0, 0.0, 1.0], (n, 1))
+    spray = Stroke(pts, normals, pts + [0, 0, 100])
+    other = Stroke(pts[:4] * 2.0, normals[:4], pts[:4] * 2.0 + [0, 0, 100])  # 3 steps of 20 mm, area 2
+    transfer = Stroke(pts[:2], normals[:2], pts[:2] + [0, 0, 100], spray_on=False)
+    touch = Stroke(pts[:3], normals[:3], pts[:3] + [0, 0, 100], kind="touch-up")
+    reach = np.r_[[1, 1, 0, 1, 1, 1, 0, 0, 1], [1, 1, 1, 1], [1, 1], [1, 1, 1]].astype(bool)
+    m = len(reach)
+    work = RobotWork("r", "m", (spray, transfer, other, touch), np.array([0, -1, 2, -1]), np.zeros(m), np.zeros(m),
+                     np.zeros((m, 6)), reach)  # fmt: skip
+    # reached: waypoints 0-1 (10 mm) and 3-5 (20 mm) of area 0; the lone 8 sprays nothing
+    np.testing.assert_allclose(spray_path_by_area((work,), 3), [30.0, 0.0, 60.0])
+    np.testing.assert_allclose(spray_path_by_area((work, work), 3, reached_only=False), [160.0, 0.0, 120.0])
+
+
 def test_spray_stops_where_the_surface_goes_on_as_another_piece_and_not_at_an_edge():
     """feathered / SeamGuard: a lead-out over the neighbouring piece (the surface goes on) is cut; one past the
     part's edge, or over a face turned 90 degrees (a corner), is kept."""

@@ -340,6 +340,24 @@ def reached_strokes(robots) -> tuple[list, list]:
     return out, owners
 
 
+def spray_path_by_area(robots, n_areas: int, reached_only: bool = True) -> np.ndarray:
+    """(n_areas,) mm: the spray path of the robots' spray strokes over each area, along the surface points
+    they aim at (a gun tilted by a repair aims at the same ones; touch-ups, of no area, left out): over their
+    runs of reached waypoints (:func:`reached_strokes`), or with ``reached_only`` False the whole of every
+    stroke. The whole path planned before the collision step and the reached path after it say what the step
+    took from each area (``report["collisions"]["areas"]``)."""
+    out = np.zeros(n_areas)
+    if reached_only:
+        strokes, owners = reached_strokes(robots)
+        pairs = [(s, robots[r_i].area[s_i]) for s, (r_i, s_i, _a, _b) in zip(strokes, owners)]
+    else:
+        pairs = [(s, r.area[i]) for r in robots for i, s in enumerate(r.strokes)]
+    for stroke, k in pairs:
+        if 0 <= k < n_areas and stroke.kind == "spray" and len(stroke) > 1:
+            out[int(k)] += float(np.linalg.norm(np.diff(stroke.points, axis=0), axis=1).sum())
+    return out
+
+
 def extended_deposit(part, strokes, owners, old_owners, samples, old_mm, process, coating):
     """The deposit matrix of the reached strokes ``strokes`` (``owners`` as :func:`reached_strokes` gives them)
     from the last tuning's (``old_owners``, its samples and matrix), after touch-ups were appended to the robots:
@@ -615,7 +633,13 @@ def plan_cell(
 
     if job.collision.check:
         begin("collisions")
+        path_before = spray_path_by_area(robots, len(areas), reached_only=False)  # mm, for the report
         robots = free(robots, repaired_work)
+        path_after = spray_path_by_area(robots, len(areas))
+        log.info(
+            "collision step: spray path kept per area %s",
+            ", ".join(f"{n} {a / b:.0%}" for n, a, b in zip(areas.names, path_after, path_before) if b > 0),
+        )
     begin("film")
     report = {
         "spray_radius_mm": job.paths.spray_radius_mm,
@@ -732,6 +756,14 @@ def plan_cell(
         report["collisions"]["left_out_waypoints"] = {
             key: int(sum(entry.get(key, 0) for entry in freed.values()))
             for key in ("left_out_in_collision", "left_out_unreached", "left_out_alone", "left_out_unapproachable")
+        }
+        report["collisions"]["areas"] = {
+            name: {
+                "spray_path_mm": round(float(path_before[k]), 1),
+                "kept_mm": round(float(path_after[k]), 1),
+                "kept_share": round(float(path_after[k] / path_before[k]), 4) if path_before[k] > 0 else None,
+            }
+            for k, name in enumerate(areas.names)
         }
         plan = dataclasses.replace(plan, robots=robots)
     if job.timing.enabled and job.timing.run_up_mm > 0:
