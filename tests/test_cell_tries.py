@@ -1,4 +1,5 @@
-"""The tries a cell robot makes for a stroke (``cells.tries``): those that pass the robot's first axis go last."""
+"""The tries a cell robot makes for a stroke (``cells.tries``): those that pass the robot's first axis go last;
+the wrist unwound where a stroke would wind it to its limit (``cells.plan.solve_strokes``)."""
 
 from __future__ import annotations
 
@@ -146,3 +147,38 @@ def test_a_stroke_keeps_the_try_that_goes_on_from_where_the_stroke_before_ends(m
     np.testing.assert_allclose(got[:, :3, 3], back.tcp, atol=1e-6)
     (_, _, q1, _), (_, roll, q2, reach2) = solved([turned])
     assert reach2.all() and roll == 270.0 and np.degrees(np.abs(q2[0] - q1[-1])).max() > 90.0
+
+
+def _along_the_side(x0: float, x1: float, z_mm: float = 1100.0, standoff_mm: float = 200.0) -> Stroke:
+    """A stroke along a car's flat side at y = 900 mm, from x0 to x1 at height ``z_mm`` (normals +y)."""
+    x = np.linspace(x0, x1, 61)
+    points = np.column_stack([x, np.full_like(x, 900.0), np.full_like(x, z_mm)])
+    normals = np.tile([0.0, 1.0, 0.0], (len(x), 1))
+    return Stroke(points, normals, points + standoff_mm * normals, spray_on=True, on_part=np.ones(len(x), bool))
+
+
+def test_a_stroke_that_would_wind_the_wrist_to_its_limit_starts_a_turn_back(monkeypatch):
+    """Along line3's left side the sixth axis turns by 2.2 rad over a 3 m stroke. Followed from where a stroke
+    before left that axis a whole turn up (the nearest turns, as a run of strokes winds it), it would come within
+    ``WRIST_MARGIN_RAD`` of its limit (400 deg): ``solve_strokes`` follows it from that axis a turn back instead,
+    the stroke's first try and the joints of the stroke solved on its own; kept wound, the first try runs into
+    the limit and another try is taken."""
+    from sprayplan.cells import plan as cell_plan
+
+    left = load_cell("line3").robots[1]
+    stroke = _along_the_side(1500.0, -1500.0)
+    ((track, roll, q, reach),) = solve_strokes(left, [stroke])
+    assert reach.all() and roll == ROLL_TRIES_DEG[0]
+    upper = left.robot(0.0).joint_limits[5, 1]
+    seed = q[0].copy()
+    seed[5] += 2.0 * np.pi  # the same pose, the sixth axis a turn up
+    assert seed[5] < upper and q[:, 5].max() + 2.0 * np.pi > upper - cell_plan.WRIST_MARGIN_RAD
+    ((track1, roll1, q1, reach1),) = solve_strokes(left, [stroke], seed=seed)
+    assert reach1.all() and roll1 == roll
+    np.testing.assert_array_equal(track1, track)
+    np.testing.assert_allclose(q1, q, atol=1e-9)  # unwound: the stroke as solved on its own
+    assert upper - q1[:, 5].max() >= cell_plan.WRIST_MARGIN_RAD
+    monkeypatch.setattr(cell_plan, "WRIST_MARGIN_RAD", -np.inf)  # never unwound
+    ((_, roll2, q2, reach2),) = solve_strokes(left, [stroke], seed=seed)
+    assert reach2.all() and not (roll2 == roll and np.allclose(q2, q1))  # another try, or the same one wound
+    assert np.abs(q2[0] - seed).max() < np.abs(q1[0] - seed).max()  # nearer the wound seed, as it was

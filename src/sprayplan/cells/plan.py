@@ -21,11 +21,13 @@ not):
    about its axis by 0, 90, 180 and 270 degrees; the tries whose flange passes near the robot's first axis
    (its shoulder singularity: a roof robot over a stroke across the roof) go last. The first try that reaches
    every waypoint with no joint jumping, between two of them or from where the stroke before ends, is kept;
-   else the first whole one (:func:`solve_strokes`). Held still the track costs the stroke nothing at the timed speeds (a track
-   that follows the gun accelerates with every change of its speed, far slower than the arm); one base
-   position does not reach both ends of a 4 m stroke along a car's side, which then follows the gun. Along
-   the stroke the branch nearest the previous waypoint's joints is followed
-   (``robots.interface.follow_solutions``). Unreached waypoints are data (``reachable`` False);
+   else the first whole one (:func:`solve_strokes`). Held still the track costs the stroke nothing at the
+   timed speeds (a track that follows the gun accelerates with every change of its speed, far slower than
+   the arm); one base position does not reach both ends of a 4 m stroke along a car's side, which then
+   follows the gun. Along the stroke the branch nearest the previous waypoint's joints is followed
+   (``robots.interface.follow_solutions``), each stroke's wrist a whole turn back from where the stroke
+   before left it where that keeps it off its limits (:func:`solve_strokes`). Unreached waypoints are data
+   (``reachable`` False);
 6. **film**: the strokes of all robots together over the whole body, cut to the runs of waypoints their
    robot reaches (:func:`reached_strokes`: an unreached waypoint leaves its surface bare), their speeds tuned
    to the target by
@@ -42,8 +44,9 @@ default). The planner runs every stroke past the edge of its piece (its lead-in 
 ``[paths] edge_margin_mm``) and adds edge passes beyond edges that run with the strokes, so that the film does
 not thin out at a part's edge. At a seam the surface does not end: the neighbouring piece goes on, painted by
 its own strokes, and those extensions would paint it a second time. So a stroke's extension stops at its first
-waypoint that lies over another piece's surface facing the same way (:class:`~sprayplan.cells.seams.SeamGuard`, :func:`~sprayplan.cells.seams.feathered`),
-and an edge pass keeps only what is not over another piece; at a true edge of the body, or at a corner
+waypoint that lies over another piece's surface facing the same way
+(:class:`~sprayplan.cells.seams.SeamGuard`, :func:`~sprayplan.cells.seams.feathered`), and an edge pass keeps
+only what is not over another piece; at a true edge of the body, or at a corner
 where the next face turns away (a roof's edge over a side), the extensions stay. Both sides then end at the
 seam, each leaving the tapered half of its spray there, and the whole-body tuning evens out the rest.
 ``seams = "overlap"`` keeps every extension (each side paints over the seam by a lead-out, and the tuning
@@ -181,7 +184,14 @@ def _sub_part(part: Part, keep: np.ndarray, name: str) -> Part:
     return dataclasses.replace(keep_faces(part, keep), vertex_normals=None, name=name)
 
 
-def solve_strokes(cell_robot, strokes) -> list[tuple[np.ndarray, float, np.ndarray, np.ndarray]]:
+#: The wrist's roll axes of a six-axis arm (the fourth and sixth), which turn more than a whole turn each way.
+WRIST_JOINTS = (3, 5)
+#: A spray stroke followed from where the stroke before ends that takes a wrist axis nearer its limit than
+#: this (rad) is followed again from there with that axis unwound by a whole turn (:func:`solve_strokes`).
+WRIST_MARGIN_RAD = math.radians(60.0)
+
+
+def solve_strokes(cell_robot, strokes, seed=None) -> list[tuple[np.ndarray, float, np.ndarray, np.ndarray]]:
     """For each stroke a (track positions, roll) try and the joints along it (module docstring, step 5):
     ``(track_mm (n,), roll_deg, q (n, 6), reachable (n,))`` a stroke.
 
@@ -193,7 +203,19 @@ def solve_strokes(cell_robot, strokes) -> list[tuple[np.ndarray, float, np.ndarr
     nor from where the stroke before ends (the transfer between them; over the SUV in ``line3`` the roof robot
     took the same point from two track positions 600 mm apart and turned over at the roof, a transfer no route
     freed); failing the last, the first whole try with no jump along it; failing that, the first whole try;
-    else the first that reaches the most."""
+    else the first that reaches the most.
+
+    **The wrist unwound.** The fourth and sixth axes of an industrial arm turn 400 deg each way; following the
+    nearest turns from stroke to stroke, a side robot's wrist winds up (on the SUV in ``line3`` the right robot's
+    sixth axis went down a turn more than the left's mirror image, its 5th percentile at -6.27 rad against a
+    limit of -6.98), until a stroke runs it into its limit and the try is lost. So a spray stroke that comes
+    within :data:`WRIST_MARGIN_RAD` of a wrist axis's limit, followed from ``seed``, is followed again with each
+    wrist axis beyond half a turn turned a whole turn back (the same pose: the transfer before it turns the
+    wrist round, its gun off), and that one is kept if it is as good (the jumps as above, from the unwound
+    joints) and further from the limits.
+
+    ``seed``: the joints the first stroke is followed from, as where a stroke before ended; default
+    :func:`~sprayplan.cells.tries.start_joints`, and the first spray stroke keeps any start."""
     from sprayplan.robots.interface import follow_solutions
 
     arm = cell_robot.robot(0.0)
@@ -218,8 +240,24 @@ def solve_strokes(cell_robot, strokes) -> list[tuple[np.ndarray, float, np.ndarr
         for j, i in enumerate(mine):
             counts[i][k] = int(reached[ends[j] : ends[j + 1]].sum())
     out = []
-    seed = start_joints(arm.dof)
-    first = True  # no spray stroke before: the first keeps any start
+    first = seed is None  # no spray stroke before: the first keeps any start
+    seed = start_joints(arm.dof) if seed is None else np.asarray(seed, float)
+    limits = arm.joint_limits
+    wrist = [j for j in WRIST_JOINTS if j < arm.dof and limits[j, 1] - limits[j, 0] > 2 * math.tau - 1e-9]
+
+    def wrist_margin(q):
+        if not wrist or not len(q):
+            return math.inf
+        return float(np.minimum(q[:, wrist] - limits[wrist, 0], limits[wrist, 1] - q[:, wrist]).min())
+
+    def unwound(start) -> list:
+        """``[start]``, then ``start`` with each wrist axis beyond half a turn moved a whole turn back, if any."""
+        out_ = np.array(start, float)
+        for j in wrist:
+            if abs(out_[j]) > math.pi:
+                out_[j] -= math.copysign(math.tau, out_[j])
+        return [start] if np.array_equal(out_, start) else [start, out_]
+
     for i, s in enumerate(strokes):
         n = len(s)
         if not n or not counts[i].any():
@@ -227,11 +265,22 @@ def solve_strokes(cell_robot, strokes) -> list[tuple[np.ndarray, float, np.ndarr
             continue
         whole = [k for k in range(len(tries[i])) if counts[i][k] == n]
         chosen = None  # (rank: 0 no jump at all, 1 none along it, 2 whole), try, joints, reached
+        starts = [seed] if first or not s.spray_on else unwound(seed)
         for k in whole:
-            q, branch = follow_solutions(arm, arm.ik(moved(i, k)), seed)
-            along = q[branch >= 0]
-            jumps = len(along) > 1 and np.abs(np.diff(along, axis=0)).max() > JOINT_JUMP_RAD
-            rank = 2 if jumps else 0 if first or np.abs(along[0] - seed).max() <= JOINT_JUMP_RAD else 1
+            sols = arm.ik(moved(i, k))
+            best = None  # (rank, -wrist margin) of the start kept: the seed's unless it runs near a limit
+            for j, start in enumerate(starts):
+                if j and best[1] <= -WRIST_MARGIN_RAD:
+                    break
+                q, branch = follow_solutions(arm, sols, start)
+                along = q[branch >= 0]
+                jumps = len(along) > 1 and np.abs(np.diff(along, axis=0)).max() > JOINT_JUMP_RAD
+                rank = 2 if jumps else 0 if first or np.abs(along[0] - start).max() <= JOINT_JUMP_RAD else 1
+                key = (rank, -wrist_margin(along))
+                if best is None or key < best:
+                    best, got = key, (q, branch)
+            rank = best[0]
+            q, branch = got
             if chosen is None or rank < chosen[0]:
                 chosen = (rank, k, q, branch >= 0)
             if rank == 0 or not s.spray_on:  # (a transfer's ends become its neighbours': joined_transfers)
