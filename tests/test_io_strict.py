@@ -108,6 +108,23 @@ def test_ply_valid_binary_ascii_and_mixed_polygons(tmp_path, order):
     assert len(load_part(write(tmp_path, "tq.ply", tri_quad)).faces) <= 3
 
 
+def test_a_signalling_nan_in_a_binary_ply_or_stl_is_one_error_and_no_warning(tmp_path, recwarn):
+    """A byte flipped in a float32 coordinate can make a signalling NaN (exponent all ones, quiet bit clear):
+    widened to float64 it raised numpy's 'invalid value encountered in cast' (the fuzz test met one in a PLY).
+    Now, in a binary PLY or STL, only the reader's one-line error."""
+    data = bytearray(ply_binary())
+    at = data.index(b"end_header\n") + len(b"end_header\n")
+    data[at : at + 4] = struct.pack("<I", 0x7F800001)  # the first vertex's x
+    assert np.isnan(struct.unpack("<f", bytes(data[at : at + 4]))[0])
+    fails(write(tmp_path, "snan.ply", bytes(data)), "NaN or infinite")
+    from sprayplan.export.stl import write_stl_binary
+
+    stl_data = bytearray(write_stl_binary(np.array([[[0.0, 0, 0], [100, 0, 0], [0, 100, 0]]])))
+    stl_data[96:100] = struct.pack("<I", 0x7F800001)  # 80-byte header, count, normal: the first vertex's x
+    fails(write(tmp_path, "snan.stl", bytes(stl_data)), "facet 1", "NaN or infinite")
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
 def test_ply_with_face_element_of_zero_rows_is_a_cloud(tmp_path):
     part = load_part(write(tmp_path, "c.ply", ply_ascii(nv=3, nf=0, faces="", verts="0 0 0\n100 0 0\n0 100 0\n")))
     assert not part.is_mesh and len(part.vertices) == 3

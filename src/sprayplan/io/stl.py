@@ -80,7 +80,8 @@ def parse_stl(data: bytes, path: str = "<bytes>") -> np.ndarray:
 
 def _binary(data: bytes, count: int, path: str) -> np.ndarray:
     records = np.frombuffer(data, BINARY_RECORD, count=count, offset=BINARY_HEADER_BYTES + 4)
-    triangles = records["vertices"].astype(np.float64)
+    with np.errstate(invalid="ignore"):  # a signalling NaN is no warning: refused just below
+        triangles = records["vertices"].astype(np.float64)
     _check_finite(triangles, path, lambda i: f"facet {i + 1}")
     return triangles
 
