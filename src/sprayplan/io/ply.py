@@ -158,7 +158,7 @@ def parse_ply(data: bytes, path: str = "<bytes>") -> tuple[np.ndarray, np.ndarra
         wanted = ["x", "y", "z"] if element is vertex else [index_name] if element is face and index_name else []
         columns = reader.element(element, wanted)
         if element is vertex:
-            with np.errstate(invalid="ignore"):  # a float's signalling NaN is no warning: it is refused below
+            with np.errstate(invalid="ignore"):  # a signalling NaN is no warning: the loader refuses it (load_part)
                 vertices = np.column_stack([np.asarray(columns[a], dtype=np.float64) for a in "xyz"])
         elif element is face and index_name is not None:
             faces = columns[index_name]
