@@ -514,3 +514,85 @@ def test_a_masked_end_is_left_unpainted_and_stays_an_obstacle(monkeypatch, tmp_p
     assert obstacle.area == pytest.approx(plan.part.area + 165000.0, rel=1e-9)  # the masked end is an obstacle
     assert plan.collision_part is obstacle  # and the check after the film and the programs' check use it too
     assert parse_region("x > 150").contains(obstacle.triangles.mean(axis=1) @ to_part[:3, :3].T + to_part[:3, 3]).any()
+
+
+def _upright(plate_part, y_mm):
+    """``plate_part`` (an x-y plate, normals +-z) stood up in the x-z plane at ``y_mm``: +z turns to +y."""
+    v = plate_part.vertices
+    return np.stack([v[:, 0], np.full(len(v), y_mm) + v[:, 2], -v[:, 1]], axis=1), plate_part.faces
+
+
+def test_strokes_facing_away_from_their_area_are_left_out_and_counted(tmp_path):
+    """An area holding a sliver of the part's other side (a back 20 mm behind its face, facing the other way):
+    no stroke is planned on the back, the rest is, and ``away`` counts what was left out."""
+    from sprayplan.cells.plan import _robot_work, facing_away
+    from sprayplan.surface.areas import AreaAssignment, Areas
+    from sprayplan.types import Part
+    from tests.helpers import plate
+
+    front_v, front_f = _upright(plate(-300.0, 300.0, -500.0, -300.0, 25.0), 0.0)
+    back_v, back_f = _upright(plate(-100.0, 100.0, -380.0, -320.0, 20.0, flip=True), -20.0)
+    part = Part(np.vstack([front_v, back_v]), np.vstack([front_f, back_f + len(front_v)]), name="face and back",
+                oriented=True)  # fmt: skip
+    m = len(part.faces)
+    normals = outward_face_normals(part.vertices, part.faces)[1]
+    assert np.allclose(normals[: len(front_f)], [0, 1, 0]) and np.allclose(normals[len(front_f) :], [0, -1, 0])
+    areas = Areas(np.zeros(m, np.int64), ("side +y",), ("side +y",), np.array([part.face_areas.sum()]),
+                  np.array([[0.0, 1.0, 0.0]]), normals)  # fmt: skip
+    assignment = AreaAssignment(np.zeros(m, np.int64), np.array([0]), np.array([1.0]), np.array([False]),
+                                np.array([part.face_areas.sum()]), 0.0)  # fmt: skip
+    path = tmp_path / "small2.toml"
+    path.write_text(CELL)
+    robot = load_cell(path).robots[0]
+    job = JobConfig()
+
+    def spray_normals(work):
+        return [s.normals.mean(axis=0) for s in work.strokes if s.spray_on]
+
+    every = _robot_work(robot, 0, part, areas, assignment, job)  # nothing left out: the back is planned
+    backs = [s for s in every.strokes if s.spray_on and facing_away(s, areas.normal[0]).all()]
+    assert backs and all(n[1] < -0.99 for n in (s.normals.mean(axis=0) for s in backs))
+    away: dict = {}
+    kept = _robot_work(robot, 0, part, areas, assignment, job, away=away)
+    assert all(n[1] > 0.99 for n in spray_normals(kept))
+    assert len(spray_normals(kept)) == len(spray_normals(every)) - len(backs)
+    length = sum(float(np.linalg.norm(np.diff(s.points, axis=0), axis=1).sum()) for s in backs)
+    assert away == {"left": {"strokes": len(backs), "path_mm": pytest.approx(length)}}
+
+
+def test_a_stroke_round_a_lip_keeps_only_its_runs_facing_the_area():
+    """Along a sheet, round its lip (a half turn) and back along its other side 2.5 mm behind (the BMW's rear
+    window sill): the stroke is cut to its runs within 120 deg of the area's normal, each waypoint kept
+    as it was, and the path left out is the rest."""
+    from sprayplan.cells.plan import facing_away, facing_runs
+    from sprayplan.types import Stroke
+
+    turn = np.radians(np.linspace(0.0, 180.0, 9))  # the lip: the normal turns from +y over +z to -y
+    normals = np.vstack([np.tile([0.0, 1.0, 0.0], (10, 1)), np.stack([0 * turn, np.cos(turn), np.sin(turn)], 1)[1:-1],
+                         np.tile([0.0, -1.0, 0.0], (8, 1))])  # fmt: skip
+    x = np.r_[np.arange(10.0) * 20.0, np.full(7, 190.0), 180.0 - np.arange(8.0) * 20.0]
+    points = np.stack([x, np.zeros(len(x)), np.zeros(len(x))], axis=1)
+    n = len(points)
+    stroke = Stroke(points, normals, points + 200.0 * normals, True, np.ones(n, bool), 0, np.ones(n), "spray")
+    away = facing_away(stroke, np.array([0.0, 1.0, 0.0]))
+    cos = normals @ [0.0, 1.0, 0.0]
+    assert np.array_equal(away, cos < np.cos(np.radians(120.0)))
+    kept, left_mm = facing_runs(stroke, np.array([0.0, 1.0, 0.0]))
+    first_away = int(np.flatnonzero(away)[0])
+    assert len(kept) == 1 and np.array_equal(kept[0].points, points[:first_away])
+    assert np.array_equal(kept[0].tcp, stroke.tcp[:first_away]) and kept[0].kind == "spray"
+    total = np.linalg.norm(np.diff(points, axis=0), axis=1).sum()
+    assert left_mm == pytest.approx(total - np.linalg.norm(np.diff(points[:first_away], axis=0), axis=1).sum())
+    assert facing_runs(stroke, np.zeros(3)) == ([stroke], 0.0)
+
+
+@pytest.mark.parametrize("deg, away", [(0.0, False), (110.0, False), (130.0, True), (180.0, True)])
+def test_facing_away_is_the_angle_of_each_normal_past_the_limit(deg, away):
+    from types import SimpleNamespace
+
+    from sprayplan.cells.plan import facing_away
+
+    a = np.radians(deg + np.array([-5.0, 0.0, 5.0]))  # normals fanned about ``deg`` from +y, in the y-z plane
+    stroke = SimpleNamespace(normals=np.stack([np.zeros(3), np.cos(a), np.sin(a)], axis=1))
+    assert np.array_equal(facing_away(stroke, np.array([0.0, 2.0, 0.0])), np.full(3, away))
+    assert not facing_away(stroke, np.zeros(3)).any()

@@ -12,7 +12,8 @@ not):
    (:func:`~sprayplan.cells.reach.reach_matrix`) and :func:`~sprayplan.surface.areas.assign_areas`;
 4. **paths**: each robot's share of each area sliced on its own (``paths.planner.plan_paths`` with the job's
    ``[paths]``; ``direction = "auto"`` slices each piece across its own longest axis, the direction the seed
-   chose by hand per area), the pieces joined by spray-off transfers;
+   chose by hand per area), the waypoints facing away from their area left out (:func:`facing_runs`), the
+   pieces joined by spray-off transfers;
 5. **kinematics**: each stroke solved by its robot (:func:`~sprayplan.cells.tries.stroke_tries`): first with
    the track held still through the stroke, at the middle of its extent along the track plus an offset; then
    with the track moving with the gun (a coordinated external axis, as paint lines run their rail robots
@@ -98,7 +99,7 @@ from sprayplan.cells.work import RobotWork, joined_transfers, transfer_stroke, w
 from sprayplan.config import JobConfig
 from sprayplan.errors import ConfigError, InputError
 from sprayplan.progress import Progress, no_progress, per_stage
-from sprayplan.surface.areas import AreaAssignment, Areas, assign_areas, segment_areas
+from sprayplan.surface.areas import OPPOSED_DEG, AreaAssignment, Areas, assign_areas, segment_areas
 from sprayplan.surface.poses import stroke_poses
 from sprayplan.types import Part, Paths
 
@@ -297,14 +298,58 @@ def solve_strokes(cell_robot, strokes, seed=None) -> list[tuple[np.ndarray, floa
     return out
 
 
+def facing_away(stroke, normal: np.ndarray, limit_deg: float = OPPOSED_DEG) -> np.ndarray:
+    """(n,) bool: the waypoints of ``stroke`` whose outward normal is more than ``limit_deg`` from ``normal``
+    (their area's mean outward normal); none for a zero ``normal``. They lie on the part's other side where a
+    sliver of it joined the area, too small to be an area of its own (``surface.areas.OPPOSED_KEPT``), and the
+    robot painting the area from its side would aim at them from inside the body. On the BMW in ``line3`` the
+    left rear window's sill is sheet with both sides in the mesh, 2.5 mm apart, the inner side facing the cabin
+    (0.02 m^2, in ``side +y 2``): the sections run along the outer side, round the sill's lip and back along the
+    inner side, the gun turned over at the lip, inside the body."""
+    normal = np.asarray(normal, dtype=float)
+    size = np.linalg.norm(stroke.normals, axis=1) * np.linalg.norm(normal)
+    cos = np.divide(stroke.normals @ normal, size, out=np.ones(len(size)), where=size > 0)
+    return cos < math.cos(math.radians(limit_deg))
+
+
+def facing_runs(stroke, normal: np.ndarray) -> tuple[list, float]:
+    """``stroke`` cut to its runs of at least two waypoints that do not face away from ``normal``
+    (:func:`facing_away`): the strokes (``stroke`` itself when nothing faces away), and the path left out
+    (mm, along the aimed-at points)."""
+    away = facing_away(stroke, normal)
+    if not away.any():
+        return [stroke], 0.0
+    edges = np.flatnonzero(np.diff(np.r_[0, (~away).astype(np.int8), 0]))
+    runs = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2]) if b - a >= 2]
+
+    def length(points):
+        return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+
+    kept = [cut_stroke(stroke, a, b) for a, b in runs]
+    return kept, length(stroke.points) - sum(length(k.points) for k in kept)
+
+
 def _robot_work(
-    cell_robot, index: int, part: Part, areas: Areas, assignment: AreaAssignment, job: JobConfig, guard=None
+    cell_robot,
+    index: int,
+    part: Part,
+    areas: Areas,
+    assignment: AreaAssignment,
+    job: JobConfig,
+    guard=None,
+    away: dict | None = None,
 ):
+    """One robot's strokes over its share of every area, solved (:func:`solved_work`). ``away``: when given (a
+    cell of several robots, its areas segmented), the waypoints of a stroke facing away from its area are left
+    out (:func:`facing_runs`), and ``away[robot name]`` counts them (``{"strokes"`` cut or left out,
+    ``"path_mm"}``)."""
     from sprayplan.paths.planner import plan_paths
 
     radius = job.paths.spray_radius_mm
     labels = len(assignment.robot_area_mm2) + 1  # piece labels: area * labels + robot + 1 (SeamGuard)
     strokes, area_of = [], []
+    if away is not None:
+        away[cell_robot.name] = {"strokes": 0, "path_mm": 0.0}
     for a in range(len(areas)):
         keep = (assignment.face_robot == index) & (areas.face_area == a)
         if not keep.any():
@@ -317,12 +362,19 @@ def _robot_work(
         except InputError:
             log.info("%s: no section to paint", piece.name)
             continue
-        for s in feathered(paths.strokes, guard, a * labels + index + 1):
-            if strokes:
-                strokes.append(transfer_stroke(strokes[-1], s))
-                area_of.append(-1)
-            strokes.append(s)
-            area_of.append(a)
+        for whole in feathered(paths.strokes, guard, a * labels + index + 1):
+            kept = [whole]
+            if away is not None:
+                kept, path_mm = facing_runs(whole, areas.normal[a])
+                if path_mm > 0:
+                    away[cell_robot.name]["strokes"] += 1
+                    away[cell_robot.name]["path_mm"] += path_mm
+            for s in kept:
+                if strokes:
+                    strokes.append(transfer_stroke(strokes[-1], s))
+                    area_of.append(-1)
+                strokes.append(s)
+                area_of.append(a)
     return solved_work(cell_robot, strokes, area_of)
 
 
@@ -654,7 +706,13 @@ def plan_cell(
         guard = SeamGuard(
             painted, areas.face_area * labels + assignment.face_robot + 1, areas.face_normals, SEAM_STEP_MM
         )
-    robots = tuple(_robot_work(r, i, painted, areas, assignment, job, guard) for i, r in enumerate(cell.robots))
+    away = {} if len(cell.robots) > 1 else None  # the waypoints facing away from their areas, left out
+    robots = tuple(_robot_work(r, i, painted, areas, assignment, job, guard, away) for i, r in enumerate(cell.robots))
+    if away and any(v["strokes"] for v in away.values()):
+        log.info(
+            "strokes facing away from their areas, cut or left out: %s",
+            ", ".join(f"{k} {v['strokes']} ({v['path_mm'] / 1000:.2f} m)" for k, v in away.items()),
+        )
     freed: dict = {}  # per robot: the repairs', the cut's and the routes' counts (--collisions)
     unrouted: dict = {}  # per robot: the transfers no route freed (cells.routes.routed_work)
 
@@ -695,6 +753,11 @@ def plan_cell(
         "floor_facing_left_out_mm2": round(left_out.get("floor_facing_left_out_mm2", 0.0), 1),
         "covered_left_out_mm2": round(left_out.get("covered_left_out_mm2", 0.0), 1),
         **({"masked_left_out_mm2": round(left_out["masked_left_out_mm2"], 1)} if job.load.mask else {}),
+        **(
+            {"facing_away_left_out": {k: {**v, "path_mm": round(v["path_mm"], 1)} for k, v in away.items()}}
+            if away is not None
+            else {}
+        ),
     }
     plan = CellPlan(cell, painted, placed.part2cell, areas, assignment, robots, None, report, timings, job=job,
                     obstacle=obstacle if job.load.mask else None)  # fmt: skip
