@@ -168,7 +168,14 @@ def test_the_film_is_reported_over_the_whole_body_per_area_robot_and_seam(planne
     assert film["reached"]["share_in_spec"] == pytest.approx(in_spec / robots, rel=1e-9)
     # the samples no robot reaches stand for about the surface the area map leaves unreached
     assert unreached == pytest.approx(report["unreached_surface_mm2"], rel=0.1, abs=1000.0)
-    assert film["report"]["measuring_points"]["count"] == 420
+    points = film["report"]["measuring_points"]
+    assert points["count"] == 420
+    lo, hi = points["share_in_spec_ci95"]
+    assert lo < points["share_in_spec"] <= hi <= 1.0
+    # the viewer's page says it beside the share
+    from sprayplan.view.summary import measured_interval
+
+    assert measured_interval(points) in (planned["out"] / "cell.html").read_text()
     assert "left/right" in film["per_seam"] and film["per_seam"]["left/right"]["count"] > 0
     # the cell's cycle is its longest robot's
     assert report["cycle_time_s"] == max(r["cycle_time_s"] for r in report["robots"].values())

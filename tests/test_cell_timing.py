@@ -213,7 +213,7 @@ def test_the_film_at_the_timed_speeds_is_the_film_of_the_timed_time_factors(box_
     worked out here from the time stamps: on each timed stretch a waypoint's time (half of each step beside it)
     over its time at the process speed with factors 1."""
     from sprayplan.cells.plan import reached_strokes
-    from sprayplan.coating.report import weighted_stats
+    from sprayplan.coating.report import share_interval, weighted_stats
     from sprayplan.coating.stage import process_for
     from sprayplan.coating.thickness import simulate
     from sprayplan.types import Paths
@@ -262,5 +262,8 @@ def test_the_film_at_the_timed_speeds_is_the_film_of_the_timed_time_factors(box_
     # above) at the planned film's points (the report's mean is a weighted one: the same sum, other rounding)
     want_points = plan.timed_film.thickness_um[points["indices"]].mean()
     assert got["measuring_points"]["mean_um"] == pytest.approx(want_points, rel=1e-12)
+    at = plan.timed_film.thickness_um[points["indices"]]
+    inside = int((np.abs(at - target) <= tol).sum())
+    assert got["measuring_points"]["share_in_spec_ci95"] == share_interval(inside, len(at))
     assert (plan.timed_film.points == film.points).all()
     assert set(got["per_robot"]) == {r.name for r in plan.robots}

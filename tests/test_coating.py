@@ -34,6 +34,7 @@ from sprayplan.coating import (
     simulate_droplets,
 )
 from sprayplan.coating.droplet import acceleration, integrate
+from sprayplan.coating.report import share_interval
 from sprayplan.config import PathConfig
 from sprayplan.errors import ConfigError, InputError
 from sprayplan.export.film import write_thickness_csv, write_thickness_ply
@@ -315,6 +316,10 @@ def test_report_statistics_and_files(tmp_path, big_plate):
     again = coating_report(result, target_um=report["spec"]["target_um"], samples=30, seed=4)
     assert again["measuring_points"]["indices"] == report["measuring_points"]["indices"]
     assert all(painted[i] for i in report["measuring_points"]["indices"])
+    at = t[report["measuring_points"]["indices"]]
+    spec = report["spec"]["target_um"]
+    k = int((np.abs(at - spec) <= 5.0).sum())
+    assert report["measuring_points"]["share_in_spec_ci95"] == pytest.approx(share_interval(k, 30), abs=1e-15)
 
     csv = tmp_path / "film.csv"
     write_thickness_csv(csv, result)
@@ -606,3 +611,16 @@ def test_a_cloud_without_normals_is_simulated_with_normals_facing_the_gun():
     assert np.all(film.thickness_um[inside] == pytest.approx(50.0, rel=0.03))
     with pytest.raises(InputError):  # nothing to tell the outside by
         simulate(cloud, Paths((), 113.0, 37.0), process)
+
+
+@pytest.mark.parametrize("inside, count", [(0, 420), (395, 420), (420, 420), (7, 30), (1, 1)])
+def test_the_measuring_points_share_interval_is_wilsons(inside, count):
+    """The 95 % interval of a share measured at random points against scipy's Wilson interval, and it holds
+    the share measured."""
+    from scipy.stats import binomtest
+
+    want = binomtest(inside, count).proportion_ci(confidence_level=0.95, method="wilson")
+    lo, hi = share_interval(inside, count)
+    assert (lo, hi) == pytest.approx((want.low, want.high), abs=1e-12)
+    assert lo <= inside / count <= hi
+    assert share_interval(0, 0) == [0.0, 1.0]

@@ -442,3 +442,11 @@ def test_the_report_drawn_in_two_processes_is_the_same_bytes(planned, tmp_path):
     assert names == sorted(p.name for p in folders[2].iterdir()) and len(names) > 5
     for name in names:
         assert (folders[1] / name).read_bytes() == (folders[2] / name).read_bytes(), name
+
+
+def test_a_measuring_point_table_shows_its_interval_and_an_old_one_none():
+    from sprayplan.view.summary import measured_interval
+
+    assert measured_interval({"share_in_spec": 0.94, "share_in_spec_ci95": [0.9136, 0.9594]}) == " (95 %: 91.4-95.9 %)"
+    assert measured_interval({"share_in_spec": 0.94}) == ""
+    assert measured_interval({"share_in_spec_ci95": [0.9, float("nan")]}) == ""

@@ -102,13 +102,17 @@ def timed_film_summary(plan, target_um: float, tolerance_um: float, points) -> d
     """The film at the timed speeds in brief (``plan.film``): over the whole body, per robot, and at the
     planned film's measuring points (``points``: their sample indices, so that both are measured at the same
     places)."""
+    from sprayplan.coating.report import measured_stats
+
     full = film_report(plan, target_um, tolerance_um, samples=None, seams=False)
     at = np.asarray(points, dtype=np.int64)
     return {
         "rule": "each waypoint's time factor from the timed arrival times (the planned one off the timed stretches)",
         "whole": full["whole"],
         "per_robot": full["per_robot"],
-        "measuring_points": _stats(plan.film.thickness_um[at], np.ones(len(at)), target_um, tolerance_um),
+        "measuring_points": measured_stats(
+            plan.film.thickness_um[at], target_um - tolerance_um, target_um + tolerance_um
+        ),
     }
 
 

@@ -44,6 +44,31 @@ def weighted_stats(values: np.ndarray, weights: np.ndarray, lo: float, hi: float
     }
 
 
+def share_interval(inside: int, count: int, z: float = 1.959963984540054) -> list[float]:
+    """The Wilson score interval of a share ``inside / count`` measured at ``count`` points drawn at random
+    (95 % for the default ``z``): where the share over the whole surface lies, given the points. At seed 003's
+    420 points, 395 in spec (94.0 %) give 91.4-95.9 %: two plans' 420-point figures differ by a few points
+    from the draw alone. ``[0, 1]`` for no points."""
+    if count <= 0:
+        return [0.0, 1.0]
+    p = inside / count
+    centre = (p + z * z / (2 * count)) / (1 + z * z / count)
+    half = z / (1 + z * z / count) * float(np.sqrt(p * (1 - p) / count + z * z / (4 * count * count)))
+    # at a share of 0 or 1 the interval's end is the share itself (exactly, not to rounding)
+    lo = 0.0 if inside <= 0 else max(0.0, centre - half)
+    hi = 1.0 if inside >= count else min(1.0, centre + half)
+    return [lo, hi]
+
+
+def measured_stats(values: np.ndarray, lo: float, hi: float) -> dict:
+    """The statistics at measuring points (each counts once, :func:`weighted_stats`) and the 95 % interval of
+    their share in spec (``share_in_spec_ci95``, :func:`share_interval`)."""
+    stats = weighted_stats(values, np.ones(len(values)), lo, hi)
+    if len(values):
+        stats["share_in_spec_ci95"] = share_interval(int(((values >= lo) & (values <= hi)).sum()), len(values))
+    return stats
+
+
 def coating_report(
     result: CoatingResult,
     target_um: float = 50.0,
@@ -103,7 +128,7 @@ def coating_report(
         out["interior"]["share_of_area"] = float(w[inner].sum() / max(w.sum(), 1e-300))
     if samples is not None:
         index = _measuring_points(samples, painted, w, seed)
-        stats = weighted_stats(t[index], np.ones(len(index)), lo, hi)
+        stats = measured_stats(t[index], lo, hi)
         stats["indices"] = [int(i) for i in index]
         out["measuring_points"] = stats
     wet = float(result.stroke_paint_ml.sum())

@@ -21,6 +21,15 @@ def _fmt(value, fmt: str = "{:,.0f}", scale: float = 1.0) -> str:
     return "-" if x is None else fmt.format(x * scale)
 
 
+def measured_interval(table: dict) -> str:
+    """`` (95 %: lo-hi %)``: the interval of a measuring-point table's share in spec
+    (``coating.report.share_interval``), or "" for a table without one (a plan written before it)."""
+    ci = table.get("share_in_spec_ci95") if isinstance(table, dict) else None
+    if not (isinstance(ci, list) and len(ci) == 2 and all(number(v) is not None for v in ci)):
+        return ""
+    return f" (95 %: {100 * number(ci[0]):.1f}-{100 * number(ci[1]):.1f} %)"
+
+
 def summary_rows(scene: Scene) -> list[tuple[str, list[tuple[str, str]]]]:
     """The summary panel's tables: (title, [(label, value)]); a figure missing from the files shows as '-'."""
     t = scene.totals
@@ -89,7 +98,7 @@ def summary_rows(scene: Scene) -> list[tuple[str, list[tuple[str, str]]]]:
                 (
                     f"{int(m['count'])} measuring points",
                     f"mean {g(m, 'mean_um', '{:.1f} um')}, {g(m, 'min_um', '{:.1f}')} .. {g(m, 'max_um', '{:.1f}')}, "
-                    f"{g(m, 'share_in_spec', '{:.1f} %', 100.0)} in spec",
+                    f"{g(m, 'share_in_spec', '{:.1f} %', 100.0)} in spec{measured_interval(m)}",
                 )
             )
         paint = film.get("paint")
