@@ -532,7 +532,8 @@ def _upright(plate_part, y_mm):
 def test_strokes_facing_away_from_their_area_are_left_out_and_counted(tmp_path):
     """An area holding a sliver of the part's other side (a back 20 mm behind its face, facing the other way):
     no stroke is planned on the back, the rest is, and ``away`` counts what was left out."""
-    from sprayplan.cells.plan import _robot_work, facing_away
+    from sprayplan.cells.plan import _robot_work
+    from sprayplan.cells.seams import facing_away
     from sprayplan.surface.areas import AreaAssignment, Areas
     from sprayplan.types import Part
     from tests.helpers import plate
@@ -571,7 +572,7 @@ def test_a_stroke_round_a_lip_keeps_only_its_runs_facing_the_area():
     """Along a sheet, round its lip (a half turn) and back along its other side 2.5 mm behind (the BMW's rear
     window sill): the stroke is cut to its runs within 120 deg of the area's normal, each waypoint kept
     as it was, and the path left out is the rest."""
-    from sprayplan.cells.plan import facing_away, facing_runs
+    from sprayplan.cells.seams import facing_away, facing_runs
     from sprayplan.types import Stroke
 
     turn = np.radians(np.linspace(0.0, 180.0, 9))  # the lip: the normal turns from +y over +z to -y
@@ -597,7 +598,7 @@ def test_a_stroke_round_a_lip_keeps_only_its_runs_facing_the_area():
 def test_facing_away_is_the_angle_of_each_normal_past_the_limit(deg, away):
     from types import SimpleNamespace
 
-    from sprayplan.cells.plan import facing_away
+    from sprayplan.cells.seams import facing_away
 
     a = np.radians(deg + np.array([-5.0, 0.0, 5.0]))  # normals fanned about ``deg`` from +y, in the y-z plane
     stroke = SimpleNamespace(normals=np.stack([np.zeros(3), np.cos(a), np.sin(a)], axis=1))

@@ -12,8 +12,8 @@ not):
    (:func:`~sprayplan.cells.reach.reach_matrix`) and :func:`~sprayplan.surface.areas.assign_areas`;
 4. **paths**: each robot's share of each area sliced on its own (``paths.planner.plan_paths`` with the job's
    ``[paths]``; ``direction = "auto"`` slices each piece across its own longest axis, the direction the seed
-   chose by hand per area), the waypoints facing away from their area left out (:func:`facing_runs`), the
-   pieces joined by spray-off transfers;
+   chose by hand per area), the waypoints facing away from their area left out
+   (:func:`~sprayplan.cells.seams.facing_runs`), the pieces joined by spray-off transfers;
 5. **kinematics**: each stroke solved by its robot (:func:`~sprayplan.cells.tries.stroke_tries`): first with
    the track held still through the stroke, at the middle of its extent along the track plus an offset; then
    with the track moving with the gun (a coordinated external axis, as paint lines run their rail robots
@@ -92,14 +92,14 @@ import numpy as np
 from sprayplan.cells.film import film_at_timed_speeds, film_report, timed_film_summary
 from sprayplan.cells.reach import reach_matrix, reach_tilts
 from sprayplan.cells.repair import repaired_work
-from sprayplan.cells.seams import SEAM_STEP_MM, SeamGuard, cut_stroke, feathered
+from sprayplan.cells.seams import SEAM_STEP_MM, SeamGuard, cut_stroke, facing_runs, feathered
 from sprayplan.cells.spec import Cell, place_part
 from sprayplan.cells.tries import JOINT_JUMP_RAD, rot_z, start_joints, stroke_tries
 from sprayplan.cells.work import RobotWork, joined_transfers, transfer_stroke, with_tuned_dwell
 from sprayplan.config import JobConfig
 from sprayplan.errors import ConfigError, InputError
 from sprayplan.progress import Progress, no_progress, per_stage
-from sprayplan.surface.areas import OPPOSED_DEG, AreaAssignment, Areas, assign_areas, segment_areas
+from sprayplan.surface.areas import AreaAssignment, Areas, assign_areas, segment_areas
 from sprayplan.surface.poses import stroke_poses
 from sprayplan.types import Part, Paths
 
@@ -298,37 +298,6 @@ def solve_strokes(cell_robot, strokes, seed=None) -> list[tuple[np.ndarray, floa
     return out
 
 
-def facing_away(stroke, normal: np.ndarray, limit_deg: float = OPPOSED_DEG) -> np.ndarray:
-    """(n,) bool: the waypoints of ``stroke`` whose outward normal is more than ``limit_deg`` from ``normal``
-    (their area's mean outward normal); none for a zero ``normal``. They lie on the part's other side where a
-    sliver of it joined the area, too small to be an area of its own (``surface.areas.OPPOSED_KEPT``), and the
-    robot painting the area from its side would aim at them from inside the body. On the BMW in ``line3`` the
-    left rear window's sill is sheet with both sides in the mesh, 2.5 mm apart, the inner side facing the cabin
-    (0.02 m^2, in ``side +y 2``): the sections run along the outer side, round the sill's lip and back along the
-    inner side, the gun turned over at the lip, inside the body."""
-    normal = np.asarray(normal, dtype=float)
-    size = np.linalg.norm(stroke.normals, axis=1) * np.linalg.norm(normal)
-    cos = np.divide(stroke.normals @ normal, size, out=np.ones(len(size)), where=size > 0)
-    return cos < math.cos(math.radians(limit_deg))
-
-
-def facing_runs(stroke, normal: np.ndarray) -> tuple[list, float]:
-    """``stroke`` cut to its runs of at least two waypoints that do not face away from ``normal``
-    (:func:`facing_away`): the strokes (``stroke`` itself when nothing faces away), and the path left out
-    (mm, along the aimed-at points)."""
-    away = facing_away(stroke, normal)
-    if not away.any():
-        return [stroke], 0.0
-    edges = np.flatnonzero(np.diff(np.r_[0, (~away).astype(np.int8), 0]))
-    runs = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2]) if b - a >= 2]
-
-    def length(points):
-        return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
-
-    kept = [cut_stroke(stroke, a, b) for a, b in runs]
-    return kept, length(stroke.points) - sum(length(k.points) for k in kept)
-
-
 def _robot_work(
     cell_robot,
     index: int,
@@ -341,8 +310,8 @@ def _robot_work(
 ):
     """One robot's strokes over its share of every area, solved (:func:`solved_work`). ``away``: when given (a
     cell of several robots, its areas segmented), the waypoints of a stroke facing away from its area are left
-    out (:func:`facing_runs`), and ``away[robot name]`` counts them (``{"strokes"`` cut or left out,
-    ``"path_mm"}``)."""
+    out (:func:`~sprayplan.cells.seams.facing_runs`), and ``away[robot name]`` counts them (``{"strokes"`` cut
+    or left out, ``"path_mm"}``)."""
     from sprayplan.paths.planner import plan_paths
 
     radius = job.paths.spray_radius_mm

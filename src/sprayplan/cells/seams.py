@@ -1,6 +1,7 @@
 """Where two robots' pieces meet (issue 18, the seam rule ``feather`` of :func:`~sprayplan.cells.plan.plan_cell`):
 a stroke's lead-in or lead-out, or an edge pass, that runs on over another piece's surface facing the same way
-stops spraying there, as that surface is painted by its own strokes (:class:`SeamGuard`, :func:`feathered`)."""
+stops spraying there, as that surface is painted by its own strokes (:class:`SeamGuard`, :func:`feathered`);
+and the waypoints of a piece's strokes that face away from their area are left out (:func:`facing_runs`)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sprayplan.surface.areas import OPPOSED_DEG
 from sprayplan.types import Part, Stroke
 
 
@@ -107,3 +109,34 @@ def feathered(strokes, guard: SeamGuard | None, label: int) -> list:
             runs = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
         out.extend(cut_stroke(s, a, b) if (a, b) != (0, len(s)) else s for a, b in runs if b - a >= 2)
     return out
+
+
+def facing_away(stroke, normal: np.ndarray, limit_deg: float = OPPOSED_DEG) -> np.ndarray:
+    """(n,) bool: the waypoints of ``stroke`` whose outward normal is more than ``limit_deg`` from ``normal``
+    (their area's mean outward normal); none for a zero ``normal``. They lie on the part's other side where a
+    sliver of it joined the area, too small to be an area of its own (``surface.areas.OPPOSED_KEPT``), and the
+    robot painting the area from its side would aim at them from inside the body. On the BMW in ``line3`` the
+    left rear window's sill is sheet with both sides in the mesh, 2.5 mm apart, the inner side facing the cabin
+    (0.02 m^2, in ``side +y 2``): the sections run along the outer side, round the sill's lip and back along the
+    inner side, the gun turned over at the lip, inside the body."""
+    normal = np.asarray(normal, dtype=float)
+    size = np.linalg.norm(stroke.normals, axis=1) * np.linalg.norm(normal)
+    cos = np.divide(stroke.normals @ normal, size, out=np.ones(len(size)), where=size > 0)
+    return cos < math.cos(math.radians(limit_deg))
+
+
+def facing_runs(stroke, normal: np.ndarray) -> tuple[list, float]:
+    """``stroke`` cut to its runs of at least two waypoints that do not face away from ``normal``
+    (:func:`facing_away`): the strokes (``stroke`` itself when nothing faces away), and the path left out
+    (mm, along the aimed-at points)."""
+    away = facing_away(stroke, normal)
+    if not away.any():
+        return [stroke], 0.0
+    edges = np.flatnonzero(np.diff(np.r_[0, (~away).astype(np.int8), 0]))
+    runs = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2]) if b - a >= 2]
+
+    def length(points):
+        return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+
+    kept = [cut_stroke(stroke, a, b) for a, b in runs]
+    return kept, length(stroke.points) - sum(length(k.points) for k in kept)
