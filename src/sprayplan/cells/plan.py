@@ -92,12 +92,13 @@ import numpy as np
 from sprayplan.cells.film import film_at_timed_speeds, film_report, timed_film_summary
 from sprayplan.cells.reach import reach_matrix, reach_tilts
 from sprayplan.cells.repair import repaired_work
-from sprayplan.cells.seams import SEAM_STEP_MM, SeamGuard, cut_stroke, facing_runs, feathered
+from sprayplan.cells.seams import SEAM_STEP_MM, SeamGuard, cut_stroke, facing_runs, feathered, true_runs
 from sprayplan.cells.spec import Cell, place_part
 from sprayplan.cells.tries import JOINT_JUMP_RAD, rot_z, start_joints, stroke_tries
 from sprayplan.cells.work import RobotWork, joined_transfers, transfer_stroke, with_tuned_dwell
 from sprayplan.config import JobConfig
 from sprayplan.errors import ConfigError, InputError
+from sprayplan.paths.polyline import polyline_length
 from sprayplan.progress import Progress, no_progress, per_stage
 from sprayplan.surface.areas import AreaAssignment, Areas, assign_areas, segment_areas
 from sprayplan.surface.poses import stroke_poses
@@ -400,12 +401,9 @@ def reached_strokes(robots) -> tuple[list, list]:
         for s_i, s in enumerate(r.strokes):
             n = len(s)
             if s.spray_on:
-                ok = r.reachable[at : at + n]
-                edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
-                for a, b in zip(edges[::2], edges[1::2]):
-                    if b - a >= 2:
-                        out.append(cut_stroke(s, int(a), int(b)))
-                        owners.append((r_i, s_i, int(a), int(b)))
+                for a, b in true_runs(r.reachable[at : at + n]):
+                    out.append(cut_stroke(s, a, b))
+                    owners.append((r_i, s_i, a, b))
             at += n
     return out, owners
 
@@ -424,7 +422,7 @@ def spray_path_by_area(robots, n_areas: int, reached_only: bool = True) -> np.nd
         pairs = [(s, r.area[i]) for r in robots for i, s in enumerate(r.strokes)]
     for stroke, k in pairs:
         if 0 <= k < n_areas and stroke.kind == "spray" and len(stroke) > 1:
-            out[int(k)] += float(np.linalg.norm(np.diff(stroke.points, axis=0), axis=1).sum())
+            out[int(k)] += polyline_length(stroke.points)
     return out
 
 

@@ -10,6 +10,7 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sprayplan.paths.polyline import polyline_length
 from sprayplan.surface.areas import OPPOSED_DEG
 from sprayplan.types import Part, Stroke
 
@@ -26,6 +27,13 @@ def cut_stroke(stroke: Stroke, a: int, b: int) -> Stroke:
         stroke.dwell[a:b],
         stroke.kind,
     )
+
+
+def true_runs(mask: np.ndarray, min_len: int = 2) -> list[tuple[int, int]]:
+    """``[a, b)`` index ranges of the runs of True in ``mask`` at least ``min_len`` long: the waypoints of a
+    stroke to cut it to (:func:`cut_stroke`; a run of one waypoint paints nothing)."""
+    edges = np.flatnonzero(np.diff(np.r_[0, np.asarray(mask).astype(np.int8), 0]))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2]) if b - a >= min_len]
 
 
 class SeamGuard:
@@ -105,8 +113,7 @@ def feathered(strokes, guard: SeamGuard | None, label: int) -> list:
             b = int(on[-1]) + 1 + int(tail[0]) if len(tail) else len(s)
             runs = [(a, b)]
         else:
-            edges = np.flatnonzero(np.diff(np.r_[0, (~over).astype(np.int8), 0]))
-            runs = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
+            runs = true_runs(~over)
         out.extend(cut_stroke(s, a, b) if (a, b) != (0, len(s)) else s for a, b in runs if b - a >= 2)
     return out
 
@@ -132,11 +139,5 @@ def facing_runs(stroke, normal: np.ndarray) -> tuple[list, float]:
     away = facing_away(stroke, normal)
     if not away.any():
         return [stroke], 0.0
-    edges = np.flatnonzero(np.diff(np.r_[0, (~away).astype(np.int8), 0]))
-    runs = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2]) if b - a >= 2]
-
-    def length(points):
-        return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
-
-    kept = [cut_stroke(stroke, a, b) for a, b in runs]
-    return kept, length(stroke.points) - sum(length(k.points) for k in kept)
+    kept = [cut_stroke(stroke, a, b) for a, b in true_runs(~away)]
+    return kept, polyline_length(stroke.points) - sum(polyline_length(k.points) for k in kept)
