@@ -447,8 +447,13 @@ def test_areas_command_writes_one_row_a_painted_face(testdata, tmp_path, capsys)
     assert "areas of" in text and str(out) in text
 
 
-def test_areas_command_with_the_collision_model_reaches_no_more_and_needs_link_sizes(testdata, tmp_path, capsys):
+def test_areas_command_with_the_collision_model_reaches_no_more_and_needs_link_sizes(
+    testdata, tmp_path, capsys, monkeypatch
+):
     import csv
+
+    from sprayplan.cells import collide
+    from sprayplan.io.load import load_part
 
     pytest.importorskip("coal")
     suv = testdata / "meshes" / "gazebo_suv_body_m.ply"
@@ -456,8 +461,15 @@ def test_areas_command_with_the_collision_model_reaches_no_more_and_needs_link_s
     assert _run(["-q", "areas", suv, "--units", "m", "--cell", "sides2", "-o", plain], capsys)[0] == 0
     tilted = tmp_path / "tilted.csv"
     base = ["-q", "areas", suv, "--units", "m", "--cell", "sides2", "--collisions"]
+    seen = []
+    plain_arms = collide.cell_arms
+    monkeypatch.setattr(
+        collide, "cell_arms", lambda cell, part, config: seen.append(part) or plain_arms(cell, part, config)
+    )
     code, _, err = _run([*base, "--piece-tilt-deg", "0", "-o", checked], capsys)
     assert code == 0, err
+    # the arms are checked against the whole body, the surface facing the floor (not painted) too
+    assert seen[0].area == pytest.approx(load_part(suv, units="m").area, rel=1e-9)
     code, _, err = _run([*base, "-o", tilted], capsys)
     assert code == 0, err
     a, b, c = (list(csv.DictReader(f.open())) for f in (plain, checked, tilted))

@@ -176,6 +176,16 @@ def test_the_film_is_reported_over_the_whole_body_per_area_robot_and_seam(planne
     from sprayplan.view.summary import measured_interval
 
     assert measured_interval(points) in (planned["out"] / "cell.html").read_text()
+    # the surface a gun faces square and the recessed surface share the whole; on a box nothing is recessed
+    settings = planned["plan"]["settings"]
+    depth = settings["paths"]["standoff_mm"] + settings["collision"]["clearance_mm"]
+    assert film["open"]["recess_mm"] == pytest.approx(depth)
+    assert film["open"]["area_mm2"] == pytest.approx(whole["area_mm2"], rel=1e-9)
+    assert film["open"]["share_in_spec"] == pytest.approx(whole["share_in_spec"], rel=1e-9)
+    assert film["recessed"]["count"] == 0
+    from sprayplan.view.summary import open_surface
+
+    assert open_surface(film) and open_surface(film) in (planned["out"] / "cell.html").read_text()
     assert "left/right" in film["per_seam"] and film["per_seam"]["left/right"]["count"] > 0
     # the cell's cycle is its longest robot's
     assert report["cycle_time_s"] == max(r["cycle_time_s"] for r in report["robots"].values())
@@ -490,7 +500,8 @@ def test_a_bad_gun_axis_names_the_file(axis):
 
 def test_a_masked_end_is_left_unpainted_and_stays_an_obstacle(monkeypatch, tmp_path):
     """``[load] mask`` (``plan --mask``) in a cell: the film, the areas and the strokes leave the masked end of
-    the box out (its area reported), and the arms are checked against the whole box, the masked end too."""
+    the box out (its area reported), and the arms are checked against the whole box, the masked end and the
+    bottom facing the floor too."""
     from sprayplan.cells import collide
     from sprayplan.config import CollisionConfig, LoadConfig
     from sprayplan.surface.region import parse_region
@@ -518,9 +529,66 @@ def test_a_masked_end_is_left_unpainted_and_stays_an_obstacle(monkeypatch, tmp_p
     # strokes run on past the mask's edge by the spray's radius, as past any edge (onto the masking), no further
     assert in_part[:, 0].max() <= 150.0 + job.paths.spray_radius_mm + 1e-6
     (obstacle,) = seen
-    assert obstacle.area == pytest.approx(plan.part.area + 165000.0, rel=1e-9)  # the masked end is an obstacle
+    # the masked end and the bottom (600 x 300, facing the floor, not painted) are obstacles
+    assert obstacle.area == pytest.approx(plan.part.area + 165000.0 + 600 * 300, rel=1e-9)
     assert plan.collision_part is obstacle  # and the check after the film and the programs' check use it too
     assert parse_region("x > 150").contains(obstacle.triangles.mean(axis=1) @ to_part[:3, :3].T + to_part[:3, 3]).any()
+
+
+def test_the_arms_are_checked_against_the_surface_left_unpainted_too(monkeypatch, tmp_path):
+    """The surface a cell plan leaves unpainted (facing the floor: a body's underside, the roof of an air
+    intake) is still there: the arms' collision model and the checks after the plan get the whole body, and
+    the film report judges recesses against it."""
+    import dataclasses
+
+    from sprayplan.cells import collide
+    from sprayplan.cells.film import film_report
+    from sprayplan.config import CollisionConfig
+    from sprayplan.types import Part
+    from tests.helpers import plate
+
+    path = tmp_path / "c.toml"
+    path.write_text(CELL)
+    cell = load_cell(path)
+    box = grid_box(n=6, size=SIZE)
+    seen = []
+    plain = collide.cell_arms
+    monkeypatch.setattr(
+        collide, "cell_arms", lambda cell_, part, config: seen.append(part) or plain(cell_, part, config)
+    )
+    job = JobConfig(collision=CollisionConfig(check=True)).replace(coating={"thickness_um": 50.0})
+    plan = plan_cell(box, cell, job)
+    assert plan.report["floor_facing_left_out_mm2"] == pytest.approx(600 * 300, rel=1e-9)
+    assert plan.part.area == pytest.approx(box.area - 600 * 300, rel=1e-9)  # the bottom is not painted
+    (obstacle,) = seen
+    assert obstacle.area == pytest.approx(box.area, rel=1e-9)  # but is an obstacle
+    assert plan.collision_part is obstacle
+    to_part = np.linalg.inv(plan.part2cell)
+    centres = obstacle.triangles.mean(axis=1) @ to_part[:3, :3].T + to_part[:3, 3]
+    assert np.isclose(centres[:, 2], box.vertices[:, 2].min()).sum() == 2 * 6 * 6  # the bottom's triangles
+    # the film over the surface in front of which the body stands within the standoff and the clearance: none on
+    # a box; with a 200 x 100 mm lid 100 mm over the middle of the top, the four top faces (100 x 50 mm) whose
+    # centres it hangs over, and the film there is the film of those faces' samples
+    film = plan.report["film"]
+    assert film["recessed"]["count"] == 0 and film["open"]["area_mm2"] == pytest.approx(plan.part.area, rel=1e-9)
+    lid = plate(-100, 100, -50, 50, 10.0)
+    top = plan.part.vertices[:, 2].max()
+    lid_v = np.column_stack([lid.vertices[:, :2], np.full(len(lid.vertices), top + 100.0)])
+    lidded = Part(
+        np.vstack([obstacle.vertices, lid_v]), np.vstack([obstacle.faces, lid.faces + len(obstacle.vertices)]),
+        None, "lidded", oriented=True,
+    )  # fmt: skip
+    depth = job.paths.standoff_mm + job.collision.clearance_mm
+    covered = film_report(dataclasses.replace(plan, obstacle=lidded), 50.0, 5.0, samples=None, recess_mm=depth)
+    assert covered["recessed"]["area_mm2"] == pytest.approx(4 * 100 * 50, rel=1e-9)
+    assert covered["open"]["area_mm2"] + covered["recessed"]["area_mm2"] == pytest.approx(plan.part.area, rel=1e-9)
+    under = plan.film.part_face >= 0
+    centre = plan.part.triangles.mean(axis=1)[plan.film.part_face[under]]
+    inside = (np.abs(centre[:, 0]) < 100) & (np.abs(centre[:, 1]) < 50) & np.isclose(centre[:, 2], top)
+    assert covered["recessed"]["count"] == inside.sum()
+    assert covered["recessed"]["mean_um"] == pytest.approx(
+        np.average(plan.film.thickness_um[under][inside], weights=plan.film.area_mm2[under][inside]), rel=1e-9
+    )
 
 
 def _upright(plate_part, y_mm):

@@ -178,6 +178,58 @@ def test_the_bodys_covered_faces_agree_with_trimeshs_rays(testdata):
         assert found.all() if expected else not found.any()
 
 
+def test_faces_in_front_finds_any_face_ahead_within_the_distance_of_the_part_or_an_obstacle():
+    """A floor (400 x 200 mm, facing up) under a lid 100 mm above it, turned 60 degrees (no cover by
+    :func:`covered_faces`' rule, |cos| 0.5): the floor's faces whose upward ray meets the lid are in front of
+    it within 150 mm and not within 90 mm; the lid's are not. Given the floor alone and the lid as an obstacle,
+    the same floor faces are found; without the obstacle none."""
+    from sprayplan.surface.region import COVERED_MIN_COS, faces_in_front
+
+    floor = _sheet(-200, 200, -100, 100, 0.0)
+    lid = _sheet(-50, 50, -25, 25, 100.0, step=5.0, tilt_deg=60.0)
+    both = _stack(floor, lid)
+    n = len(floor[1])
+    centres = floor[0][floor[1]].mean(axis=1)
+    # the lid spans x in [-50, 50] and, turned about the x axis through y = 0, y in [-12.5, 12.5] seen from
+    # below, rising from z 100 - 21.65 to 100 + 21.65 mm
+    under = (np.abs(centres[:, 0]) < 50) & (np.abs(centres[:, 1]) < 12.5)
+    ahead = faces_in_front(both, 150.0)
+    np.testing.assert_array_equal(ahead[:n], under)
+    assert under.sum() > 0 and not ahead[n:].any()
+    assert not faces_in_front(both, 70.0).any()  # the lid's lowest edge is 78 mm up
+    assert not faces_in_front(both, 150.0, min_cos=COVERED_MIN_COS).any()
+    alone = _stack(floor)
+    np.testing.assert_array_equal(faces_in_front(alone, 150.0, obstacle=both), under)
+    assert not faces_in_front(alone, 150.0).any()
+
+
+def test_the_bodys_faces_in_front_agree_with_trimeshs_rays(testdata):
+    """On the SUV body, every face tested with trimesh's own rays (every hit along the normal): a face has
+    some face within 143 mm in front of it (the standoff and the clearance) exactly when
+    :func:`faces_in_front` says so."""
+    import trimesh
+
+    from sprayplan.surface import normals as nm
+    from sprayplan.surface.region import faces_in_front
+
+    body = nm.oriented_part(load_part(testdata / "meshes" / "gazebo_suv_body_m.ply", units="m"))
+    ahead = faces_in_front(body, 143.0)
+    assert 0 < ahead.sum() < len(ahead)
+    normals = nm.face_normals(body.vertices, body.faces)
+    mesh = trimesh.Trimesh(body.vertices, body.faces, process=False)
+    origins = body.triangles.mean(axis=1) + 0.5 * normals
+    where, ray, hit = mesh.ray.intersects_location(origins, normals, multiple_hits=True)
+    distance = np.einsum("ij,ij->i", where - origins[ray], normals[ray])
+    near = (distance >= 0) & (distance <= 142.5) & (hit != ray)
+    found = np.zeros(len(normals), bool)
+    found[ray[near]] = True
+    # a hit within a micrometre of the ray's end or of an edge may go either way
+    edge = (distance >= 142.4) & (distance <= 142.6)
+    unsure = np.zeros(len(normals), bool)
+    unsure[ray[edge]] = True
+    np.testing.assert_array_equal(ahead[~unsure], found[~unsure])
+
+
 def test_the_painted_surface_leaves_out_what_faces_the_floor_and_what_is_covered():
     from sprayplan.config import CollisionConfig
     from sprayplan.surface.region import painted_surface

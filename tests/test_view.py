@@ -450,3 +450,23 @@ def test_a_measuring_point_table_shows_its_interval_and_an_old_one_none():
     assert measured_interval({"share_in_spec": 0.94, "share_in_spec_ci95": [0.9136, 0.9594]}) == " (95 %: 91.4-95.9 %)"
     assert measured_interval({"share_in_spec": 0.94}) == ""
     assert measured_interval({"share_in_spec_ci95": [0.9, float("nan")]}) == ""
+
+
+def test_a_cell_films_open_and_recessed_surface_are_shown_and_an_old_film_shows_none():
+    from sprayplan.view.summary import open_surface
+
+    film = {
+        "whole": {"share_in_spec": 0.927},
+        "open": {"share_in_spec": 0.9512, "area_mm2": 11.8e6, "recess_mm": 143.0},
+        "recessed": {"share_in_spec": 0.146, "area_mm2": 0.34e6},
+    }
+    assert open_surface(film) == (
+        ", 95.1 % over the surface a gun faces square (nothing within 143 mm in front; recessed 0.34 m^2,"
+        " 14.6 % in spec)"
+    )
+    none_recessed = {**film, "recessed": {"count": 0}}
+    assert (
+        open_surface(none_recessed) == ", 95.1 % over the surface a gun faces square (nothing within 143 mm in front)"
+    )
+    assert open_surface({"whole": {"share_in_spec": 0.9}}) == ""
+    assert open_surface({**film, "open": {"share_in_spec": float("nan"), "recess_mm": 143.0}}) == ""

@@ -23,12 +23,24 @@ def _stats(um: np.ndarray, area: np.ndarray, target: float, tol: float) -> dict:
 
 
 def film_report(
-    plan, target_um: float, tolerance_um: float, samples: int | None = 420, seed: int = 0, seams: bool = True
+    plan,
+    target_um: float,
+    tolerance_um: float,
+    samples: int | None = 420,
+    seed: int = 0,
+    seams: bool = True,
+    recess_mm: float | None = None,
 ) -> dict:
     """The film over the whole body, per area, per robot, over the surface some robot reaches (``reached``,
     the robots' shares together) and the surface none reaches (``unreached``), and (with ``seams``) along every
     seam (the samples within one spray radius of an edge between two robots' faces), and ``samples`` measuring
-    points over the whole body (``coating.report.coating_report``; seed 003 measured 420)."""
+    points over the whole body (``coating.report.coating_report``; seed 003 measured 420).
+
+    With ``recess_mm`` (the plan gives the gun's standoff plus the collision clearance) also over the
+    ``recessed`` surface, the faces with the body (``CellPlan.collision_part``) in front of them within
+    ``recess_mm`` along the outward normal (``surface.region.faces_in_front``: the floor and walls of an air
+    intake, the walls of a door gap, a panel's back facing the body), where no gun can be held square at its
+    standoff, and over the rest (``open``, with ``recess_mm``)."""
     from sprayplan.coating.report import coating_report
 
     film = plan.film
@@ -58,6 +70,12 @@ def film_report(
     }
     out["reached"] = _stats(um[robot_of >= 0], area[robot_of >= 0], target_um, tolerance_um)
     out["unreached"] = _stats(um[robot_of < 0], area[robot_of < 0], target_um, tolerance_um)
+    if recess_mm is not None:
+        from sprayplan.surface.region import faces_in_front
+
+        recessed = faces_in_front(plan.part, recess_mm, obstacle=plan.collision_part)[face]
+        out["open"] = {**_stats(um[~recessed], area[~recessed], target_um, tolerance_um), "recess_mm": recess_mm}
+        out["recessed"] = _stats(um[recessed], area[recessed], target_um, tolerance_um)
     if not seams:
         return out
     pairs, _ = face_adjacency(plan.part.faces, plan.part.vertices)

@@ -156,8 +156,9 @@ class CellPlan:
         The film the robots leave at their timed speeds (``report["film"]["at_timed_speeds"]`` in brief), when
         the plan was timed with a film target; not read back from ``cell_plan.json``.
     obstacle : Part or None
-        The surface the arms must not hit where it is more than ``part`` (``[load] mask``: the masked surface is
-        not painted but is there); None: ``part`` (:attr:`collision_part`). Not read back from ``cell_plan.json``.
+        The surface the arms must not hit: the whole body as placed, the surface left unpainted with it (facing
+        the floor, covered, or masked by ``[load] mask``); None: ``part`` (:attr:`collision_part`). Not read
+        back from ``cell_plan.json``.
     """
 
     cell: Cell
@@ -594,6 +595,16 @@ def area_surface(painted: Part) -> tuple[Part, np.ndarray]:
 SEAM_RULES = ("feather", "overlap")
 
 
+def film_settings(job: JobConfig) -> dict:
+    """The keywords :func:`~sprayplan.cells.film.film_report` takes from a cell plan's settings: the measuring
+    points and the depth a recess is judged within (the standoff plus the collision clearance)."""
+    return {
+        "samples": job.output.samples or 420,
+        "seed": 0,
+        "recess_mm": job.paths.standoff_mm + job.collision.clearance_mm,
+    }
+
+
 def plan_cell(
     part: Part, cell: Cell, job: JobConfig, progress: Progress | None = None, seams: str = "feather"
 ) -> CellPlan:
@@ -640,9 +651,11 @@ def plan_cell(
     cell = placed.cell  # its lifts at their heights over this part
     # oriented once, as a whole: each robot's share then keeps the body's outward side (a share voted on
     # alone can turn a piece of the nose inward)
-    painted, left_out = painted_surface(oriented_part(placed.part), job.collision)
-    # the masks ([load] mask, in the part's own frame) leave surface unpainted that the arms still must not hit
-    obstacle = painted
+    whole = oriented_part(placed.part)
+    painted, left_out = painted_surface(whole, job.collision)
+    # the arms must not hit any of the body: the surface left unpainted (facing the floor, covered, or masked
+    # by [load] mask, in the part's own frame) is there all the same
+    obstacle = whole
     if job.load.mask:
         from sprayplan.surface.region import mask_out
 
@@ -650,7 +663,6 @@ def plan_cell(
         left_out["masked_left_out_mm2"] = masked
     if len(cell.robots) > 1:
         painted, _ = area_surface(painted)
-        obstacle = area_surface(obstacle)[0] if job.load.mask else painted
     begin("areas")
     job, chosen = meet_thickness(job)
     if job.collision.check:
@@ -727,7 +739,7 @@ def plan_cell(
         ),
     }
     plan = CellPlan(cell, painted, placed.part2cell, areas, assignment, robots, None, report, timings, job=job,
-                    obstacle=obstacle if job.load.mask else None)  # fmt: skip
+                    obstacle=obstacle)  # fmt: skip
     target = job.coating.thickness_um
     everything, film_owners = reached_strokes(robots)
     if not everything:
@@ -824,7 +836,7 @@ def plan_cell(
     )
     plan = dataclasses.replace(plan, robots=robots, film=film, report=report)
     if film is not None and target is not None:
-        report["film"] = film_report(plan, target, job.coating.tolerance, samples=job.output.samples or 420, seed=0)
+        report["film"] = film_report(plan, target, job.coating.tolerance, **film_settings(job))
     if job.collision.check:
         from sprayplan.cells.collide import check_cell
 
@@ -875,7 +887,7 @@ def plan_cell(
             )  # fmt: skip
             film = tuned_film(tuning, process, coating)
             plan = dataclasses.replace(plan, robots=robots, film=film)
-            report["film"] = film_report(plan, target, job.coating.tolerance, samples=job.output.samples or 420, seed=0)
+            report["film"] = film_report(plan, target, job.coating.tolerance, **film_settings(job))
         robots = timed_cell(cell, robots, job, report, timed_work)
         plan = dataclasses.replace(plan, robots=robots)
         if film is not None and target is not None:

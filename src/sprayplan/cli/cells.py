@@ -97,7 +97,7 @@ def cmd_areas(args) -> int:
         for r in cell.robots:
             arm_radii(r.model)
         with _stage("collision model"):
-            arms = cell_arms(cell, painted, CollisionConfig(check=True))
+            arms = cell_arms(cell, placed, CollisionConfig(check=True))  # the whole body, as plan_cell
     with _stage("reach"):
         tilts = () if arms is None else reach_tilts(tilt_deg)  # as plan_cell tries them
         reach = reach_matrix(cell, painted, areas.face_normals, args.standoff_mm, arms=arms, tilts_deg=tilts)
@@ -289,6 +289,8 @@ def cmd_plan_cell(args, job, cell=None) -> int:
 
             for warning in warnings_of(built):
                 print(f"sprayplan: {robot.robot}: {warning}", file=sys.stderr)
+    from sprayplan.view.summary import open_surface
+
     report = plan.report
     robots = ", ".join(
         f"{name} {r['strokes']} strokes {r['waypoints']} waypoints ({r['unreached_waypoints']} unreached) "
@@ -302,7 +304,7 @@ def cmd_plan_cell(args, job, cell=None) -> int:
     if film:
         whole = film["whole"]
         line += (
-            f"; film mean {whole['mean_um']:.1f} um, {100 * whole['share_in_spec']:.1f} % in spec"
+            f"; film mean {whole['mean_um']:.1f} um, {100 * whole['share_in_spec']:.1f} % in spec{open_surface(film)}"
             f" ({film['report'].get('measuring_points', {}).get('count', 0)} measuring points:"
             f" {100 * film['report'].get('measuring_points', {}).get('share_in_spec', 0.0):.1f} % in spec)"
         )

@@ -436,27 +436,46 @@ _PLANE_SLACK_MM = 1e-6
 def covered_faces(part: Part, within_mm: float) -> np.ndarray:
     """(m,) bool: the mesh's faces with another face of the part in front of them within ``within_mm``, near
     parallel (:data:`COVERED_MIN_COS`), on the ray from the face's centre along its outward normal
-    (``surface.normals.part_outward``): surface no gun reaches, hidden by a part lying on it.
+    (``surface.normals.part_outward``): surface no gun reaches, hidden by a part lying on it
+    (:func:`faces_in_front`)."""
+    return faces_in_front(part, within_mm, min_cos=COVERED_MIN_COS)
+
+
+def faces_in_front(part: Part, within_mm: float, obstacle: Part | None = None, min_cos: float = 0.0) -> np.ndarray:
+    """(m,) bool: the faces of the mesh ``part`` whose ray from the centre along the outward normal
+    (``surface.normals.part_outward``) meets a face of ``obstacle`` (default: the part itself; in the same
+    frame) within ``within_mm``, that face's normal at least ``min_cos`` (|cos|) from the ray's: with 0 any
+    face in front (the body within a gun's standoff in front of a recess's floor), with
+    :data:`COVERED_MIN_COS` a face lying on it (:func:`covered_faces`).
 
     The ray is tested against the triangles whose bounding ball can meet it: the triangles are grouped by
     their circumradius (doubling bins), and each group's centres are searched within half the ray's length
     plus the group's largest radius of the ray's midpoint (``cKDTree.sparse_distance_matrix``); the
-    candidates are intersected exactly (Moller-Trumbore)."""
+    candidates are intersected exactly (Moller-Trumbore). A face never meets its own ray (which starts in
+    front of its plane)."""
     from scipy.spatial import cKDTree
 
-    from sprayplan.surface.normals import part_outward
+    from sprayplan.surface.normals import face_normals, part_outward
 
     if not part.is_mesh or not within_mm > 0:
         return np.zeros(len(part.faces), bool)
     faces, normals = part_outward(part)
     tri = part.vertices[faces]
     centre = tri.mean(axis=1)
-    radius = np.linalg.norm(tri - centre[:, None, :], axis=2).max(axis=1)
     length = float(within_mm) - _RAY_START_MM
     origin = centre + _RAY_START_MM * normals
     mid_tree = cKDTree(origin + 0.5 * length * normals)
-    plane = np.einsum("ij,ij->i", normals, tri[:, 0])  # each face's plane: {x : normal . x = plane}
-    covered = np.zeros(len(faces), bool)
+    if obstacle is None:
+        other, other_normals = tri, normals
+    else:
+        if not obstacle.is_mesh:
+            return np.zeros(len(faces), bool)
+        other = obstacle.vertices[obstacle.faces]
+        other_normals = face_normals(obstacle.vertices, obstacle.faces)
+    other_centre = other.mean(axis=1)
+    radius = np.linalg.norm(other - other_centre[:, None, :], axis=2).max(axis=1)
+    plane = np.einsum("ij,ij->i", other_normals, other[:, 0])  # each face's plane: {x : normal . x = plane}
+    found_in_front = np.zeros(len(faces), bool)
     top = max(float(radius.max()), 1e-9)
     edges = [0.0]
     while edges[-1] < top:
@@ -465,28 +484,31 @@ def covered_faces(part: Part, within_mm: float) -> np.ndarray:
     for g in np.unique(group):
         members = np.flatnonzero(group == g)
         found = mid_tree.sparse_distance_matrix(
-            cKDTree(centre[members]), 0.5 * length + edges[g], output_type="ndarray"
+            cKDTree(other_centre[members]), 0.5 * length + edges[g], output_type="ndarray"
         )
         rays, hit = found["i"], members[found["j"]]
-        keep = (rays != hit) & ~covered[rays]
+        keep = ~found_in_front[rays]
+        if obstacle is None:
+            keep &= rays != hit
         rays, hit = rays[keep], hit[keep]
-        facing = np.einsum("ij,ij->i", normals[rays], normals[hit])
-        # near parallel, and the ray crosses the other face's plane within its length (most candidates are
-        # the face's neighbours on the same sheet, whose plane lies behind the ray's start): two dot products
-        # a pair spare the exact test on them; a pair kept here is decided by the exact test alone
-        cross_at = (plane[hit] - np.einsum("ij,ij->i", normals[hit], origin[rays])) / np.where(
+        facing = np.einsum("ij,ij->i", normals[rays], other_normals[hit])
+        # near parallel (when asked), and the ray crosses the other face's plane within its length (most
+        # candidates are the face's neighbours on the same sheet, whose plane lies behind the ray's start): two
+        # dot products a pair spare the exact test on them; a pair kept here is decided by the exact test alone
+        cross_at = (plane[hit] - np.einsum("ij,ij->i", other_normals[hit], origin[rays])) / np.where(
             facing == 0.0, 1.0, facing
         )
         keep = (
-            (np.abs(facing) >= COVERED_MIN_COS)
+            (np.abs(facing) >= min_cos)
+            & (facing != 0.0)
             & (cross_at >= -_PLANE_SLACK_MM)
             & (cross_at <= length + _PLANE_SLACK_MM)
         )
         rays, hit = rays[keep], hit[keep]
         for start in range(0, len(rays), _PAIR_CHUNK):
             r, h = rays[start : start + _PAIR_CHUNK], hit[start : start + _PAIR_CHUNK]
-            covered[r[_ray_hits(origin[r], normals[r], tri[h], length)]] = True
-    return covered
+            found_in_front[r[_ray_hits(origin[r], normals[r], other[h], length)]] = True
+    return found_in_front
 
 
 def _ray_hits(origin: np.ndarray, direction: np.ndarray, tri: np.ndarray, length: float) -> np.ndarray:

@@ -27,7 +27,7 @@ import numpy as np
 from sprayplan.view.colours import GREY, ROBOT_COLOURS, film_scale
 from sprayplan.view.decimate import thin_indices, thin_surface
 from sprayplan.view.scene import Surface, vertex_areas, vertex_normals
-from sprayplan.view.summary import measured_interval
+from sprayplan.view.summary import measured_interval, open_surface
 
 PLOT_ID = "sprayplan-cell"
 MAX_FACES = 60_000
@@ -207,7 +207,8 @@ def _header(plan, drawn: dict) -> str:
     if film:
         whole, points = film["whole"], film["report"].get("measuring_points", {})
         lines.append(
-            f"film over the whole body: mean {whole['mean_um']:.1f} um, {100 * whole['share_in_spec']:.1f} % in spec; "
+            f"film over the whole body: mean {whole['mean_um']:.1f} um, {100 * whole['share_in_spec']:.1f} % in spec"
+            f"{open_surface(film)}; "
             f"{points.get('count', 0)} measuring points: {100 * points.get('share_in_spec', 0.0):.1f} % in spec"
             f"{measured_interval(points)}"
         )

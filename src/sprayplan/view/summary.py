@@ -30,6 +30,23 @@ def measured_interval(table: dict) -> str:
     return f" (95 %: {100 * number(ci[0]):.1f}-{100 * number(ci[1]):.1f} %)"
 
 
+def open_surface(film: dict) -> str:
+    """``, x % over the surface a gun faces square (nothing within d mm in front; recessed a m^2, y % in
+    spec)``: a cell plan's film over its open and recessed surface (``cells.film.film_report``), or "" for a
+    film without them (a plan written before)."""
+    flat, deep = (film.get(k) if isinstance(film, dict) else None for k in ("open", "recessed"))
+    if not (isinstance(flat, dict) and isinstance(deep, dict)):
+        return ""
+    share, depth = number(flat.get("share_in_spec")), number(flat.get("recess_mm"))
+    deep_share, deep_area = number(deep.get("share_in_spec")), number(deep.get("area_mm2"))
+    if share is None or depth is None:
+        return ""
+    text = f", {100 * share:.1f} % over the surface a gun faces square (nothing within {depth:g} mm in front"
+    if deep_area and deep_share is not None:
+        text += f"; recessed {deep_area / 1e6:.3g} m^2, {100 * deep_share:.1f} % in spec"
+    return text + ")"
+
+
 def summary_rows(scene: Scene) -> list[tuple[str, list[tuple[str, str]]]]:
     """The summary panel's tables: (title, [(label, value)]); a figure missing from the files shows as '-'."""
     t = scene.totals
