@@ -498,23 +498,29 @@ def test_a_bad_gun_axis_names_the_file(axis):
     assert "s.toml" in str(err.value)
 
 
-def test_a_masked_end_is_left_unpainted_and_stays_an_obstacle(monkeypatch, tmp_path):
-    """``[load] mask`` (``plan --mask``) in a cell: the film, the areas and the strokes leave the masked end of
-    the box out (its area reported), and the arms are checked against the whole box, the masked end and the
-    bottom facing the floor too."""
+def _box_with_arms_seen(monkeypatch, tmp_path):
+    """The two-robot cell, the 6 x 6 grid box, and the list each part the arms' collision model is built
+    against is appended to (``cells.collide.cell_arms`` watched)."""
     from sprayplan.cells import collide
-    from sprayplan.config import CollisionConfig, LoadConfig
-    from sprayplan.surface.region import parse_region
 
     path = tmp_path / "c.toml"
     path.write_text(CELL)
-    cell = load_cell(path)
-    box = grid_box(n=6, size=SIZE)
     seen = []
     plain = collide.cell_arms
     monkeypatch.setattr(
         collide, "cell_arms", lambda cell_, part, config: seen.append(part) or plain(cell_, part, config)
     )
+    return load_cell(path), grid_box(n=6, size=SIZE), seen
+
+
+def test_a_masked_end_is_left_unpainted_and_stays_an_obstacle(monkeypatch, tmp_path):
+    """``[load] mask`` (``plan --mask``) in a cell: the film, the areas and the strokes leave the masked end of
+    the box out (its area reported), and the arms are checked against the whole box, the masked end and the
+    bottom facing the floor too."""
+    from sprayplan.config import CollisionConfig, LoadConfig
+    from sprayplan.surface.region import parse_region
+
+    cell, box, seen = _box_with_arms_seen(monkeypatch, tmp_path)
     job = JobConfig(load=LoadConfig(mask=("x > 150",)), collision=CollisionConfig(check=True))
     plan = plan_cell(box, cell, job)
     # the masked end in the part frame: its top 150 x 300, two sides 150 x 200, the end 300 x 200 (the bottom
@@ -541,21 +547,12 @@ def test_the_arms_are_checked_against_the_surface_left_unpainted_too(monkeypatch
     the film report judges recesses against it."""
     import dataclasses
 
-    from sprayplan.cells import collide
     from sprayplan.cells.film import film_report
     from sprayplan.config import CollisionConfig
     from sprayplan.types import Part
     from tests.helpers import plate
 
-    path = tmp_path / "c.toml"
-    path.write_text(CELL)
-    cell = load_cell(path)
-    box = grid_box(n=6, size=SIZE)
-    seen = []
-    plain = collide.cell_arms
-    monkeypatch.setattr(
-        collide, "cell_arms", lambda cell_, part, config: seen.append(part) or plain(cell_, part, config)
-    )
+    cell, box, seen = _box_with_arms_seen(monkeypatch, tmp_path)
     job = JobConfig(collision=CollisionConfig(check=True)).replace(coating={"thickness_um": 50.0})
     plan = plan_cell(box, cell, job)
     assert plan.report["floor_facing_left_out_mm2"] == pytest.approx(600 * 300, rel=1e-9)
