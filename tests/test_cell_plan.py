@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import io
 
 import numpy as np
 import pytest
@@ -53,8 +55,11 @@ def planned(tmp_path_factory):
     part.write_bytes(write_stl_binary(grid_box(n=8, size=SIZE).triangles))
     out = folder / "out"
     argv = ["-q", "plan", str(part), "--cell", str(cell), "--thickness-um", "50", "--samples", "420", "-o", str(out)]
-    assert main(argv) == 0
-    return {"out": out, "cell": cell, "part": part, "plan": read_cell_plan(out / "cell_plan.json")}
+    said = io.StringIO()
+    with contextlib.redirect_stdout(said):
+        assert main(argv) == 0
+    plan = read_cell_plan(out / "cell_plan.json")
+    return {"out": out, "cell": cell, "part": part, "plan": plan, "stdout": said.getvalue()}
 
 
 def test_every_reached_waypoint_is_where_the_robot_puts_the_gun(planned):
@@ -186,6 +191,14 @@ def test_the_film_is_reported_over_the_whole_body_per_area_robot_and_seam(planne
     from sprayplan.view.summary import open_surface
 
     assert open_surface(film) and open_surface(film) in (planned["out"] / "cell.html").read_text()
+    # the command line says why the rest is out of spec
+    from sprayplan.view.summary import out_of_spec_causes
+
+    causes = film["out_of_spec"]
+    assert sum(causes[k] for k in ("unreached", "recessed", "bare", "thin", "thick")) == pytest.approx(
+        1.0 - whole["share_in_spec"], abs=1e-9
+    )
+    assert causes["recessed"] == 0.0 and out_of_spec_causes(film) in planned["stdout"]
     assert "left/right" in film["per_seam"] and film["per_seam"]["left/right"]["count"] > 0
     # the cell's cycle is its longest robot's
     assert report["cycle_time_s"] == max(r["cycle_time_s"] for r in report["robots"].values())
@@ -585,6 +598,34 @@ def test_the_arms_are_checked_against_the_surface_left_unpainted_too(monkeypatch
     assert covered["recessed"]["count"] == inside.sum()
     assert covered["recessed"]["mean_um"] == pytest.approx(
         np.average(plan.film.thickness_um[under][inside], weights=plan.film.area_mm2[under][inside]), rel=1e-9
+    )
+    # the open surface some robot reaches: with the faces on the +x half given to no robot, the open samples
+    # on the -x half
+    unreached = plan.part.triangles.mean(axis=1)[:, 0] > 0
+    lost = dataclasses.replace(plan.assignment, face_robot=np.where(unreached, -1, plan.assignment.face_robot))
+    half = film_report(
+        dataclasses.replace(plan, obstacle=lidded, assignment=lost), 50.0, 5.0, samples=None, recess_mm=depth
+    )
+    kept = ~inside & ~unreached[plan.film.part_face[under]]
+    assert 0 < kept.sum() < (~inside).sum()
+    assert half["open_reached"]["count"] == kept.sum()
+    assert half["open_reached"]["area_mm2"] == pytest.approx(plan.film.area_mm2[under][kept].sum(), rel=1e-9)
+    assert covered["open_reached"]["area_mm2"] == pytest.approx(covered["open"]["area_mm2"], rel=1e-9)
+    # the surface out of spec by cause: each sample out of spec once, the first cause that holds
+    causes = half["out_of_spec"]
+    um, a = plan.film.thickness_um[under], plan.film.area_mm2[under]
+    out = (um < 45.0) | (um > 55.0)
+    lost = unreached[plan.film.part_face[under]]
+    whole_area = plan.film.area_mm2.sum()
+    assert causes["unreached"] == pytest.approx(a[out & lost].sum() / whole_area, rel=1e-9)
+    assert causes["recessed"] == pytest.approx(a[out & ~lost & inside].sum() / whole_area, rel=1e-9)
+    rest = out & ~lost & ~inside
+    assert causes["bare"] == pytest.approx(a[rest & (um < 5.0)].sum() / whole_area, rel=1e-9)
+    assert causes["thin"] == pytest.approx(a[rest & (um >= 5.0) & (um < 45.0)].sum() / whole_area, rel=1e-9)
+    assert causes["thick"] == pytest.approx(a[rest & (um > 55.0)].sum() / whole_area, rel=1e-9)
+    assert causes["unreached"] > 0 and causes["recessed"] + causes["thin"] + causes["thick"] > 0
+    assert sum(causes[k] for k in ("unreached", "recessed", "bare", "thin", "thick")) == pytest.approx(
+        1.0 - half["whole"]["share_in_spec"], abs=1e-12
     )
 
 

@@ -468,5 +468,19 @@ def test_a_cell_films_open_and_recessed_surface_are_shown_and_an_old_film_shows_
     assert (
         open_surface(none_recessed) == ", 95.1 % over the surface a gun faces square (nothing within 143 mm in front)"
     )
+    both = {**film, "open_reached": {"share_in_spec": 0.9613, "area_mm2": 11.3e6}}
+    assert open_surface(both) == (
+        ", 95.1 % over the surface a gun faces square (nothing within 143 mm in front; recessed 0.34 m^2,"
+        " 14.6 % in spec; 96.1 % where some robot reaches it)"
+    )
+    assert open_surface({**both, "open_reached": {"share_in_spec": None}}) == open_surface(film)
     assert open_surface({"whole": {"share_in_spec": 0.9}}) == ""
+    from sprayplan.view.summary import out_of_spec_causes
+
+    causes = {"unreached": 0.0215, "recessed": 0.0096, "bare": 0.0033, "thin": 0.0204, "thick": 0.0172, "rule": "x"}
+    assert out_of_spec_causes({**film, "out_of_spec": causes}) == (
+        "out of spec: unreached 2.1 %, recessed 1.0 %, bare 0.3 %, thin 2.0 %, thick 1.7 % of the painted area"
+    )
+    assert out_of_spec_causes(film) == ""
+    assert out_of_spec_causes({"out_of_spec": {**causes, "thin": None}}) == ""
     assert open_surface({**film, "open": {"share_in_spec": float("nan"), "recess_mm": 143.0}}) == ""

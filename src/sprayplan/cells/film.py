@@ -40,7 +40,9 @@ def film_report(
     ``recessed`` surface, the faces with the body (``CellPlan.collision_part``) in front of them within
     ``recess_mm`` along the outward normal (``surface.region.faces_in_front``: the floor and walls of an air
     intake, the walls of a door gap, a panel's back facing the body), where no gun can be held square at its
-    standoff, and over the rest (``open``, with ``recess_mm``)."""
+    standoff, and over the rest (``open``, with ``recess_mm``), and over the part of that some robot reaches
+    (``open_reached``: what the cell can paint with a gun held square, apart from what its arms leave out),
+    and the surface out of spec by cause (``out_of_spec``, :func:`out_of_spec`)."""
     from sprayplan.coating.report import coating_report
 
     film = plan.film
@@ -76,6 +78,9 @@ def film_report(
         recessed = faces_in_front(plan.part, recess_mm, obstacle=plan.collision_part)[face]
         out["open"] = {**_stats(um[~recessed], area[~recessed], target_um, tolerance_um), "recess_mm": recess_mm}
         out["recessed"] = _stats(um[recessed], area[recessed], target_um, tolerance_um)
+        both = ~recessed & (robot_of >= 0)
+        out["open_reached"] = _stats(um[both], area[both], target_um, tolerance_um)
+        out["out_of_spec"] = out_of_spec(um, area, robot_of >= 0, recessed, target_um, tolerance_um)
     if not seams:
         return out
     pairs, _ = face_adjacency(plan.part.faces, plan.part.vertices)
@@ -94,6 +99,38 @@ def film_report(
             name = f"{_robot_name(plan, int(u))}/{_robot_name(plan, int(v))}"
             seams[name] = {**_stats(um[near], area[near], target_um, tolerance_um), "band_mm": radius}
     out["per_seam"] = seams
+    return out
+
+
+#: A film below this fraction of the target is bare (:func:`out_of_spec`): no stroke's spray reaches it.
+BARE_FRACTION = 0.1
+
+
+def out_of_spec(
+    um: np.ndarray, area: np.ndarray, reached: np.ndarray, recessed: np.ndarray, target_um: float, tolerance_um: float
+) -> dict:
+    """The share of the whole area (``area``, the samples' areas) out of ``target_um`` +- ``tolerance_um``,
+    split by cause, each sample out of spec counted once, under the first that holds: on surface no robot
+    reaches (``unreached``: ``reached`` false), on recessed surface (``recessed``: no gun held square at its
+    standoff), bare (``bare``: under :data:`BARE_FRACTION` of the target on open, reached surface: left out by
+    the collision step or between the strokes), below the spec (``thin``), above it (``thick``). The five and
+    the whole's share in spec add up to 1: what a person fixing the plan looks at first (a reach or a cell
+    layout for ``unreached``, a hand-taught touch-up for ``recessed``, the strokes and the speeds for the
+    rest)."""
+    total = float(area.sum())
+    lo, hi = target_um - tolerance_um, target_um + tolerance_um
+    left = (um < lo) | (um > hi)
+    out = {"rule": f"first of: unreached, recessed, bare (under {BARE_FRACTION:g} of the target), thin, thick"}
+    for name, these in (
+        ("unreached", ~reached),
+        ("recessed", recessed),
+        ("bare", um < BARE_FRACTION * target_um),
+        ("thin", um < lo),
+        ("thick", um > hi),
+    ):
+        mine = left & these
+        out[name] = float(area[mine].sum() / total) if total > 0 else 0.0
+        left &= ~these
     return out
 
 

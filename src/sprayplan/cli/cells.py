@@ -289,7 +289,7 @@ def cmd_plan_cell(args, job, cell=None) -> int:
 
             for warning in warnings_of(built):
                 print(f"sprayplan: {robot.robot}: {warning}", file=sys.stderr)
-    from sprayplan.view.summary import open_surface
+    from sprayplan.view.summary import open_surface, out_of_spec_causes
 
     report = plan.report
     robots = ", ".join(
@@ -308,6 +308,8 @@ def cmd_plan_cell(args, job, cell=None) -> int:
             f" ({film['report'].get('measuring_points', {}).get('count', 0)} measuring points:"
             f" {100 * film['report'].get('measuring_points', {}).get('share_in_spec', 0.0):.1f} % in spec)"
         )
+        if out_of_spec_causes(film):
+            line += f"\n{out_of_spec_causes(film)}"
         timed = film.get("at_timed_speeds")
         if timed:
             line += f"; at the robots' timed speeds {100 * timed['whole']['share_in_spec']:.1f} % in spec"

@@ -32,8 +32,9 @@ def measured_interval(table: dict) -> str:
 
 def open_surface(film: dict) -> str:
     """``, x % over the surface a gun faces square (nothing within d mm in front; recessed a m^2, y % in
-    spec)``: a cell plan's film over its open and recessed surface (``cells.film.film_report``), or "" for a
-    film without them (a plan written before)."""
+    spec; z % where some robot reaches it)``: a cell plan's film over its open and recessed surface and over
+    the open surface some robot reaches (``cells.film.film_report``), or "" for a film without them (a plan
+    written before; the last part is left out for a film without ``open_reached``)."""
     flat, deep = (film.get(k) if isinstance(film, dict) else None for k in ("open", "recessed"))
     if not (isinstance(flat, dict) and isinstance(deep, dict)):
         return ""
@@ -44,7 +45,21 @@ def open_surface(film: dict) -> str:
     text = f", {100 * share:.1f} % over the surface a gun faces square (nothing within {depth:g} mm in front"
     if deep_area and deep_share is not None:
         text += f"; recessed {deep_area / 1e6:.3g} m^2, {100 * deep_share:.1f} % in spec"
+    both = film.get("open_reached")
+    both_share = number(both.get("share_in_spec")) if isinstance(both, dict) else None
+    if both_share is not None:
+        text += f"; {100 * both_share:.1f} % where some robot reaches it"
     return text + ")"
+
+
+def out_of_spec_causes(film: dict) -> str:
+    """``out of spec: unreached a %, recessed b %, bare c %, thin d %, thick e % of the painted area``: a cell
+    plan's film out of spec by cause (``cells.film.out_of_spec``), or "" for a film without it."""
+    causes = film.get("out_of_spec") if isinstance(film, dict) else None
+    names = ("unreached", "recessed", "bare", "thin", "thick")
+    if not isinstance(causes, dict) or any(number(causes.get(k)) is None for k in names):
+        return ""
+    return "out of spec: " + ", ".join(f"{k} {100 * number(causes[k]):.1f} %" for k in names) + " of the painted area"
 
 
 def summary_rows(scene: Scene) -> list[tuple[str, list[tuple[str, str]]]]:
