@@ -308,14 +308,14 @@ def cmd_plan_cell(args, job, cell=None) -> int:
             f" ({film['report'].get('measuring_points', {}).get('count', 0)} measuring points:"
             f" {100 * film['report'].get('measuring_points', {}).get('share_in_spec', 0.0):.1f} % in spec)"
         )
-        if out_of_spec_causes(film):
-            line += f"\n{out_of_spec_causes(film)}"
         timed = film.get("at_timed_speeds")
         if timed:
             line += f"; at the robots' timed speeds {100 * timed['whole']['share_in_spec']:.1f} % in spec"
         fit = report.get("flow_fit")
         if fit:
             line += f" (flow fitted: {fit['flow_ml_min']:g} mL/min, {fit['gun_speed_mm_s']:.0f} mm/s)"
+        if out_of_spec_causes(film):  # on a line of its own, after the film's figures
+            line += f"\n{out_of_spec_causes(film)}"
     hits = report.get("collisions")
     if hits:
         gaps = ", ".join(f"{k} {'-' if v is None else f'{v:g} mm'}" for k, v in hits["robot_gap_mm"].items())
