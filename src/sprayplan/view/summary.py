@@ -32,7 +32,7 @@ def measured_interval(table: dict) -> str:
 
 def open_surface(film: dict) -> str:
     """``, x % over the surface a gun faces square (nothing within d mm in front; recessed a m^2, y % in
-    spec; z % where some robot reaches it)``: a cell plan's film over its open and recessed surface and over
+    spec; z % over the open surface some robot reaches)``: a cell plan's film over its open and recessed surface and over
     the open surface some robot reaches (``cells.film.film_report``), or "" for a film without them (a plan
     written before; the last part is left out for a film without ``open_reached``)."""
     flat, deep = (film.get(k) if isinstance(film, dict) else None for k in ("open", "recessed"))
@@ -48,7 +48,7 @@ def open_surface(film: dict) -> str:
     both = film.get("open_reached")
     both_share = number(both.get("share_in_spec")) if isinstance(both, dict) else None
     if both_share is not None:
-        text += f"; {100 * both_share:.1f} % where some robot reaches it"
+        text += f"; {100 * both_share:.1f} % over the open surface some robot reaches"
     return text + ")"
 
 
