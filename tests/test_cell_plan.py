@@ -200,6 +200,7 @@ def test_the_film_is_reported_over_the_whole_body_per_area_robot_and_seam(planne
     )
     assert causes["recessed"] == 0.0 and out_of_spec_causes(film)
     assert any(line.startswith(out_of_spec_causes(film)) for line in planned["stdout"].splitlines())
+    assert f"<p>{out_of_spec_causes(film)}</p>" in (planned["out"] / "cell.html").read_text()
     assert "left/right" in film["per_seam"] and film["per_seam"]["left/right"]["count"] > 0
     # the cell's cycle is its longest robot's
     assert report["cycle_time_s"] == max(r["cycle_time_s"] for r in report["robots"].values())

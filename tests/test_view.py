@@ -471,7 +471,7 @@ def test_a_cell_films_open_and_recessed_surface_are_shown_and_an_old_film_shows_
     both = {**film, "open_reached": {"share_in_spec": 0.9613, "area_mm2": 11.3e6}}
     assert open_surface(both) == (
         ", 95.1 % over the surface a gun faces square (nothing within 143 mm in front; recessed 0.34 m^2,"
-        " 14.6 % in spec; 96.1 % over the open surface some robot reaches)"
+        " 14.6 % in spec), 96.1 % over the open surface some robot reaches"
     )
     assert open_surface({**both, "open_reached": {"share_in_spec": None}}) == open_surface(film)
     assert open_surface({"whole": {"share_in_spec": 0.9}}) == ""

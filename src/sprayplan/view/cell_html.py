@@ -27,7 +27,7 @@ import numpy as np
 from sprayplan.view.colours import GREY, ROBOT_COLOURS, film_scale
 from sprayplan.view.decimate import thin_indices, thin_surface
 from sprayplan.view.scene import Surface, vertex_areas, vertex_normals
-from sprayplan.view.summary import measured_interval, open_surface
+from sprayplan.view.summary import measured_interval, open_surface, out_of_spec_causes
 
 PLOT_ID = "sprayplan-cell"
 MAX_FACES = 60_000
@@ -212,6 +212,8 @@ def _header(plan, drawn: dict) -> str:
             f"{points.get('count', 0)} measuring points: {100 * points.get('share_in_spec', 0.0):.1f} % in spec"
             f"{measured_interval(points)}"
         )
+        if out_of_spec_causes(film):
+            lines.append(out_of_spec_causes(film))
     if "cycle_time_s" in report:
         lines.append(f"cycle {report['cycle_time_s']:.0f} s ({report.get('cycle_time_rule', '')})")
     thinned = []

@@ -32,8 +32,8 @@ def measured_interval(table: dict) -> str:
 
 def open_surface(film: dict) -> str:
     """``, x % over the surface a gun faces square (nothing within d mm in front; recessed a m^2, y % in
-    spec; z % over the open surface some robot reaches)``: a cell plan's film over its open and recessed surface and over
-    the open surface some robot reaches (``cells.film.film_report``), or "" for a film without them (a plan
+    spec), z % over the open surface some robot reaches``: a cell plan's film over its open and recessed surface and
+    over the open surface some robot reaches (``cells.film.film_report``), or "" for a film without them (a plan
     written before; the last part is left out for a film without ``open_reached``)."""
     flat, deep = (film.get(k) if isinstance(film, dict) else None for k in ("open", "recessed"))
     if not (isinstance(flat, dict) and isinstance(deep, dict)):
@@ -45,11 +45,12 @@ def open_surface(film: dict) -> str:
     text = f", {100 * share:.1f} % over the surface a gun faces square (nothing within {depth:g} mm in front"
     if deep_area and deep_share is not None:
         text += f"; recessed {deep_area / 1e6:.3g} m^2, {100 * deep_share:.1f} % in spec"
+    text += ")"
     both = film.get("open_reached")
     both_share = number(both.get("share_in_spec")) if isinstance(both, dict) else None
     if both_share is not None:
-        text += f"; {100 * both_share:.1f} % over the open surface some robot reaches"
-    return text + ")"
+        text += f", {100 * both_share:.1f} % over the open surface some robot reaches"
+    return text
 
 
 def out_of_spec_causes(film: dict) -> str:
